@@ -1,0 +1,144 @@
+//! `mesobake bench gdm`: the GDM bake workloads W1–W3 of the benchmark plan, timed in one run
+//! with their baselines, error against the exact bake and peak memory.
+
+use crate::error::Result;
+use crate::gdm::caster::Caster;
+use crate::gdm::compare::{GdmError, compare};
+use crate::gdm::mesh_caster::MeshCaster;
+use crate::gdm::volume_caster::VolumeCaster;
+use crate::gdm::{Gdm, exact, fast};
+use crate::grid::{DirectionGrid, Dims};
+use crate::limits::Limits;
+use crate::mesh_tile::MeshTile;
+use crate::samples::{self, SampleKind};
+use std::time::Instant;
+
+/// Peak heap usage, measured by the binary's allocator.
+pub trait MemoryProbe {
+    /// Starts a new measurement window.
+    fn reset_peak(&self);
+    /// Highest number of live heap bytes since the last reset.
+    fn peak_bytes(&self) -> u64;
+}
+
+/// One measured row of the table.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Row {
+    /// Workload id and description.
+    pub workload: String,
+    /// Bake path.
+    pub path: String,
+    /// Wall time in seconds.
+    pub seconds: f64,
+    /// Rays cast (samples not inside solid × directions), millions per second.
+    pub mrays_per_s: f64,
+    /// Peak heap over the dense float32 output size.
+    pub peak_over_output: f64,
+    /// Error against the workload's exact reference, when this row is approximate.
+    pub error: Option<GdmError>,
+}
+
+fn rays(caster: &dyn Caster, dirs: DirectionGrid) -> f64 {
+    let dims = caster.dims();
+    (dims.voxel_count() - caster.centres_inside().solid_count()) as f64 * dirs.count() as f64
+}
+
+fn timed<T>(probe: &dyn MemoryProbe, f: impl FnOnce() -> Result<T>) -> Result<(T, f64, u64)> {
+    probe.reset_peak();
+    let start = Instant::now();
+    let out = f()?;
+    Ok((out, start.elapsed().as_secs_f64(), probe.peak_bytes()))
+}
+
+fn row(workload: &str, path: &str, rays: f64, secs: f64, peak: u64, out: &Gdm, error: Option<GdmError>) -> Row {
+    Row {
+        workload: workload.to_string(),
+        path: path.to_string(),
+        seconds: secs,
+        mrays_per_s: rays / secs / 1e6,
+        peak_over_output: peak as f64 / (out.data().len() as f64 * 4.0),
+        error,
+    }
+}
+
+/// Runs W1 (chain volume 64×64×32), W2 (bark volume 128×128×16) and W3 (chain OBJ tile
+/// 64×64×32), all with 16×32 directions. The plain-DDA baseline (no empty-space skipping)
+/// runs on every 8th direction and its time is scaled by 8.
+pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
+    let dirs = DirectionGrid::PAPER;
+    let mut rows = Vec::new();
+    for (id, kind, dims) in [
+        ("W1 chain 64x64x32", SampleKind::Chain, Dims::new(64, 64, 32)?),
+        ("W2 bark 128x128x16", SampleKind::Bark, Dims::new(128, 128, 16)?),
+    ] {
+        let volume = samples::volume(kind, dims, limits)?;
+        let caster = VolumeCaster::new(&volume);
+        let n = rays(&caster, dirs);
+        let (exact_gdm, secs, peak) = timed(probe, || exact::bake(&caster, dirs, limits, &()))?;
+        rows.push(row(id, "volume exact (DDA + empty-space skipping)", n, secs, peak, &exact_gdm, None));
+        for stride in [1, fast::DEFAULT_STRIDE, 4] {
+            let (g, secs, peak) = timed(probe, || fast::bake(&caster, dirs, stride, limits, &()))?;
+            let err = compare(&g, &exact_gdm)?;
+            rows.push(row(id, &format!("volume fast (sweep stride {stride})"), n, secs, peak, &g, Some(err)));
+        }
+        let plain = VolumeCaster::from_occupancy(volume.occupancy(), false);
+        let subset = DirectionGrid::new(2, dirs.n_phi / 4)?;
+        let (g, secs, _) = timed(probe, || exact::bake(&plain, subset, limits, &()))?;
+        let scale = dirs.count() as f64 / subset.count() as f64;
+        let _ = g;
+        rows.push(Row {
+            workload: id.to_string(),
+            path: format!("baseline: plain DDA, {subset} directions, time ×{scale}"),
+            seconds: secs * scale,
+            mrays_per_s: rays(&plain, subset) / secs / 1e6,
+            peak_over_output: f64::NAN,
+            error: None,
+        });
+    }
+    let dims = Dims::new(64, 64, 32)?;
+    let tile = MeshTile::new(samples::mesh(SampleKind::Chain, dims)?, false)?;
+    let (caster, secs_setup, _) = timed(probe, || MeshCaster::new(&tile, dims, limits))?;
+    let n = rays(&caster, dirs);
+    let (exact_gdm, secs, peak) = timed(probe, || exact::bake(&caster, dirs, limits, &()))?;
+    let id = "W3 chain OBJ 64x64x32";
+    rows.push(row(
+        id,
+        &format!("mesh exact (obvhs CWBVH; +{secs_setup:.2} s BVH and inside vote)"),
+        n,
+        secs,
+        peak,
+        &exact_gdm,
+        None,
+    ));
+    let (g, secs, peak) = timed(probe, || fast::bake(&caster, dirs, fast::DEFAULT_STRIDE, limits, &()))?;
+    let err = compare(&g, &exact_gdm)?;
+    rows.push(row(id, &format!("mesh fast (sweep stride {})", fast::DEFAULT_STRIDE), n, secs, peak, &g, Some(err)));
+    Ok(rows)
+}
+
+/// The rows as a Markdown table.
+pub fn markdown(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| workload | path | time (s) | Mrays/s | peak / output | mean abs err (vox) | max abs err (vox) | class. mismatch |\n|---|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let (mean, max, mis) = match &r.error {
+            Some(e) => (
+                format!("{:.4}", e.mean_abs_error),
+                format!("{:.2}", e.max_abs_error),
+                format!("{:.3} %", e.classification_mismatch * 100.0),
+            ),
+            None => ("exact".into(), "exact".into(), "—".into()),
+        };
+        let peak = if r.peak_over_output.is_finite() {
+            format!("{:.2}", r.peak_over_output)
+        } else {
+            "—".into()
+        };
+        s += &format!(
+            "| {} | {} | {:.3} | {:.1} | {} | {} | {} | {} |\n",
+            r.workload, r.path, r.seconds, r.mrays_per_s, peak, mean, max, mis
+        );
+    }
+    s
+}

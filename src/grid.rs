@@ -1,0 +1,191 @@
+//! The sampling grids of a bake: voxel resolution (x, y, z) and direction grid (θ, φ).
+//!
+//! Conventions (shared by every bake path and by the `.npy` export):
+//! - sample (i, j, k) sits at the voxel centre (i+½, j+½, k+½), in voxel units (edge = 1);
+//! - direction (a, b) is θ = (a+½)·π/Nθ, φ = (b+½)·2π/Nφ, v = (sinθ cosφ, sinθ sinφ, cosθ),
+//!   with z pointing out of the surface. Samples sit at bin centres, so no direction is a pole
+//!   and none is horizontal (cos θ ≠ 0), and with even Nφ none is axis-aligned in x/y.
+
+use crate::error::{Error, Result};
+use std::f64::consts::PI;
+use std::fmt;
+use std::str::FromStr;
+
+/// Largest accepted size along any axis of a grid.
+pub const MAX_AXIS: u32 = 1 << 16;
+
+/// A voxel resolution X×Y×Z.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Dims {
+    /// Voxels along x (tiles periodically).
+    pub x: u32,
+    /// Voxels along y (tiles periodically).
+    pub y: u32,
+    /// Voxels along z, from the base surface (k = 0) to the outer shell.
+    pub z: u32,
+}
+
+impl Dims {
+    /// A validated resolution: every axis in 1..=[`MAX_AXIS`].
+    pub fn new(x: u32, y: u32, z: u32) -> Result<Self> {
+        for (name, n) in [("x", x), ("y", y), ("z", z)] {
+            if n == 0 || n > MAX_AXIS {
+                return Err(Error::InvalidParameter(format!(
+                    "resolution {x}x{y}x{z}: {name} must be in 1..={MAX_AXIS}"
+                )));
+            }
+        }
+        Ok(Dims { x, y, z })
+    }
+
+    /// Number of voxels, X·Y·Z (cannot overflow u64 given [`MAX_AXIS`]).
+    pub fn voxel_count(&self) -> u64 {
+        self.x as u64 * self.y as u64 * self.z as u64
+    }
+
+    /// Linear index of voxel (i, j, k), x fastest.
+    #[inline]
+    pub fn index(&self, i: u32, j: u32, k: u32) -> usize {
+        (i as usize) + self.x as usize * (j as usize + self.y as usize * k as usize)
+    }
+}
+
+impl fmt::Display for Dims {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}x{}x{}", self.x, self.y, self.z)
+    }
+}
+
+impl FromStr for Dims {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let parts = parse_axes(s, 3, "resolution (e.g. 64x64x32)")?;
+        Dims::new(parts[0], parts[1], parts[2])
+    }
+}
+
+/// The direction grid Nθ × Nφ.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct DirectionGrid {
+    /// Polar samples over θ ∈ (0, π).
+    pub n_theta: u32,
+    /// Azimuthal samples over φ ∈ (0, 2π).
+    pub n_phi: u32,
+}
+
+/// Largest accepted direction count along θ or φ.
+pub const MAX_DIRECTIONS_PER_AXIS: u32 = 4096;
+
+impl DirectionGrid {
+    /// The paper's grid: 16 θ × 32 φ.
+    pub const PAPER: DirectionGrid = DirectionGrid {
+        n_theta: 16,
+        n_phi: 32,
+    };
+
+    /// A validated grid: both counts in 1..=[`MAX_DIRECTIONS_PER_AXIS`].
+    pub fn new(n_theta: u32, n_phi: u32) -> Result<Self> {
+        for (name, n) in [("θ", n_theta), ("φ", n_phi)] {
+            if n == 0 || n > MAX_DIRECTIONS_PER_AXIS {
+                return Err(Error::InvalidParameter(format!(
+                    "direction grid {n_theta}x{n_phi}: {name} count must be in 1..={MAX_DIRECTIONS_PER_AXIS}"
+                )));
+            }
+        }
+        Ok(DirectionGrid { n_theta, n_phi })
+    }
+
+    /// Number of directions Nθ·Nφ.
+    pub fn count(&self) -> usize {
+        self.n_theta as usize * self.n_phi as usize
+    }
+
+    /// Polar angle of θ-bin `a`: (a+½)·π/Nθ.
+    pub fn theta(&self, a: u32) -> f64 {
+        (a as f64 + 0.5) * PI / self.n_theta as f64
+    }
+
+    /// Azimuth of φ-bin `b`: (b+½)·2π/Nφ.
+    pub fn phi(&self, b: u32) -> f64 {
+        (b as f64 + 0.5) * 2.0 * PI / self.n_phi as f64
+    }
+
+    /// Unit vector of direction (a, b).
+    pub fn vector(&self, a: u32, b: u32) -> [f64; 3] {
+        spherical_to_vector(self.theta(a), self.phi(b))
+    }
+
+    /// Unit vector of the flat direction index `d = a·Nφ + b`.
+    pub fn vector_of(&self, d: usize) -> [f64; 3] {
+        let a = (d / self.n_phi as usize) as u32;
+        let b = (d % self.n_phi as usize) as u32;
+        self.vector(a, b)
+    }
+}
+
+/// v = (sinθ cosφ, sinθ sinφ, cosθ).
+pub fn spherical_to_vector(theta: f64, phi: f64) -> [f64; 3] {
+    let (st, ct) = theta.sin_cos();
+    let (sp, cp) = phi.sin_cos();
+    [st * cp, st * sp, ct]
+}
+
+impl fmt::Display for DirectionGrid {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}x{}", self.n_theta, self.n_phi)
+    }
+}
+
+impl FromStr for DirectionGrid {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let parts = parse_axes(s, 2, "direction grid (e.g. 16x32)")?;
+        DirectionGrid::new(parts[0], parts[1])
+    }
+}
+
+fn parse_axes(s: &str, n: usize, what: &str) -> Result<Vec<u32>> {
+    let parts: Vec<&str> = s.split(['x', 'X', '×']).collect();
+    if parts.len() != n {
+        return Err(Error::InvalidParameter(format!(
+            "{s:?} is not a {what}: expected {n} numbers separated by 'x'"
+        )));
+    }
+    parts
+        .iter()
+        .map(|p| {
+            p.trim().parse::<u32>().map_err(|_| {
+                Error::InvalidParameter(format!("{s:?} is not a {what}: {p:?} is not a count"))
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_validates() {
+        assert_eq!("64x64x32".parse::<Dims>().unwrap(), Dims::new(64, 64, 32).unwrap());
+        assert!("64x0x32".parse::<Dims>().is_err());
+        assert!("64x64".parse::<Dims>().is_err());
+        assert!("64xax32".parse::<Dims>().is_err());
+        assert!("100000x1x1".parse::<Dims>().is_err());
+        assert_eq!("16x32".parse::<DirectionGrid>().unwrap(), DirectionGrid::PAPER);
+        assert!("0x32".parse::<DirectionGrid>().is_err());
+    }
+
+    #[test]
+    fn directions_are_unit_and_at_bin_centres() {
+        let g = DirectionGrid::PAPER;
+        for d in 0..g.count() {
+            let v = g.vector_of(d);
+            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            assert!((n - 1.0).abs() < 1e-12);
+            assert!(v[2] != 0.0, "no horizontal direction on the grid");
+        }
+        assert!((g.theta(0) - PI / 32.0).abs() < 1e-15);
+        assert!((g.phi(31) - (31.5 / 32.0) * 2.0 * PI).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,242 @@
+//! The `mesobake` command line.
+
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use mesobake::gdm::{self, BakeObserver, Method};
+use mesobake::grid::{DirectionGrid, Dims};
+use mesobake::limits::{Limits, parse_bytes};
+use mesobake::samples::{self, SampleKind};
+use mesobake::{Error, Result, bench, input, npy, volume_format};
+use peak_alloc::PeakAlloc;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[global_allocator]
+static ALLOCATOR: PeakAlloc = PeakAlloc;
+
+#[derive(Parser)]
+#[command(name = "mesobake", version, about = "Bake mesostructure: generalized displacement maps and more")]
+struct Cli {
+    /// Largest allocation that input may ask for (e.g. 4GiB); default from
+    /// MESOBAKE_MEMORY_LIMIT, else 4GiB.
+    #[arg(long, global = true)]
+    memory_limit: Option<String>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Write a built-in procedural sample as a volume (.mbvol) or an OBJ tile.
+    Sample {
+        /// Which sample.
+        kind: SampleKind,
+        /// Grid X×Y×Z (X = Y); for OBJ tiles it sets the tile's height Z/X.
+        #[arg(long, default_value = "64x64x32")]
+        res: Dims,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Output kind.
+        #[arg(long, value_enum, default_value_t = SampleFormat::Volume)]
+        format: SampleFormat,
+    },
+    /// Bake the GDM of a volume or OBJ tile and write it as .npy (float32, shape
+    /// (X, Y, Z, Nθ, Nφ), voxel units, escapes +inf, inside 0).
+    Gdm {
+        /// A .mbvol volume or an OBJ tile.
+        #[arg(long)]
+        input: PathBuf,
+        /// Grid X×Y×Z: required for OBJ tiles; for volumes it must match the volume.
+        #[arg(long)]
+        res: Option<Dims>,
+        /// Direction grid Nθ×Nφ.
+        #[arg(long, default_value = "16x32")]
+        dirs: DirectionGrid,
+        /// exact: one ray per sample and direction; fast: layer sweeps (see --stride).
+        #[arg(long, default_value = "exact")]
+        method: Method,
+        /// Fast method: layers crossed exactly before interpolating (higher = slower, closer).
+        #[arg(long, default_value_t = gdm::fast::DEFAULT_STRIDE)]
+        stride: u32,
+        /// Escape values in the file: inf (+inf), or boundary (distance to the top/bottom
+        /// plane along the ray, the convention used for compression).
+        #[arg(long, value_enum, default_value_t = EscapeArg::Inf)]
+        escape: EscapeArg,
+        /// Treat an open OBJ tile as infinitely thin sheets instead of refusing it.
+        #[arg(long)]
+        allow_open: bool,
+        /// Output .npy file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Print a JSON summary on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Benchmarks.
+    Bench {
+        #[command(subcommand)]
+        which: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// GDM bake workloads W1–W3 (Markdown table on stdout).
+    Gdm {
+        /// Also print the rows as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SampleFormat {
+    /// Binary voxel volume (.mbvol).
+    Volume,
+    /// Closed OBJ triangle tile.
+    Obj,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum EscapeArg {
+    Inf,
+    Boundary,
+}
+
+/// A progress bar on stderr, drawn only when stderr is a terminal.
+struct Progress(ProgressBar);
+
+impl Progress {
+    fn new(what: &str) -> Self {
+        let bar = if std::io::stderr().is_terminal() {
+            ProgressBar::new(1)
+        } else {
+            ProgressBar::hidden()
+        };
+        bar.set_style(
+            ProgressStyle::with_template("{msg} [{bar:40}] {percent}% ({eta})")
+                .expect("static template")
+                .progress_chars("=> "),
+        );
+        bar.set_message(what.to_string());
+        Progress(bar)
+    }
+}
+
+impl BakeObserver for Progress {
+    fn progress(&self, done: u64, total: u64) {
+        self.0.set_length(total);
+        self.0.set_position(done);
+    }
+}
+
+struct AllocatorProbe;
+
+impl bench::MemoryProbe for AllocatorProbe {
+    fn reset_peak(&self) {
+        ALLOCATOR.reset_peak_usage();
+    }
+    fn peak_bytes(&self) -> u64 {
+        ALLOCATOR.peak_usage() as u64
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    let limits = match &cli.memory_limit {
+        Some(text) => Limits {
+            memory_bytes: parse_bytes(text)?,
+        },
+        None => Limits::from_env()?,
+    };
+    match cli.command {
+        Command::Sample {
+            kind,
+            res,
+            out,
+            format,
+        } => match format {
+            SampleFormat::Volume => {
+                let volume = samples::volume(kind, res, &limits)?;
+                volume_format::write(&volume, &out)
+            }
+            SampleFormat::Obj => {
+                let mesh = samples::mesh(kind, res)?;
+                let comment = format!(
+                    "mesobake sample {} tile: x, y period 1, z in [0, {}]",
+                    kind.name(),
+                    res.z as f64 / res.x as f64
+                );
+                mesobake::fsutil::write_atomic(&out, mesh.to_obj(&comment).as_bytes())
+            }
+        },
+        Command::Gdm {
+            input,
+            res,
+            dirs,
+            method,
+            stride,
+            escape,
+            allow_open,
+            out,
+            json,
+        } => {
+            let start = Instant::now();
+            let meso = input::load(&input, res, allow_open, &limits)?;
+            let load_s = start.elapsed().as_secs_f64();
+            let progress = Progress::new("baking GDM");
+            let start = Instant::now();
+            let mut g = gdm::bake(meso.caster(), dirs, method, stride, &limits, &progress)?;
+            let bake_s = start.elapsed().as_secs_f64();
+            progress.0.finish_and_clear();
+            if let EscapeArg::Boundary = escape {
+                g.set_escape_convention(gdm::EscapeConvention::Boundary);
+            }
+            let start = Instant::now();
+            npy::write_gdm(&g, &out)?;
+            let write_s = start.elapsed().as_secs_f64();
+            if json {
+                let summary = serde_json::json!({
+                    "input": input,
+                    "output": out,
+                    "res": g.dims().to_string(),
+                    "dirs": g.dirs().to_string(),
+                    "method": method,
+                    "stride": stride,
+                    "escape": g.escape_convention(),
+                    "samples": g.data().len(),
+                    "seconds": {"load": load_s, "bake": bake_s, "write": write_s},
+                });
+                println!("{summary}");
+            }
+            Ok(())
+        }
+        Command::Bench {
+            which: BenchCommand::Gdm { json },
+        } => {
+            eprintln!(
+                "mesobake bench gdm on {} threads ({})",
+                rayon::current_num_threads(),
+                std::env::consts::ARCH
+            );
+            let rows = bench::run(&AllocatorProbe, &limits)?;
+            print!("{}", bench::markdown(&rows));
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rows).map_err(|e| Error::InvalidParameter(e.to_string()))?);
+            }
+            Ok(())
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
