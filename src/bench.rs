@@ -19,6 +19,8 @@ pub trait MemoryProbe {
     fn reset_peak(&self);
     /// Highest number of live heap bytes since the last reset.
     fn peak_bytes(&self) -> u64;
+    /// Live heap bytes now.
+    fn current_bytes(&self) -> u64;
 }
 
 /// One measured row of the table.
@@ -45,9 +47,11 @@ fn rays(caster: &dyn Caster, dirs: DirectionGrid) -> f64 {
 
 fn timed<T>(probe: &dyn MemoryProbe, f: impl FnOnce() -> Result<T>) -> Result<(T, f64, u64)> {
     probe.reset_peak();
+    let before = probe.current_bytes();
     let start = Instant::now();
     let out = f()?;
-    Ok((out, start.elapsed().as_secs_f64(), probe.peak_bytes()))
+    let secs = start.elapsed().as_secs_f64();
+    Ok((out, secs, probe.peak_bytes().saturating_sub(before)))
 }
 
 fn row(workload: &str, path: &str, rays: f64, secs: f64, peak: u64, out: &Gdm, error: Option<GdmError>) -> Row {

@@ -5,6 +5,7 @@
 //! within r−1 of it along each axis is empty, so a ray can cross that whole box in one step
 //! without missing anything: skipping stays exact.
 
+use crate::grid::Wrap;
 use crate::volume::Occupancy;
 
 /// Distances saturate at this value (meaning "at least this far").
@@ -13,6 +14,7 @@ pub const MAX_DISTANCE: u8 = u8::MAX;
 /// Per-voxel Chebyshev distance to the nearest solid voxel (0 for solid voxels).
 #[derive(Clone, Debug)]
 pub struct EmptySpace {
+    wrap: [Wrap; 2],
     nx: i64,
     ny: i64,
     distance: Vec<u8>,
@@ -68,6 +70,7 @@ impl EmptySpace {
             }
         }
         EmptySpace {
+            wrap: [Wrap::new(dims.x), Wrap::new(dims.y)],
             nx: nx as i64,
             ny: ny as i64,
             distance: dist.into_iter().map(|d| d.min(cap) as u8).collect(),
@@ -77,8 +80,8 @@ impl EmptySpace {
     /// Distance at voxel (i, j, k) with i, j wrapped and 0 ≤ k < Z.
     #[inline]
     pub fn get(&self, i: i64, j: i64, k: i64) -> u8 {
-        let i = i.rem_euclid(self.nx);
-        let j = j.rem_euclid(self.ny);
+        let i = self.wrap[0].apply(i) as i64;
+        let j = self.wrap[1].apply(j) as i64;
         self.distance[((k * self.ny + j) * self.nx + i) as usize]
     }
 }

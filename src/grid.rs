@@ -189,3 +189,30 @@ mod tests {
         assert!((g.phi(31) - (31.5 / 32.0) * 2.0 * PI).abs() < 1e-12);
     }
 }
+
+/// Wraps unbounded integer coordinates onto a periodic axis of length n, with a mask when n is a
+/// power of two (the common case) and a Euclidean remainder otherwise.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Wrap {
+    n: i64,
+    mask: i64,
+}
+
+impl Wrap {
+    /// Wrapping onto 0..n (n ≥ 1).
+    pub fn new(n: u32) -> Self {
+        let n = n as i64;
+        let mask = if n.count_ones() == 1 { n - 1 } else { -1 };
+        Wrap { n, mask }
+    }
+
+    /// i mod n, in 0..n.
+    #[inline(always)]
+    pub fn apply(&self, i: i64) -> usize {
+        if self.mask >= 0 {
+            (i & self.mask) as usize
+        } else {
+            i.rem_euclid(self.n) as usize
+        }
+    }
+}

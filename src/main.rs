@@ -142,6 +142,9 @@ impl bench::MemoryProbe for AllocatorProbe {
     fn peak_bytes(&self) -> u64 {
         ALLOCATOR.peak_usage() as u64
     }
+    fn current_bytes(&self) -> u64 {
+        ALLOCATOR.current_usage() as u64
+    }
 }
 
 fn run(cli: Cli) -> Result<()> {

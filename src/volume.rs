@@ -2,7 +2,7 @@
 //! tileable in x and y. The file format lives in [`crate::volume_format`].
 
 use crate::error::{Error, Result};
-use crate::grid::Dims;
+use crate::grid::{Dims, Wrap};
 use crate::limits::Limits;
 
 /// A tileable X×Y×Z mesostructure volume. Voxel (i, j, k) is the box [i,i+1]×[j,j+1]×[k,k+1]
@@ -130,6 +130,7 @@ fn unravel(dims: Dims, index: usize) -> (usize, usize, usize) {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Occupancy {
     dims: Dims,
+    wrap: [Wrap; 2],
     words_per_row: usize,
     words: Vec<u64>,
 }
@@ -140,6 +141,7 @@ impl Occupancy {
         let words_per_row = (dims.x as usize).div_ceil(64);
         Occupancy {
             dims,
+            wrap: [Wrap::new(dims.x), Wrap::new(dims.y)],
             words_per_row,
             words: vec![0; words_per_row * dims.y as usize * dims.z as usize],
         }
@@ -175,8 +177,8 @@ impl Occupancy {
         if k < 0 || k >= self.dims.z as i64 {
             return false;
         }
-        let i = i.rem_euclid(self.dims.x as i64) as u32;
-        let j = j.rem_euclid(self.dims.y as i64) as u32;
+        let i = self.wrap[0].apply(i) as u32;
+        let j = self.wrap[1].apply(j) as u32;
         self.get(i, j, k as u32)
     }
 

@@ -8,12 +8,13 @@
 //! the sample escapes if the escaping neighbours carry at least half of the weight, else it
 //! hits at the reached distance plus the weighted mean of the hitting neighbours.
 //!
-//! The only approximation is that interpolation; `stride` is its knob (stride ≥ Z is exact).
+//! The only approximation is that interpolation; `stride` is its knob: rays from layers closer
+//! than `stride` to the exit plane are traced to the end, so stride ≥ Z is the exact bake.
 
 use super::caster::{Caster, Trace};
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
-use crate::grid::{DirectionGrid, Dims};
+use crate::grid::{DirectionGrid, Dims, Wrap};
 use crate::limits::Limits;
 use crate::volume::Occupancy;
 use rayon::prelude::*;
@@ -67,8 +68,9 @@ fn sweep_direction(caster: &(impl Caster + ?Sized), v: [f64; 3], stride: u32, vo
     };
     for k in layers {
         // Layers left between this one and the exit plane's side of the volume.
+        // When the stride reaches past the last layer the ray is traced to the end, exactly.
         let remaining = if up { dims.z - 1 - k } else { k };
-        let step = stride.min(remaining);
+        let step = if stride > remaining { 0 } else { stride };
         let (done_part, rest) = if up {
             let (below, above) = volume.split_at_mut((k as usize + 1) * layer);
             (above, &mut below[k as usize * layer..])
@@ -118,6 +120,7 @@ fn interpolate(dims: Dims, inside: &Occupancy, k: u32, layer: &[f32], q: [f64; 2
     let (i0, j0) = (u.floor(), w.floor());
     let (fx, fy) = ((u - i0) as f32, (w - j0) as f32);
     let (i0, j0) = (i0 as i64, j0 as i64);
+    let wrap = [Wrap::new(dims.x), Wrap::new(dims.y)];
     let mut escape_weight = 0.0f32;
     let mut hit_weight = 0.0f32;
     let mut hit_sum = 0.0f32;
@@ -127,8 +130,8 @@ fn interpolate(dims: Dims, inside: &Occupancy, k: u32, layer: &[f32], q: [f64; 2
             if weight == 0.0 {
                 continue;
             }
-            let i = (i0 + di).rem_euclid(dims.x as i64) as u32;
-            let j = (j0 + dj).rem_euclid(dims.y as i64) as u32;
+            let i = wrap[0].apply(i0 + di) as u32;
+            let j = wrap[1].apply(j0 + dj) as u32;
             if inside.get(i, j, k) {
                 continue;
             }

@@ -42,6 +42,38 @@ impl VolumeCaster {
         }
     }
 
+    /// Whether any voxel touching a crossing point is solid: for each axis the entered voxel
+    /// and, where the point lies on a plane (an exit axis of several, a tie, or a ray stuck
+    /// in a plane, whose two voxels `stuck_lo..=stuck_hi` never change), the one behind it.
+    #[cold]
+    #[allow(clippy::too_many_arguments)]
+    fn touches_at_crossing(
+        &self,
+        cell: [i64; 3],
+        v: [f64; 3],
+        exit_axes: u8,
+        ties: u8,
+        stuck: &[bool; 3],
+        stuck_lo: &[i64; 3],
+        stuck_hi: &[i64; 3],
+    ) -> bool {
+        let several = exit_axes.count_ones() > 1;
+        let mut lo = cell;
+        let mut hi = cell;
+        for a in 0..3 {
+            let on_plane = (several && exit_axes & (1 << a) != 0) || ties & (1 << a) != 0;
+            if stuck[a] {
+                lo[a] = stuck_lo[a];
+                hi[a] = stuck_hi[a];
+            } else if on_plane {
+                let behind = cell[a] - v[a].signum() as i64;
+                lo[a] = cell[a].min(behind);
+                hi[a] = cell[a].max(behind);
+            }
+        }
+        self.touches_solid(lo, hi)
+    }
+
     fn touches_solid(&self, lo: [i64; 3], hi: [i64; 3]) -> bool {
         for k in lo[2]..=hi[2] {
             for j in lo[1]..=hi[1] {
@@ -145,33 +177,30 @@ impl Caster for VolumeCaster {
                 };
             }
 
-            // Voxels touching the crossing point, and the voxel entered next.
+            // The voxel entered next; `ties` marks axes where the crossing point lies on a
+            // voxel plane, so that voxels on both sides touch it.
+            let mut ties = 0u8;
             for a in 0..3 {
                 if exit_axes & (1 << a) != 0 {
-                    let next = if v[a] > 0.0 { cell[a] + r } else { cell[a] - r };
-                    lo[a] = next.min(next - v[a].signum() as i64);
-                    hi[a] = next.max(next - v[a].signum() as i64);
-                    cell[a] = next;
-                } else if stuck[a] {
-                    // Both voxels beside the plane stay touched: the range never changes.
-                } else if r == 1 || v[a] == 0.0 {
-                    lo[a] = cell[a];
-                    hi[a] = cell[a];
-                } else {
+                    cell[a] = if v[a] > 0.0 { cell[a] + r } else { cell[a] - r };
+                } else if r > 1 && v[a] != 0.0 && !stuck[a] {
                     let p = o[a] + t_exit * v[a];
                     let f = (p.floor() as i64).clamp(cell[a] - r + 1, cell[a] + r - 1);
                     if p == f as f64 && f > cell[a] - r + 1 {
-                        lo[a] = f - 1;
-                        hi[a] = f;
+                        ties |= 1 << a;
                         cell[a] = if v[a] > 0.0 { f } else { f - 1 };
                     } else {
-                        lo[a] = f;
-                        hi[a] = f;
                         cell[a] = f;
                     }
                 }
             }
-            if self.touches_solid(lo, hi) {
+            let hit = if exit_axes.count_ones() == 1 && ties == 0 && !any_stuck {
+                // The common case: one face crossed; the voxel behind it is in the empty box.
+                self.occ.get_periodic(cell[0], cell[1], cell[2])
+            } else {
+                self.touches_at_crossing(cell, v, exit_axes, ties, &stuck, &lo, &hi)
+            };
+            if hit {
                 return Trace::Hit(t_exit);
             }
         }
