@@ -7,7 +7,7 @@ use crate::gdm::compare::{GdmError, compare};
 use crate::gdm::mesh_caster::MeshCaster;
 use crate::gdm::volume_caster::VolumeCaster;
 use crate::gdm::{Gdm, exact, fast};
-use crate::grid::{DirectionGrid, Dims};
+use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
 use crate::mesh_tile::MeshTile;
 use crate::samples::{self, SampleKind};
@@ -54,7 +54,15 @@ fn timed<T>(probe: &dyn MemoryProbe, f: impl FnOnce() -> Result<T>) -> Result<(T
     Ok((out, secs, probe.peak_bytes().saturating_sub(before)))
 }
 
-fn row(workload: &str, path: &str, rays: f64, secs: f64, peak: u64, out: &Gdm, error: Option<GdmError>) -> Row {
+fn row(
+    workload: &str,
+    path: &str,
+    rays: f64,
+    secs: f64,
+    peak: u64,
+    out: &Gdm,
+    error: Option<GdmError>,
+) -> Row {
     Row {
         workload: workload.to_string(),
         path: path.to_string(),
@@ -72,18 +80,42 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
     let dirs = DirectionGrid::PAPER;
     let mut rows = Vec::new();
     for (id, kind, dims) in [
-        ("W1 chain 64x64x32", SampleKind::Chain, Dims::new(64, 64, 32)?),
-        ("W2 bark 128x128x16", SampleKind::Bark, Dims::new(128, 128, 16)?),
+        (
+            "W1 chain 64x64x32",
+            SampleKind::Chain,
+            Dims::new(64, 64, 32)?,
+        ),
+        (
+            "W2 bark 128x128x16",
+            SampleKind::Bark,
+            Dims::new(128, 128, 16)?,
+        ),
     ] {
         let volume = samples::volume(kind, dims, limits)?;
         let caster = VolumeCaster::new(&volume);
         let n = rays(&caster, dirs);
         let (exact_gdm, secs, peak) = timed(probe, || exact::bake(&caster, dirs, limits, &()))?;
-        rows.push(row(id, "volume exact (DDA + empty-space skipping)", n, secs, peak, &exact_gdm, None));
+        rows.push(row(
+            id,
+            "volume exact (DDA + empty-space skipping)",
+            n,
+            secs,
+            peak,
+            &exact_gdm,
+            None,
+        ));
         for stride in [1, fast::DEFAULT_STRIDE, 4] {
             let (g, secs, peak) = timed(probe, || fast::bake(&caster, dirs, stride, limits, &()))?;
             let err = compare(&g, &exact_gdm)?;
-            rows.push(row(id, &format!("volume fast (sweep stride {stride})"), n, secs, peak, &g, Some(err)));
+            rows.push(row(
+                id,
+                &format!("volume fast (sweep stride {stride})"),
+                n,
+                secs,
+                peak,
+                &g,
+                Some(err),
+            ));
         }
         let plain = VolumeCaster::from_occupancy(volume.occupancy(), false);
         let subset = DirectionGrid::new(2, dirs.n_phi / 4)?;
@@ -114,9 +146,19 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
         &exact_gdm,
         None,
     ));
-    let (g, secs, peak) = timed(probe, || fast::bake(&caster, dirs, fast::DEFAULT_STRIDE, limits, &()))?;
+    let (g, secs, peak) = timed(probe, || {
+        fast::bake(&caster, dirs, fast::DEFAULT_STRIDE, limits, &())
+    })?;
     let err = compare(&g, &exact_gdm)?;
-    rows.push(row(id, &format!("mesh fast (sweep stride {})", fast::DEFAULT_STRIDE), n, secs, peak, &g, Some(err)));
+    rows.push(row(
+        id,
+        &format!("mesh fast (sweep stride {})", fast::DEFAULT_STRIDE),
+        n,
+        secs,
+        peak,
+        &g,
+        Some(err),
+    ));
     Ok(rows)
 }
 

@@ -35,7 +35,11 @@ impl EmptySpace {
         for k in 0..nz {
             for j in 0..ny {
                 for (i, r) in row.iter_mut().enumerate() {
-                    *r = if occ.get(i as u32, j as u32, k as u32) { 0 } else { cap };
+                    *r = if occ.get(i as u32, j as u32, k as u32) {
+                        0
+                    } else {
+                        cap
+                    };
                 }
                 let out = &mut dist[(k * ny + j) * nx..][..nx];
                 min_max_pass(&row, out, true);

@@ -167,12 +167,18 @@ mod tests {
 
     #[test]
     fn parses_and_validates() {
-        assert_eq!("64x64x32".parse::<Dims>().unwrap(), Dims::new(64, 64, 32).unwrap());
+        assert_eq!(
+            "64x64x32".parse::<Dims>().unwrap(),
+            Dims::new(64, 64, 32).unwrap()
+        );
         assert!("64x0x32".parse::<Dims>().is_err());
         assert!("64x64".parse::<Dims>().is_err());
         assert!("64xax32".parse::<Dims>().is_err());
         assert!("100000x1x1".parse::<Dims>().is_err());
-        assert_eq!("16x32".parse::<DirectionGrid>().unwrap(), DirectionGrid::PAPER);
+        assert_eq!(
+            "16x32".parse::<DirectionGrid>().unwrap(),
+            DirectionGrid::PAPER
+        );
         assert!("0x32".parse::<DirectionGrid>().is_err());
     }
 

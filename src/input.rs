@@ -33,7 +33,12 @@ impl Mesostructure {
 /// Loads `path`: a `.mbvol` volume (recognized by its magic number) or else an OBJ tile.
 /// `res` is required for OBJ tiles (the grid to sample them on) and, for volumes, must match
 /// the volume's own resolution when given.
-pub fn load(path: &Path, res: Option<Dims>, allow_open: bool, limits: &Limits) -> Result<Mesostructure> {
+pub fn load(
+    path: &Path,
+    res: Option<Dims>,
+    allow_open: bool,
+    limits: &Limits,
+) -> Result<Mesostructure> {
     let mut magic = [0u8; 8];
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let n = file.read(&mut magic).map_err(|e| Error::io(path, e))?;

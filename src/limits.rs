@@ -50,9 +50,7 @@ impl Limits {
 /// Parses a byte count such as `4096`, `512MiB`, `4GiB`, `2G` (binary units throughout).
 pub fn parse_bytes(text: &str) -> Result<u64> {
     let t = text.trim();
-    let split = t
-        .find(|c: char| !c.is_ascii_digit())
-        .unwrap_or(t.len());
+    let split = t.find(|c: char| !c.is_ascii_digit()).unwrap_or(t.len());
     let (digits, unit) = t.split_at(split);
     let value: u64 = digits
         .parse()

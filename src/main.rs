@@ -3,7 +3,7 @@
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use mesobake::gdm::{self, BakeObserver, Method};
-use mesobake::grid::{DirectionGrid, Dims};
+use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::{Limits, parse_bytes};
 use mesobake::samples::{self, SampleKind};
 use mesobake::{Error, Result, bench, input, npy, volume_format};
@@ -17,7 +17,11 @@ use std::time::Instant;
 static ALLOCATOR: PeakAlloc = PeakAlloc;
 
 #[derive(Parser)]
-#[command(name = "mesobake", version, about = "Bake mesostructure: generalized displacement maps and more")]
+#[command(
+    name = "mesobake",
+    version,
+    about = "Bake mesostructure: generalized displacement maps and more"
+)]
 struct Cli {
     /// Largest allocation that input may ask for (e.g. 4GiB); default from
     /// MESOBAKE_MEMORY_LIMIT, else 4GiB.
@@ -227,7 +231,11 @@ fn run(cli: Cli) -> Result<()> {
             let rows = bench::run(&AllocatorProbe, &limits)?;
             print!("{}", bench::markdown(&rows));
             if json {
-                println!("{}", serde_json::to_string_pretty(&rows).map_err(|e| Error::InvalidParameter(e.to_string()))?);
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&rows)
+                        .map_err(|e| Error::InvalidParameter(e.to_string()))?
+                );
             }
             Ok(())
         }

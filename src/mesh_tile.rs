@@ -12,8 +12,8 @@ use crate::error::{Error, Result};
 use crate::trimesh::{TriMesh, cross, sub};
 use std::collections::HashMap;
 
-/// Vertices closer than 1/2²⁴ of a tile (after wrapping) are the same vertex.
-const WELD_SCALE: f64 = (1u64 << 24) as f64;
+/// Vertices closer than 1/2²⁰ of a tile (after wrapping) are the same vertex.
+const WELD_SCALE: f64 = (1u64 << 20) as f64;
 
 /// What validation found in a tile.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]

@@ -4,7 +4,7 @@
 //!
 //! Each sample is a set of analytic primitives on the unit tile, periodic in x and y, designed
 //! for a height `design_height` and scaled in z to the requested grid's height Z/X. The same
-//! primitives give the voxel volume (2×2×2 supersampled inside tests per voxel) and the OBJ tile
+//! primitives give the voxel volume (3×3×3 supersampled inside tests per voxel) and the OBJ tile
 //! (closed parametric surfaces), so both are deterministic and agree up to tessellation and
 //! voxelization.
 
@@ -61,14 +61,34 @@ type Frame = [[f64; 3]; 3];
 #[derive(Clone, Debug)]
 enum Primitive {
     /// Torus around `frame[2]` through `centre`.
-    Torus { centre: [f64; 3], frame: Frame, major: f64, minor: f64 },
+    Torus {
+        centre: [f64; 3],
+        frame: Frame,
+        major: f64,
+        minor: f64,
+    },
     /// Ellipsoid with semi-axes `radii` along the frame's columns.
-    Ellipsoid { centre: [f64; 3], frame: Frame, radii: [f64; 3] },
+    Ellipsoid {
+        centre: [f64; 3],
+        frame: Frame,
+        radii: [f64; 3],
+    },
     /// A tube of radius `radius` along the periodic curve (s along `axis`, `offset` across,
     /// z = z0 + amplitude·sin(2πs + phase)).
-    Thread { axis: usize, offset: f64, z0: f64, amplitude: f64, phase: f64, radius: f64 },
+    Thread {
+        axis: usize,
+        offset: f64,
+        z0: f64,
+        amplitude: f64,
+        phase: f64,
+        radius: f64,
+    },
     /// An infinite square bar along `axis`: across ∈ [lo[0], hi[0]], z ∈ [lo[1], hi[1]].
-    Bar { axis: usize, lo: [f64; 2], hi: [f64; 2] },
+    Bar {
+        axis: usize,
+        lo: [f64; 2],
+        hi: [f64; 2],
+    },
     /// Solid from z = 0 up to the sheared furrowed surface z = h(x + shear·z, y).
     Bark { shear: f64 },
 }
@@ -95,7 +115,10 @@ fn to_world(frame: &Frame, q: [f64; 3], centre: [f64; 3]) -> [f64; 3] {
 
 /// Bark surface height over (u, y), in design units (0..1).
 fn bark_height(u: f64, y: f64) -> f64 {
-    let furrow = (PI * (3.0 * u + 0.25 * (TAU * 2.0 * y).sin())).sin().abs().powf(0.6);
+    let furrow = (PI * (3.0 * u + 0.25 * (TAU * 2.0 * y).sin()))
+        .sin()
+        .abs()
+        .powf(0.6);
     0.3 + 0.5 * furrow + 0.07 * (TAU * (5.0 * u + 3.0 * y)).sin() + 0.05 * (TAU * 7.0 * y).sin()
 }
 
@@ -103,16 +126,32 @@ impl Primitive {
     /// Whether design-space point `p` (already wrapped to one periodic copy) is inside.
     fn inside_once(&self, p: [f64; 3]) -> bool {
         match self {
-            Primitive::Torus { centre, frame, major, minor } => {
+            Primitive::Torus {
+                centre,
+                frame,
+                major,
+                minor,
+            } => {
                 let q = to_local(frame, p, *centre);
                 let ring = (q[0] * q[0] + q[1] * q[1]).sqrt() - major;
                 ring * ring + q[2] * q[2] <= minor * minor
             }
-            Primitive::Ellipsoid { centre, frame, radii } => {
+            Primitive::Ellipsoid {
+                centre,
+                frame,
+                radii,
+            } => {
                 let q = to_local(frame, p, *centre);
                 (0..3).map(|a| (q[a] / radii[a]).powi(2)).sum::<f64>() <= 1.0
             }
-            Primitive::Thread { axis, offset, z0, amplitude, phase, radius } => {
+            Primitive::Thread {
+                axis,
+                offset,
+                z0,
+                amplitude,
+                phase,
+                radius,
+            } => {
                 let (s0, across) = (p[*axis], p[1 - axis]);
                 let dist2 = |s: f64| {
                     let z = z0 + amplitude * (TAU * s + phase).sin();
@@ -145,16 +184,69 @@ impl Primitive {
                 let across = p[1 - axis];
                 across >= lo[0] && across <= hi[0] && p[2] >= lo[1] && p[2] <= hi[1]
             }
-            Primitive::Bark { shear } => p[2] >= 0.0 && p[2] <= bark_height(p[0] + shear * p[2], p[1]),
+            Primitive::Bark { shear } => {
+                p[2] >= 0.0 && p[2] <= bark_height(p[0] + shear * p[2], p[1])
+            }
+        }
+    }
+
+    /// A box containing the primitive (infinite along a periodic axis).
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let inf = f64::INFINITY;
+        match self {
+            Primitive::Torus {
+                centre,
+                major,
+                minor,
+                ..
+            } => {
+                let r = major + minor;
+                (centre.map(|c| c - r), centre.map(|c| c + r))
+            }
+            Primitive::Ellipsoid { centre, radii, .. } => {
+                let r = radii.iter().cloned().fold(0.0, f64::max);
+                (centre.map(|c| c - r), centre.map(|c| c + r))
+            }
+            Primitive::Thread {
+                axis,
+                offset,
+                z0,
+                amplitude,
+                radius,
+                ..
+            } => {
+                let (mut lo, mut hi) = ([-inf; 3], [inf; 3]);
+                lo[1 - axis] = offset - radius;
+                hi[1 - axis] = offset + radius;
+                lo[2] = z0 - amplitude - radius;
+                hi[2] = z0 + amplitude + radius;
+                (lo, hi)
+            }
+            Primitive::Bar { axis, lo, hi } => {
+                let (mut a, mut b) = ([-inf; 3], [inf; 3]);
+                a[1 - axis] = lo[0];
+                b[1 - axis] = hi[0];
+                a[2] = lo[1];
+                b[2] = hi[1];
+                (a, b)
+            }
+            Primitive::Bark { .. } => ([-inf, -inf, 0.0], [inf, inf, 1.0]),
         }
     }
 
     /// Whether `p` is inside any periodic copy.
     fn inside(&self, p: [f64; 3]) -> bool {
+        let (lo, hi) = self.bounds();
         let wrapped = [p[0].rem_euclid(1.0), p[1].rem_euclid(1.0), p[2]];
-        (-1..=1).any(|dy| {
-            (-1..=1).any(|dx| {
-                self.inside_once([wrapped[0] + dx as f64, wrapped[1] + dy as f64, p[2]])
+        if p[2] < lo[2] || p[2] > hi[2] {
+            return false;
+        }
+        // Along an unbounded (periodic) axis one copy is enough.
+        let copies = |a: usize| if lo[a].is_infinite() { 0..=0 } else { -1..=1 };
+        copies(1).any(|dy| {
+            copies(0).any(|dx| {
+                let q = [wrapped[0] + dx as f64, wrapped[1] + dy as f64, p[2]];
+                (0..2).all(|a| q[a] >= lo[a] && q[a] <= hi[a]) && self.inside_once(q)
             })
         })
     }
@@ -177,7 +269,8 @@ impl Primitive {
         let mut votes = 0i32;
         for t in (0..n).step_by((n / 64).max(1)) {
             let [a, b, c] = surface.corners(t);
-            let normal = crate::trimesh::cross(crate::trimesh::sub(b, a), crate::trimesh::sub(c, a));
+            let normal =
+                crate::trimesh::cross(crate::trimesh::sub(b, a), crate::trimesh::sub(c, a));
             let len = crate::trimesh::dot(normal, normal).sqrt();
             if len == 0.0 {
                 continue;
@@ -202,19 +295,39 @@ impl Primitive {
     /// The closed surfaces of the primitive, in any orientation.
     fn surfaces(&self) -> Vec<TriMesh> {
         vec![match self {
-            Primitive::Torus { centre, frame, major, minor } => grid_surface(96, 32, |u, v| {
+            Primitive::Torus {
+                centre,
+                frame,
+                major,
+                minor,
+            } => grid_surface(96, 32, |u, v| {
                 let (su, cu) = (TAU * u).sin_cos();
                 let (sv, cv) = (TAU * v).sin_cos();
-                let q = [(major + minor * cv) * cu, (major + minor * cv) * su, minor * sv];
+                let q = [
+                    (major + minor * cv) * cu,
+                    (major + minor * cv) * su,
+                    minor * sv,
+                ];
                 to_world(frame, q, *centre)
             }),
-            Primitive::Ellipsoid { centre, frame, radii } => grid_surface(64, 32, |u, v| {
+            Primitive::Ellipsoid {
+                centre,
+                frame,
+                radii,
+            } => grid_surface(64, 32, |u, v| {
                 let (su, cu) = (TAU * u).sin_cos();
                 let (sv, cv) = (PI * v).sin_cos();
                 let q = [radii[0] * sv * cu, radii[1] * sv * su, -radii[2] * cv];
                 to_world(frame, q, *centre)
             }),
-            Primitive::Thread { axis, offset, z0, amplitude, phase, radius } => {
+            Primitive::Thread {
+                axis,
+                offset,
+                z0,
+                amplitude,
+                phase,
+                radius,
+            } => {
                 grid_surface(128, 24, |u, v| {
                     let slope = amplitude * TAU * (TAU * u + phase).cos();
                     let z = z0 + amplitude * (TAU * u + phase).sin();
@@ -232,7 +345,12 @@ impl Primitive {
             }
             Primitive::Bar { axis, lo, hi } => {
                 // The square section walked around, swept along one period in 8 segments.
-                let corners = [[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]];
+                let corners = [
+                    [lo[0], lo[1]],
+                    [hi[0], lo[1]],
+                    [hi[0], hi[1]],
+                    [lo[0], hi[1]],
+                ];
                 grid_surface(8, 4, |u, v| {
                     let side = ((v * 4.0).round() as usize) % 4;
                     let c = corners[side];
@@ -261,14 +379,17 @@ fn grid_surface(nu: usize, nv: usize, f: impl Fn(f64, f64) -> [f64; 3]) -> TriMe
     let mut mesh = TriMesh::default();
     for j in 0..=nv {
         for i in 0..=nu {
-            mesh.positions.push(f(i as f64 / nu as f64, j as f64 / nv as f64));
+            mesh.positions
+                .push(f(i as f64 / nu as f64, j as f64 / nv as f64));
         }
     }
     let id = |i: usize, j: usize| (j * (nu + 1) + i) as u32;
     for j in 0..nv {
         for i in 0..nu {
-            mesh.triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            mesh.triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            mesh.triangles
+                .push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            mesh.triangles
+                .push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
         }
     }
     mesh
@@ -309,7 +430,14 @@ fn design(kind: SampleKind) -> Design {
         SampleKind::Weave => {
             let thread = |axis: usize, offset: f64, phase: f64, colour: [f64; 3]| {
                 (
-                    Primitive::Thread { axis, offset, z0: 0.25, amplitude: 0.08, phase, radius: 0.075 },
+                    Primitive::Thread {
+                        axis,
+                        offset,
+                        z0: 0.25,
+                        amplitude: 0.08,
+                        phase,
+                        radius: 0.075,
+                    },
                     colour,
                 )
             };
@@ -326,9 +454,30 @@ fn design(kind: SampleKind) -> Design {
         }
         SampleKind::Grid => Design {
             parts: vec![
-                (Primitive::Bar { axis: 0, lo: [0.4, 0.08], hi: [0.6, 0.28] }, steel),
-                (Primitive::Bar { axis: 1, lo: [0.15, 0.22], hi: [0.35, 0.42] }, [0.55, 0.45, 0.35]),
-                (Primitive::Bar { axis: 1, lo: [0.65, 0.22], hi: [0.85, 0.42] }, [0.55, 0.45, 0.35]),
+                (
+                    Primitive::Bar {
+                        axis: 0,
+                        lo: [0.4, 0.08],
+                        hi: [0.6, 0.28],
+                    },
+                    steel,
+                ),
+                (
+                    Primitive::Bar {
+                        axis: 1,
+                        lo: [0.15, 0.22],
+                        hi: [0.35, 0.42],
+                    },
+                    [0.55, 0.45, 0.35],
+                ),
+                (
+                    Primitive::Bar {
+                        axis: 1,
+                        lo: [0.65, 0.22],
+                        hi: [0.85, 0.42],
+                    },
+                    [0.55, 0.45, 0.35],
+                ),
             ],
             height: 0.5,
         },
@@ -370,8 +519,9 @@ fn check_dims(dims: Dims) -> Result<f64> {
     Ok(dims.z as f64 / dims.x as f64)
 }
 
-/// The sample as a voxel volume on `dims` (density = fraction of 2×2×2 sub-samples inside,
-/// threshold ½, albedo of the first primitive found, darkened towards the base).
+/// The sample as a voxel volume on `dims` (density = fraction of 3×3×3 sub-samples inside, an
+/// odd count that includes the centre so there are no ties; threshold ½; albedo of the last
+/// primitive found, darkened towards the base).
 pub fn volume(kind: SampleKind, dims: Dims, limits: &Limits) -> Result<Volume> {
     let height = check_dims(dims)?;
     limits.check("sample volume", dims.voxel_count(), 16)?;
@@ -388,12 +538,12 @@ pub fn volume(kind: SampleKind, dims: Dims, limits: &Limits) -> Result<Volume> {
                 for i in 0..nx {
                     let mut inside = 0;
                     let mut colour = [0.0; 3];
-                    for s in 0..8 {
-                        let o = [(s & 1) as f64, ((s >> 1) & 1) as f64, (s >> 2) as f64];
+                    for s in 0..27 {
+                        let o = [(s % 3) as f64, ((s / 3) % 3) as f64, (s / 9) as f64];
                         let p = [
-                            (i as f64 + 0.25 + 0.5 * o[0]) * voxel,
-                            (j as f64 + 0.25 + 0.5 * o[1]) * voxel,
-                            (k as f64 + 0.25 + 0.5 * o[2]) * voxel * z_scale,
+                            (i as f64 + (o[0] + 0.5) / 3.0) * voxel,
+                            (j as f64 + (o[1] + 0.5) / 3.0) * voxel,
+                            (k as f64 + (o[2] + 0.5) / 3.0) * voxel * z_scale,
                         ];
                         if let Some((_, c)) = design.parts.iter().find(|(prim, _)| prim.inside(p)) {
                             inside += 1;
@@ -401,20 +551,16 @@ pub fn volume(kind: SampleKind, dims: Dims, limits: &Limits) -> Result<Volume> {
                         }
                     }
                     let shade = 0.55 + 0.45 * (k as f64 + 0.5) / dims.z as f64;
-                    density.push(inside as f32 / 8.0);
-                    albedo.push(colour.map(|c| (c * shade * 255.0).round().clamp(0.0, 255.0) as u8));
+                    density.push(inside as f32 / 27.0);
+                    albedo
+                        .push(colour.map(|c| (c * shade * 255.0).round().clamp(0.0, 255.0) as u8));
                 }
             }
             (density, albedo)
         })
         .collect();
     let (density, albedo): (Vec<_>, Vec<_>) = layers.into_iter().unzip();
-    Volume::new(
-        dims,
-        density.concat(),
-        0.5,
-        Some(albedo.concat()),
-    )
+    Volume::new(dims, density.concat(), 0.5, Some(albedo.concat()))
 }
 
 /// The sample as a closed OBJ-ready triangle mesh in tile units: x, y over the unit tile

@@ -85,8 +85,7 @@ impl TriMesh {
                         p[2]
                     )));
                 }
-                mesh.positions
-                    .push([p[0] as f64, p[1] as f64, p[2] as f64]);
+                mesh.positions.push([p[0] as f64, p[1] as f64, p[2] as f64]);
             }
             let count = (m.positions.len() / 3) as u32;
             for t in m.indices.chunks_exact(3) {
@@ -107,7 +106,9 @@ impl TriMesh {
 
     /// Reads and parses an OBJ file, refusing files larger than `max_bytes`.
     pub fn read_obj(path: &Path, max_bytes: u64) -> Result<Self> {
-        let len = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
+        let len = std::fs::metadata(path)
+            .map_err(|e| Error::io(path, e))?
+            .len();
         if len > max_bytes {
             return Err(Error::MemoryLimit {
                 what: format!("OBJ file {}", path.display()),

@@ -111,11 +111,15 @@ fn parse_header(header: &[u8], file_len: u64, limits: &Limits) -> Result<(Dims, 
     }
     let threshold = f32_at(header, 28);
     if !threshold.is_finite() {
-        return Err(bad(format!("solid threshold is {threshold}, not a finite number")));
+        return Err(bad(format!(
+            "solid threshold is {threshold}, not a finite number"
+        )));
     }
     let voxel_size = f32_at(header, 32);
     if !(voxel_size.is_finite() && voxel_size > 0.0) {
-        return Err(bad(format!("voxel size is {voxel_size}, not a positive finite number")));
+        return Err(bad(format!(
+            "voxel size is {voxel_size}, not a positive finite number"
+        )));
     }
     if header[40..48].iter().any(|&b| b != 0) {
         return Err(bad("reserved header bytes 40..48 are not zero".into()));
@@ -166,11 +170,13 @@ pub fn read(path: &Path, limits: &Limits) -> Result<Volume> {
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut header = vec![0u8; HEADER_BYTES.min(len as usize)];
-    file.read_exact(&mut header).map_err(|e| Error::io(path, e))?;
+    file.read_exact(&mut header)
+        .map_err(|e| Error::io(path, e))?;
     parse_header(&header, len, limits)?;
     let mut bytes = header;
     bytes.reserve_exact((len as usize).saturating_sub(HEADER_BYTES));
-    file.read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    file.read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
     decode(&bytes, limits)
 }
 

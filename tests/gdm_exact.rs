@@ -9,7 +9,7 @@ use mesobake::gdm::caster::{Caster, Trace};
 use mesobake::gdm::mesh_caster::MeshCaster;
 use mesobake::gdm::volume_caster::VolumeCaster;
 use mesobake::gdm::{self, EscapeConvention, Gdm, Method};
-use mesobake::grid::{DirectionGrid, Dims};
+use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::Limits;
 use mesobake::mesh_tile::MeshTile;
 use mesobake::trimesh::TriMesh;
@@ -89,7 +89,10 @@ fn horizontal_slab_matches_closed_form() {
             if want.is_infinite() {
                 assert!(v.is_infinite(), "{method:?} k={k} a={a}: {v} should escape");
             } else {
-                assert!(close(v as f64, want, 1e-6), "{method:?} k={k} a={a}: {v} vs {want}");
+                assert!(
+                    close(v as f64, want, 1e-6),
+                    "{method:?} k={k} a={a}: {v} vs {want}"
+                );
             }
         });
     }
@@ -113,15 +116,30 @@ fn ray_box(o: [f64; 3], v: [f64; 3], lo: [f64; 3], hi: [f64; 3]) -> f64 {
 }
 
 /// Analytic first hit on a periodic tiling of boxes (period `p` in x and y), within the slab.
-fn ray_tiled_boxes(o: [f64; 3], v: [f64; 3], boxes: &[([f64; 3], [f64; 3])], p: f64, z_top: f64) -> f64 {
-    let t_exit = if v[2] > 0.0 { (z_top - o[2]) / v[2] } else { -o[2] / v[2] };
+fn ray_tiled_boxes(
+    o: [f64; 3],
+    v: [f64; 3],
+    boxes: &[([f64; 3], [f64; 3])],
+    p: f64,
+    z_top: f64,
+) -> f64 {
+    let t_exit = if v[2] > 0.0 {
+        (z_top - o[2]) / v[2]
+    } else {
+        -o[2] / v[2]
+    };
     let reach = (t_exit * (v[0].hypot(v[1])) / p).ceil() as i64 + 1;
     let mut best = f64::INFINITY;
     for m in -reach..=reach {
         for n in -reach..=reach {
             for (lo, hi) in boxes {
                 let s = [m as f64 * p, n as f64 * p, 0.0];
-                let t = ray_box(o, v, [lo[0] + s[0], lo[1] + s[1], lo[2]], [hi[0] + s[0], hi[1] + s[1], hi[2]]);
+                let t = ray_box(
+                    o,
+                    v,
+                    [lo[0] + s[0], lo[1] + s[1], lo[2]],
+                    [hi[0] + s[0], hi[1] + s[1], hi[2]],
+                );
                 if t <= t_exit {
                     best = best.min(t);
                 }
@@ -132,9 +150,25 @@ fn ray_tiled_boxes(o: [f64; 3], v: [f64; 3], boxes: &[([f64; 3], [f64; 3])], p: 
 }
 
 fn box_mesh(lo: [f64; 3], hi: [f64; 3]) -> TriMesh {
-    let p = |m: usize| [if m & 1 != 0 { hi[0] } else { lo[0] }, if m & 2 != 0 { hi[1] } else { lo[1] }, if m & 4 != 0 { hi[2] } else { lo[2] }];
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
-    let mut m = TriMesh { positions: (0..8).map(p).collect(), triangles: vec![] };
+    let p = |m: usize| {
+        [
+            if m & 1 != 0 { hi[0] } else { lo[0] },
+            if m & 2 != 0 { hi[1] } else { lo[1] },
+            if m & 4 != 0 { hi[2] } else { lo[2] },
+        ]
+    };
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let mut m = TriMesh {
+        positions: (0..8).map(p).collect(),
+        triangles: vec![],
+    };
     for q in quads {
         m.triangles.push([q[0], q[1], q[2]]);
         m.triangles.push([q[0], q[2], q[3]]);
@@ -154,7 +188,11 @@ fn box_tile_volume_and_mesh_match_ray_box() {
     });
     let tile = MeshTile::new(box_mesh(lo.map(|x| x / 16.0), hi.map(|x| x / 16.0)), false).unwrap();
     let m = MeshCaster::new(&tile, d, &Limits::default()).unwrap();
-    assert_eq!(m.centres_inside(), c.centres_inside(), "inside classification");
+    assert_eq!(
+        m.centres_inside(),
+        c.centres_inside(),
+        "inside classification"
+    );
     let dirs = DirectionGrid::new(8, 16).unwrap();
     let gv = bake(&c, dirs, Method::Exact);
     let gm = bake(&m, dirs, Method::Exact);
@@ -167,22 +205,46 @@ fn box_tile_volume_and_mesh_match_ray_box() {
         };
         let mv = gm.get(i, j, k, a, b);
         if want.is_infinite() {
-            assert!(v.is_infinite() && mv.is_infinite(), "({i},{j},{k},{a},{b}) {v} {mv}");
+            assert!(
+                v.is_infinite() && mv.is_infinite(),
+                "({i},{j},{k},{a},{b}) {v} {mv}"
+            );
         } else {
-            assert!(close(v as f64, want, 1e-6), "volume ({i},{j},{k},{a},{b}) {v} vs {want}");
-            assert!((mv as f64 - want).abs() < 2e-3, "mesh ({i},{j},{k},{a},{b}) {mv} vs {want}");
+            assert!(
+                close(v as f64, want, 1e-6),
+                "volume ({i},{j},{k},{a},{b}) {v} vs {want}"
+            );
+            assert!(
+                (mv as f64 - want).abs() < 2e-3,
+                "mesh ({i},{j},{k},{a},{b}) {mv} vs {want}"
+            );
         }
     });
 }
 
 /// Analytic first hit on periodic spheres (centre c, radius r, period p), within the slab.
-fn ray_tiled_sphere(o: [f64; 3], v: [f64; 3], c: [f64; 3], r: f64, p: f64, z_top: f64) -> (f64, f64) {
-    let t_exit = if v[2] > 0.0 { (z_top - o[2]) / v[2] } else { -o[2] / v[2] };
+fn ray_tiled_sphere(
+    o: [f64; 3],
+    v: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    p: f64,
+    z_top: f64,
+) -> (f64, f64) {
+    let t_exit = if v[2] > 0.0 {
+        (z_top - o[2]) / v[2]
+    } else {
+        -o[2] / v[2]
+    };
     let reach = (t_exit * v[0].hypot(v[1]) / p).ceil() as i64 + 1;
     let mut best = (f64::INFINITY, 1.0);
     for m in -reach..=reach {
         for n in -reach..=reach {
-            let oc = [o[0] - c[0] - m as f64 * p, o[1] - c[1] - n as f64 * p, o[2] - c[2]];
+            let oc = [
+                o[0] - c[0] - m as f64 * p,
+                o[1] - c[1] - n as f64 * p,
+                o[2] - c[2],
+            ];
             let bq = oc[0] * v[0] + oc[1] * v[1] + oc[2] * v[2];
             let cq = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - r * r;
             let disc = bq * bq - cq;
@@ -211,15 +273,24 @@ fn sphere_tile_mesh_matches_ray_sphere() {
     let (nu, nv) = (256, 128);
     for j in 0..=nv {
         for i in 0..=nu {
-            let (u, v) = (std::f64::consts::TAU * i as f64 / nu as f64, std::f64::consts::PI * j as f64 / nv as f64);
-            mesh.positions.push([(c[0] + r * v.sin() * u.cos()) / 16.0, (c[1] + r * v.sin() * u.sin()) / 16.0, (c[2] - r * v.cos()) / 16.0]);
+            let (u, v) = (
+                std::f64::consts::TAU * i as f64 / nu as f64,
+                std::f64::consts::PI * j as f64 / nv as f64,
+            );
+            mesh.positions.push([
+                (c[0] + r * v.sin() * u.cos()) / 16.0,
+                (c[1] + r * v.sin() * u.sin()) / 16.0,
+                (c[2] - r * v.cos()) / 16.0,
+            ]);
         }
     }
     for j in 0..nv {
         for i in 0..nu {
             let id = |i: usize, j: usize| (j * (nu + 1) + i) as u32;
-            mesh.triangles.push([id(i, j), id(i, j + 1), id(i + 1, j + 1)]);
-            mesh.triangles.push([id(i, j), id(i + 1, j + 1), id(i + 1, j)]);
+            mesh.triangles
+                .push([id(i, j), id(i, j + 1), id(i + 1, j + 1)]);
+            mesh.triangles
+                .push([id(i, j), id(i + 1, j + 1), id(i + 1, j)]);
         }
     }
     let tile = MeshTile::new(mesh, false).unwrap();
@@ -240,7 +311,10 @@ fn sphere_tile_mesh_matches_ray_sphere() {
         }
         let (want, mu) = ray_tiled_sphere(o, dirs.vector(a, b), c, r, 16.0, 12.0);
         if mu >= 0.2 && want.is_finite() {
-            assert!((v as f64 - want).abs() < 0.02, "({i},{j},{k},{a},{b}) {v} vs {want}");
+            assert!(
+                (v as f64 - want).abs() < 0.02,
+                "({i},{j},{k},{a},{b}) {v} vs {want}"
+            );
         } else {
             graze_total += 1;
             if v.is_finite() != want.is_finite() {
@@ -248,7 +322,10 @@ fn sphere_tile_mesh_matches_ray_sphere() {
             }
         }
     });
-    assert!(graze_bad * 100 <= graze_total, "{graze_bad} of {graze_total} grazing rays misclassified");
+    assert!(
+        graze_bad * 100 <= graze_total,
+        "{graze_bad} of {graze_total} grazing rays misclassified"
+    );
 }
 
 /// A grazing ray crossing 12 tiles before it meets the only solid voxel's copy.
@@ -256,10 +333,17 @@ fn sphere_tile_mesh_matches_ray_sphere() {
 fn grazing_ray_crosses_many_tiles() {
     let c = volume(dims(8, 8, 4), |i, j, k| (i, j, k) == (0, 0, 3));
     let cot = 96.0 / 2.5; // reaches z = 3 at x = 96.5, inside the copy of voxel 0 in tile 12
-    let (s, co) = (1.0 / (1.0 + cot * cot as f64).sqrt(), cot / (1.0 + cot * cot as f64).sqrt());
+    let (s, co) = (
+        1.0 / (1.0 + cot * cot as f64).sqrt(),
+        cot / (1.0 + cot * cot as f64).sqrt(),
+    );
     let t = c.trace([0.5, 0.5, 0.5], [co, 0.0, s], f64::INFINITY);
     assert_eq!(t, Trace::Hit((3.0 - 0.5) / s));
-    let tile = MeshTile::new(box_mesh([0.0, 0.0, 3.0 / 8.0], [1.0 / 8.0, 1.0 / 8.0, 0.5]), false).unwrap();
+    let tile = MeshTile::new(
+        box_mesh([0.0, 0.0, 3.0 / 8.0], [1.0 / 8.0, 1.0 / 8.0, 0.5]),
+        false,
+    )
+    .unwrap();
     let m = MeshCaster::new(&tile, dims(8, 8, 4), &Limits::default()).unwrap();
     match m.trace([0.5, 0.5, 0.5], [co, 0.0, s], f64::INFINITY) {
         Trace::Hit(t) => assert!((t - 2.5 / s).abs() < 2e-3 * 2.5 / s, "{t}"),
@@ -292,32 +376,57 @@ fn rays_along_faces_edges_and_through_corners() {
         let c = volume(d, |i, j, k| (i, j, k) == solid);
         let got = c.trace(o, v, f64::INFINITY);
         match want {
-            Some(t) => assert!(matches!(got, Trace::Hit(h) if (h - t).abs() < 1e-12), "case {n}: {got:?}"),
-            None => assert!(!matches!(got, Trace::Hit(h) if h < 20.0), "case {n}: {got:?}"),
+            Some(t) => assert!(
+                matches!(got, Trace::Hit(h) if (h - t).abs() < 1e-12),
+                "case {n}: {got:?}"
+            ),
+            None => assert!(
+                !matches!(got, Trace::Hit(h) if h < 20.0),
+                "case {n}: {got:?}"
+            ),
         }
     }
     // Through a corner: (1,1,1) is shared by 8 voxels; each one on the far side is hit there.
     let v3 = 1.0 / 3f64.sqrt();
-    for solid in [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1)] {
+    for solid in [
+        (1, 0, 0),
+        (0, 1, 0),
+        (0, 0, 1),
+        (1, 1, 0),
+        (1, 0, 1),
+        (0, 1, 1),
+        (1, 1, 1),
+    ] {
         let c = volume(d, |i, j, k| (i, j, k) == solid);
         let got = c.trace([0.5, 0.5, 0.5], [v3, v3, v3], f64::INFINITY);
-        assert!(matches!(got, Trace::Hit(h) if (h - 0.5 / v3).abs() < 1e-12), "{solid:?}: {got:?}");
+        assert!(
+            matches!(got, Trace::Hit(h) if (h - 0.5 / v3).abs() < 1e-12),
+            "{solid:?}: {got:?}"
+        );
     }
     // A point on a solid face is inside.
     let c = volume(d, |i, j, k| (i, j, k) == (2, 2, 2));
-    assert_eq!(c.trace([2.0, 2.5, 2.5], [-1.0, 0.0, 0.0], f64::INFINITY), Trace::Inside);
+    assert_eq!(
+        c.trace([2.0, 2.5, 2.5], [-1.0, 0.0, 0.0], f64::INFINITY),
+        Trace::Inside
+    );
 }
 
 /// Directions next to the poles and next to the horizon (θ = 1e-6, π − 1e-6, π/2 ± 1e-6) and
 /// exactly horizontal.
 #[test]
 fn near_pole_and_near_horizon_directions() {
-    let c = volume(dims(8, 8, 8), |i, j, k| (i == 3 && j == 3 && k == 6) || k == 0);
+    let c = volume(dims(8, 8, 8), |i, j, k| {
+        (i == 3 && j == 3 && k == 6) || k == 0
+    });
     let from = [3.5, 3.5, 2.5];
     for (theta, want) in [(1e-6, Some(3.5)), (std::f64::consts::PI - 1e-6, Some(1.5))] {
         let v = mesobake::grid::spherical_to_vector(theta, 0.3);
         match c.trace(from, v, f64::INFINITY) {
-            Trace::Hit(t) => assert!((t - want.unwrap() / theta.cos().abs()).abs() < 1e-9, "θ={theta}: {t}"),
+            Trace::Hit(t) => assert!(
+                (t - want.unwrap() / theta.cos().abs()).abs() < 1e-9,
+                "θ={theta}: {t}"
+            ),
             other => panic!("θ={theta}: {other:?}"),
         }
     }
@@ -328,9 +437,15 @@ fn near_pole_and_near_horizon_directions() {
         other => panic!("{other:?}"),
     }
     // Exactly horizontal in layer 2: nothing there, reported as an escape to infinity.
-    assert_eq!(c.trace(from, [0.6, 0.8, 0.0], f64::INFINITY), Trace::Escape(f64::INFINITY));
+    assert_eq!(
+        c.trace(from, [0.6, 0.8, 0.0], f64::INFINITY),
+        Trace::Escape(f64::INFINITY)
+    );
     // Exactly horizontal in layer 6 along +x from (0.5, 3.5): the voxel (3, 3, 6) at x = 3.
-    assert_eq!(c.trace([0.5, 3.5, 6.5], [1.0, 0.0, 0.0], f64::INFINITY), Trace::Hit(2.5));
+    assert_eq!(
+        c.trace([0.5, 3.5, 6.5], [1.0, 0.0, 0.0], f64::INFINITY),
+        Trace::Hit(2.5)
+    );
 }
 
 #[test]

@@ -38,7 +38,15 @@ pub fn compare(approx: &Gdm, reference: &Gdm) -> Result<GdmError> {
     let mut mismatched = 0u64;
     for (&x, &y) in a.data().iter().zip(r.data()) {
         out.samples += 1;
-        let class = |v: f32| if v == 0.0 { 0 } else if v.is_infinite() { 2 } else { 1 };
+        let class = |v: f32| {
+            if v == 0.0 {
+                0
+            } else if v.is_infinite() {
+                2
+            } else {
+                1
+            }
+        };
         if class(x) != class(y) {
             mismatched += 1;
         } else if class(x) == 1 {

@@ -14,7 +14,7 @@
 use super::caster::{Caster, Trace};
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
-use crate::grid::{DirectionGrid, Dims, Wrap};
+use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::limits::Limits;
 use crate::volume::Occupancy;
 use rayon::prelude::*;

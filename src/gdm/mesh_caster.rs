@@ -62,10 +62,17 @@ impl MeshCaster {
             let corners = tile.mesh.corners(n);
             // Move the triangle so that its first corner lies in [0,1)².
             let shift = [corners[0][0].floor(), corners[0][1].floor()];
-            let local = corners.map(|p| [(p[0] - shift[0]) * scale, (p[1] - shift[1]) * scale, p[2] * scale]);
+            let local = corners.map(|p| {
+                [
+                    (p[0] - shift[0]) * scale,
+                    (p[1] - shift[1]) * scale,
+                    p[2] * scale,
+                ]
+            });
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    let c = local.map(|p| [p[0] + dx as f64 * scale, p[1] + dy as f64 * scale, p[2]]);
+                    let c =
+                        local.map(|p| [p[0] + dx as f64 * scale, p[1] + dy as f64 * scale, p[2]]);
                     let overlaps = |axis: usize| {
                         let lo = c[0][axis].min(c[1][axis]).min(c[2][axis]);
                         let hi = c[0][axis].max(c[1][axis]).max(c[2][axis]);
@@ -73,15 +80,27 @@ impl MeshCaster {
                     };
                     if overlaps(0) && overlaps(1) {
                         let v = c.map(|p| Vec3A::new(p[0] as f32, p[1] as f32, p[2] as f32));
-                        tris.push(Triangle { v0: v[0], v1: v[1], v2: v[2] });
+                        tris.push(Triangle {
+                            v0: v[0],
+                            v1: v[1],
+                            v2: v[2],
+                        });
                     }
                 }
             }
             z_max = z_max.max(local.iter().map(|p| p[2]).fold(f64::NEG_INFINITY, f64::max));
         }
         limits.check("mesh tile triangles", tris.len() as u64, 256)?;
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
-        let tris: Vec<Triangle> = bvh.primitive_indices.iter().map(|&i| tris[i as usize]).collect();
+        let bvh = build_cwbvh_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let tris: Vec<Triangle> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
         let mut caster = MeshCaster {
             dims,
             tris,
@@ -111,8 +130,10 @@ impl MeshCaster {
                 for j in 0..dims.y {
                     for i in 0..dims.x {
                         let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
-                        let inside_votes =
-                            votes.iter().filter(|v| self.winding_number(o, **v) != 0).count();
+                        let inside_votes = votes
+                            .iter()
+                            .filter(|v| self.winding_number(o, **v) != 0)
+                            .count();
                         if inside_votes >= 2 {
                             solid.push((i, j));
                         }

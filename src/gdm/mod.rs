@@ -13,7 +13,7 @@ pub mod mesh_caster;
 pub mod volume_caster;
 
 use crate::error::Result;
-use crate::grid::{DirectionGrid, Dims};
+use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
 
 /// How a GDM stores rays that escape without a hit.

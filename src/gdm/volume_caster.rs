@@ -157,7 +157,11 @@ impl Caster for VolumeCaster {
                 if v[a] == 0.0 {
                     continue;
                 }
-                let mut plane = if v[a] > 0.0 { cell[a] + r } else { cell[a] - r + 1 };
+                let mut plane = if v[a] > 0.0 {
+                    cell[a] + r
+                } else {
+                    cell[a] - r + 1
+                };
                 if a == 2 {
                     plane = plane.clamp(0, nz);
                 }

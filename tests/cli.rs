@@ -1,0 +1,187 @@
+//! The command line, end to end: sample → gdm → .npy, checked with an independent reader.
+
+use std::path::Path;
+use std::process::Command;
+
+fn mesobake(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_mesobake"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    let shape = npy.shape().to_vec();
+    (shape, npy.into_vec::<f32>().unwrap())
+}
+
+#[test]
+fn sample_then_gdm_writes_the_documented_npy() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = dir.path().join("grid.mbvol");
+    let out = mesobake(&[
+        "sample",
+        "grid",
+        "--res",
+        "16x16x8",
+        "--out",
+        vol.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for method in ["exact", "fast"] {
+        let npy = dir.path().join(format!("{method}.npy"));
+        let out = mesobake(&[
+            "gdm",
+            "--input",
+            vol.to_str().unwrap(),
+            "--dirs",
+            "4x8",
+            "--method",
+            method,
+            "--out",
+            npy.to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(summary["samples"], 16 * 16 * 8 * 32);
+        let (shape, data) = read_npy(&npy);
+        assert_eq!(shape, vec![16, 16, 8, 4, 8]);
+        // Layer 0 (z = 0.5) of the grid sample is empty below the bars; looking straight down
+        // (θ bin 3 of 4, cos θ < 0) from there escapes through the bottom: +inf.
+        let idx = |x: usize, y: usize, z: usize, a: usize, b: usize| {
+            (((x * 16 + y) * 8 + z) * 4 + a) * 8 + b
+        };
+        assert!(data[idx(0, 0, 0, 3, 0)].is_infinite());
+        // Inside a bar (x-bar across y ∈ [0.4, 0.6], z ∈ [0.08, 0.28] of the unit tile) → 0.
+        assert_eq!(data[idx(3, 8, 2, 0, 0)], 0.0);
+        // Looking up from below the x-bar hits its underside: a finite distance.
+        let up = data[idx(3, 8, 0, 0, 0)];
+        assert!(up.is_finite() && up > 0.0 && up < 3.0, "{up}");
+    }
+}
+
+#[test]
+fn obj_tile_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("weave.obj");
+    let out = mesobake(&[
+        "sample",
+        "weave",
+        "--res",
+        "16x16x8",
+        "--format",
+        "obj",
+        "--out",
+        obj.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let npy = dir.path().join("w.npy");
+    let out = mesobake(&[
+        "gdm",
+        "--input",
+        obj.to_str().unwrap(),
+        "--res",
+        "16x16x8",
+        "--dirs",
+        "4x8",
+        "--out",
+        npy.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (shape, data) = read_npy(&npy);
+    assert_eq!(shape, vec![16, 16, 8, 4, 8]);
+    assert!(data.iter().any(|v| *v == 0.0) && data.iter().any(|v| v.is_infinite()));
+}
+
+#[test]
+fn bad_input_exits_non_zero_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
+    let out_path = dir.path().join("x.npy");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec![
+                "gdm",
+                "--input",
+                bad.to_str().unwrap(),
+                "--res",
+                "8x8x4",
+                "--out",
+                out_path.to_str().unwrap(),
+            ],
+            "out of bounds",
+        ),
+        (
+            vec![
+                "gdm",
+                "--input",
+                bad.to_str().unwrap(),
+                "--out",
+                out_path.to_str().unwrap(),
+            ],
+            "needs --res",
+        ),
+        (
+            vec![
+                "gdm",
+                "--input",
+                "/nonexistent.mbvol",
+                "--res",
+                "8x8x4",
+                "--out",
+                out_path.to_str().unwrap(),
+            ],
+            "No such file",
+        ),
+        (
+            vec![
+                "sample",
+                "chain",
+                "--res",
+                "8x4x4",
+                "--out",
+                out_path.to_str().unwrap(),
+            ],
+            "X = Y",
+        ),
+        (
+            vec![
+                "--memory-limit",
+                "1KiB",
+                "sample",
+                "chain",
+                "--res",
+                "16x16x8",
+                "--out",
+                out_path.to_str().unwrap(),
+            ],
+            "memory limit",
+        ),
+    ];
+    for (args, want) in cases {
+        let out = mesobake(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(want),
+            "{args:?}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    assert!(!out_path.exists(), "nothing is written on failure");
+}
