@@ -35,7 +35,7 @@ impl Limits {
     /// Refuses `count` elements of `elem_bytes` each when their total (computed without
     /// overflow) exceeds the limit. Returns the total in bytes.
     pub fn check(&self, what: &str, count: u64, elem_bytes: u64) -> Result<u64> {
-        let needed = count.checked_mul(elem_bytes).unwrap_or(u64::MAX);
+        let needed = count.saturating_mul(elem_bytes);
         if needed > self.memory_bytes {
             return Err(Error::MemoryLimit {
                 what: what.to_string(),

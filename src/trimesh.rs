@@ -85,7 +85,7 @@ impl TriMesh {
                         p[2]
                     )));
                 }
-                mesh.positions.push([p[0] as f64, p[1] as f64, p[2] as f64]);
+                mesh.positions.push([p[0], p[1], p[2]]);
             }
             let count = (m.positions.len() / 3) as u32;
             for t in m.indices.chunks_exact(3) {

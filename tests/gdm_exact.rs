@@ -332,10 +332,10 @@ fn sphere_tile_mesh_matches_ray_sphere() {
 #[test]
 fn grazing_ray_crosses_many_tiles() {
     let c = volume(dims(8, 8, 4), |i, j, k| (i, j, k) == (0, 0, 3));
-    let cot = 96.0 / 2.5; // reaches z = 3 at x = 96.5, inside the copy of voxel 0 in tile 12
+    let cot: f64 = 96.0 / 2.5; // reaches z = 3 at x = 96.5, inside the copy of voxel 0 in tile 12
     let (s, co) = (
-        1.0 / (1.0 + cot * cot as f64).sqrt(),
-        cot / (1.0 + cot * cot as f64).sqrt(),
+        1.0 / (1.0 + cot * cot).sqrt(),
+        cot / (1.0 + cot * cot).sqrt(),
     );
     let t = c.trace([0.5, 0.5, 0.5], [co, 0.0, s], f64::INFINITY);
     assert_eq!(t, Trace::Hit((3.0 - 0.5) / s));
@@ -357,7 +357,8 @@ fn grazing_ray_crosses_many_tiles() {
 fn rays_along_faces_edges_and_through_corners() {
     let d = dims(16, 16, 8);
     let s2 = std::f64::consts::FRAC_1_SQRT_2;
-    let cases: Vec<((u32, u32, u32), [f64; 3], [f64; 3], Option<f64>)> = vec![
+    type Case = ((u32, u32, u32), [f64; 3], [f64; 3], Option<f64>);
+    let cases: Vec<Case> = vec![
         // Along the face plane y = 1 (v_y = 0): voxels on either side touch.
         ((5, 0, 2), [0.5, 1.0, 2.5], [1.0, 0.0, 0.0], Some(4.5)),
         ((5, 1, 2), [0.5, 1.0, 2.5], [1.0, 0.0, 0.0], Some(4.5)),
