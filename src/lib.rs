@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod empty_space;
 pub mod error;
+pub mod flat_preview;
 pub mod fsutil;
 pub mod gdm;
 pub mod grid;

@@ -12,11 +12,11 @@
 //! than `stride` to the exit plane are traced to the end, so stride ≥ Z is the exact bake.
 
 use super::caster::{Caster, Trace};
+use super::interpolate::interpolate_layer;
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
-use crate::grid::{Dims, DirectionGrid, Wrap};
+use crate::grid::DirectionGrid;
 use crate::limits::Limits;
-use crate::volume::Occupancy;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -102,7 +102,7 @@ fn sweep_direction(caster: &(impl Caster + ?Sized), v: [f64; 3], stride: u32, vo
                     Trace::Escape(_) => f32::INFINITY,
                     Trace::Limit => {
                         let q = [o[0] + t_step * v[0], o[1] + t_step * v[1]];
-                        match interpolate(dims, inside, target, target_layer, q) {
+                        match interpolate_layer(dims, inside, target, target_layer, q) {
                             Some(d) => (t_step + d as f64) as f32,
                             None => f32::INFINITY,
                         }
@@ -110,43 +110,5 @@ fn sweep_direction(caster: &(impl Caster + ?Sized), v: [f64; 3], stride: u32, vo
                 };
             }
         }
-    }
-}
-
-/// The remaining distance at point `q` (x, y) of layer `k`: `None` for an escape.
-fn interpolate(dims: Dims, inside: &Occupancy, k: u32, layer: &[f32], q: [f64; 2]) -> Option<f32> {
-    let u = q[0] - 0.5;
-    let w = q[1] - 0.5;
-    let (i0, j0) = (u.floor(), w.floor());
-    let (fx, fy) = ((u - i0) as f32, (w - j0) as f32);
-    let (i0, j0) = (i0 as i64, j0 as i64);
-    let wrap = [Wrap::new(dims.x), Wrap::new(dims.y)];
-    let mut escape_weight = 0.0f32;
-    let mut hit_weight = 0.0f32;
-    let mut hit_sum = 0.0f32;
-    for (di, wx) in [(0, 1.0 - fx), (1, fx)] {
-        for (dj, wy) in [(0, 1.0 - fy), (1, fy)] {
-            let weight = wx * wy;
-            if weight == 0.0 {
-                continue;
-            }
-            let i = wrap[0].apply(i0 + di) as u32;
-            let j = wrap[1].apply(j0 + dj) as u32;
-            if inside.get(i, j, k) {
-                continue;
-            }
-            let d = layer[(j * dims.x + i) as usize];
-            if d.is_infinite() {
-                escape_weight += weight;
-            } else {
-                hit_weight += weight;
-                hit_sum += weight * d;
-            }
-        }
-    }
-    if escape_weight >= hit_weight {
-        None
-    } else {
-        Some(hit_sum / hit_weight)
     }
 }
