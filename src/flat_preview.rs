@@ -31,7 +31,9 @@ pub fn render(volume: &Volume, gdm: &Gdm, setup: &PreviewSetup) -> Result<Vec<u8
     let dims = gdm.dims();
     let dirs = gdm.dirs();
     if volume.dims() != dims {
-        return Err(Error::InvalidParameter("preview: volume and GDM grids differ".into()));
+        return Err(Error::InvalidParameter(
+            "preview: volume and GDM grids differ".into(),
+        ));
     }
     let w = dirs.vector(setup.view.0, setup.view.1);
     let l = dirs.vector(setup.light.0, setup.light.1);
@@ -59,10 +61,16 @@ pub fn render(volume: &Volume, gdm: &Gdm, setup: &PreviewSetup) -> Result<Vec<u8
         if k < 0.0 || k >= dims.z as f64 {
             return None;
         }
-        Some((wrap[0].apply(p[0].floor() as i64), wrap[1].apply(p[1].floor() as i64), k as usize))
+        Some((
+            wrap[0].apply(p[0].floor() as i64),
+            wrap[1].apply(p[1].floor() as i64),
+            k as usize,
+        ))
     };
     let density = |p: [f64; 3]| -> f64 {
-        voxel(p).map_or(0.0, |(i, j, k)| occ.get(i as u32, j as u32, k as u32) as u8 as f64)
+        voxel(p).map_or(0.0, |(i, j, k)| {
+            occ.get(i as u32, j as u32, k as u32) as u8 as f64
+        })
     };
     let mut image = Vec::with_capacity((setup.size * setup.size * 3) as usize);
     for y in 0..setup.size {
@@ -76,23 +84,40 @@ pub fn render(volume: &Volume, gdm: &Gdm, setup: &PreviewSetup) -> Result<Vec<u8
                 Some(d) => {
                     let d = d as f64;
                     let hit = [p[0] + d * w[0], p[1] + d * w[1], p[2] + d * w[2]];
-                    let inside = [hit[0] + 0.3 * w[0], hit[1] + 0.3 * w[1], hit[2] + 0.3 * w[2]];
+                    let inside = [
+                        hit[0] + 0.3 * w[0],
+                        hit[1] + 0.3 * w[1],
+                        hit[2] + 0.3 * w[2],
+                    ];
                     let base = match (albedo, voxel(inside)) {
-                        (Some(a), Some((i, j, k))) => a[dims.index(i as u32, j as u32, k as u32)].map(|c| c as f64 / 255.0),
+                        (Some(a), Some((i, j, k))) => {
+                            a[dims.index(i as u32, j as u32, k as u32)].map(|c| c as f64 / 255.0)
+                        }
                         _ => [0.7, 0.7, 0.7],
                     };
                     let mut n = [0.0; 3];
                     for (a, na) in n.iter_mut().enumerate() {
                         let mut e = [0.0; 3];
                         e[a] = 1.0;
-                        let f = |s: f64| density([hit[0] + s * e[0], hit[1] + s * e[1], hit[2] + s * e[2]]);
+                        let f = |s: f64| {
+                            density([hit[0] + s * e[0], hit[1] + s * e[1], hit[2] + s * e[2]])
+                        };
                         *na = f(-1.0) - f(1.0);
                     }
                     let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                    let n = if len > 0.0 { n.map(|c| c / len) } else { w.map(|c| -c) };
-                    let outside = [hit[0] - 0.5 * w[0], hit[1] - 0.5 * w[1], hit[2] - 0.5 * w[2]];
+                    let n = if len > 0.0 {
+                        n.map(|c| c / len)
+                    } else {
+                        w.map(|c| -c)
+                    };
+                    let outside = [
+                        hit[0] - 0.5 * w[0],
+                        hit[1] - 0.5 * w[1],
+                        hit[2] - 0.5 * w[2],
+                    ];
                     let shadowed = voxel(outside).is_some_and(|(i, j, k)| {
-                        let v = gdm.data()[light_d * stride + dims.index(i as u32, j as u32, k as u32)];
+                        let v =
+                            gdm.data()[light_d * stride + dims.index(i as u32, j as u32, k as u32)];
                         v > 0.0 && v.is_finite()
                     });
                     let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);

@@ -3,8 +3,8 @@
 //! Conventions (shared by every bake path and by the `.npy` export):
 //! - sample (i, j, k) sits at the voxel centre (i+½, j+½, k+½), in voxel units (edge = 1);
 //! - direction (a, b) is θ = (a+½)·π/Nθ, φ = (b+½)·2π/Nφ, v = (sinθ cosφ, sinθ sinφ, cosθ),
-//!   with z pointing out of the surface. Samples sit at bin centres, so no direction is a pole
-//!   and none is horizontal (cos θ ≠ 0), and with even Nφ none is axis-aligned in x/y.
+//!   with z pointing out of the surface. Samples sit at bin centres, so no direction is a pole;
+//!   Nθ is even, so none is horizontal (cos θ ≠ 0); with even Nφ none is axis-aligned in x/y.
 
 use crate::error::{Error, Result};
 use std::f64::consts::PI;
@@ -83,8 +83,16 @@ impl DirectionGrid {
         n_phi: 32,
     };
 
-    /// A validated grid: both counts in 1..=[`MAX_DIRECTIONS_PER_AXIS`].
+    /// A validated grid: both counts in 1..=[`MAX_DIRECTIONS_PER_AXIS`], Nθ even (an odd Nθ
+    /// puts a bin centre at θ = π/2, a ray parallel to the surface that never leaves the
+    /// tiled volume).
     pub fn new(n_theta: u32, n_phi: u32) -> Result<Self> {
+        if n_theta % 2 == 1 {
+            return Err(Error::InvalidParameter(format!(
+                "direction grid {n_theta}x{n_phi}: the θ count must be even, or one bin \
+                 would be parallel to the surface"
+            )));
+        }
         for (name, n) in [("θ", n_theta), ("φ", n_phi)] {
             if n == 0 || n > MAX_DIRECTIONS_PER_AXIS {
                 return Err(Error::InvalidParameter(format!(
@@ -180,6 +188,13 @@ mod tests {
             DirectionGrid::PAPER
         );
         assert!("0x32".parse::<DirectionGrid>().is_err());
+        assert!(
+            "3x4"
+                .parse::<DirectionGrid>()
+                .unwrap_err()
+                .to_string()
+                .contains("even")
+        );
     }
 
     #[test]

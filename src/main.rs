@@ -244,9 +244,19 @@ fn run(cli: Cli) -> Result<()> {
             let progress = Progress::new("baking GDM (exact)");
             let start = Instant::now();
             let caster = mesobake::gdm::volume_caster::VolumeCaster::new(&volume);
-            let g = gdm::bake(&caster, DirectionGrid::PAPER, Method::Exact, 1, &limits, &progress)?;
+            let g = gdm::bake(
+                &caster,
+                DirectionGrid::PAPER,
+                Method::Exact,
+                1,
+                &limits,
+                &progress,
+            )?;
             progress.0.finish_and_clear();
-            eprintln!("baked the {res} {name} GDM in {:.2} s", start.elapsed().as_secs_f64());
+            eprintln!(
+                "baked the {res} {name} GDM in {:.2} s",
+                start.elapsed().as_secs_f64()
+            );
             npy::write_gdm(&g, &out.join(format!("{name}-gdm.npy")))?;
             let setup = mesobake::flat_preview::default_setup(&g);
             let rgb = mesobake::flat_preview::render(&volume, &g, &setup)?;

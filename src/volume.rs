@@ -182,6 +182,13 @@ impl Occupancy {
         self.get(i, j, k as u32)
     }
 
+    /// The 64-bit words of row (j, k): bit i of word w is voxel (64w + i, j, k).
+    #[inline]
+    pub fn row(&self, j: u32, k: u32) -> &[u64] {
+        let w = self.word(j, k);
+        &self.words[w..w + self.words_per_row]
+    }
+
     /// Number of solid voxels.
     pub fn solid_count(&self) -> u64 {
         self.words.iter().map(|w| w.count_ones() as u64).sum()

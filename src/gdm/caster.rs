@@ -30,4 +30,10 @@ pub trait Caster: Sync {
     /// The first solid point along `origin + t·dir` for 0 ≤ t ≤ `max_t`. `origin` must have
     /// 0 ≤ z ≤ Z and finite coordinates; `dir` must be a finite unit vector.
     fn trace(&self, origin: [f64; 3], dir: [f64; 3], max_t: f64) -> Trace;
+
+    /// Whether the mesostructure *is* the voxel grid of [`Caster::centres_inside`] (solid
+    /// voxels as closed boxes), so that exact bakes may use ray templates.
+    fn is_voxel_grid(&self) -> bool {
+        false
+    }
 }

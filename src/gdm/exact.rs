@@ -8,8 +8,23 @@ use crate::limits::Limits;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Bakes every sample of every direction exactly, in parallel over (direction, layer) pairs.
+/// Bakes every sample of every direction exactly: voxel grids with ray templates
+/// ([`super::template`]), anything else one ray per sample, in parallel over (direction,
+/// layer) pairs.
 pub fn bake(
+    caster: &(impl Caster + ?Sized),
+    dirs: DirectionGrid,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Gdm> {
+    if caster.is_voxel_grid() && super::template::supports(caster.dims()) {
+        return super::template::bake(caster.centres_inside(), dirs, limits, observer);
+    }
+    bake_per_ray(caster, dirs, limits, observer)
+}
+
+/// Bakes with one [`Caster::trace`] per sample and direction.
+pub fn bake_per_ray(
     caster: &(impl Caster + ?Sized),
     dirs: DirectionGrid,
     limits: &Limits,

@@ -8,7 +8,13 @@ use crate::volume::Occupancy;
 /// centres, x and y wrapping around, leaving out centres inside solid. `None` (escape) when the
 /// escaping neighbours carry at least half of the remaining weight; otherwise the weighted
 /// mean of the hitting neighbours.
-pub fn interpolate_layer(dims: Dims, inside: &Occupancy, k: u32, layer: &[f32], q: [f64; 2]) -> Option<f32> {
+pub fn interpolate_layer(
+    dims: Dims,
+    inside: &Occupancy,
+    k: u32,
+    layer: &[f32],
+    q: [f64; 2],
+) -> Option<f32> {
     let u = q[0] - 0.5;
     let w = q[1] - 0.5;
     let (i0, j0) = (u.floor(), w.floor());

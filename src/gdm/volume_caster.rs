@@ -97,6 +97,10 @@ impl Caster for VolumeCaster {
         &self.occ
     }
 
+    fn is_voxel_grid(&self) -> bool {
+        true
+    }
+
     fn trace(&self, o: [f64; 3], v: [f64; 3], max_t: f64) -> Trace {
         let dims = self.occ.dims();
         let nz = dims.z as i64;
