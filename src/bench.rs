@@ -6,6 +6,7 @@ use crate::gdm::caster::Caster;
 use crate::gdm::compare::{GdmError, compare};
 use crate::gdm::mesh_caster::MeshCaster;
 use crate::gdm::volume_caster::VolumeCaster;
+use crate::gdm::fast::FastParams;
 use crate::gdm::{Gdm, exact, fast};
 use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
@@ -73,63 +74,71 @@ fn row(
     }
 }
 
+/// The fast-bake settings measured: the default, then each knob pushed towards speed.
+const FAST_SETTINGS: [FastParams; 3] = [
+    FastParams { stride: 2, max_spread: 1.0 },
+    FastParams { stride: 1, max_spread: 1.0 },
+    FastParams { stride: 2, max_spread: f32::INFINITY },
+];
+
+fn describe(p: FastParams) -> String {
+    format!("stride {}, spread {}", p.stride, p.max_spread)
+}
+
+/// Times one bake of `caster` per fast setting against `exact_gdm`.
+fn fast_rows(
+    probe: &dyn MemoryProbe,
+    limits: &Limits,
+    id: &str,
+    kind: &str,
+    caster: &dyn Caster,
+    exact_gdm: &Gdm,
+    settings: &[FastParams],
+) -> Result<Vec<Row>> {
+    let dirs = exact_gdm.dirs();
+    let n = rays(caster, dirs);
+    let mut rows = Vec::new();
+    for &params in settings {
+        let (g, secs, peak) = timed(probe, || fast::bake(caster, dirs, params, limits, &()))?;
+        let err = compare(&g, exact_gdm)?;
+        let path = format!("{kind} fast ({})", describe(params));
+        rows.push(row(id, &path, n, secs, peak, &g, Some(err)));
+    }
+    Ok(rows)
+}
+
 /// Runs W1 (chain volume 64×64×32), W2 (bark volume 128×128×16) and W3 (chain OBJ tile
-/// 64×64×32), all with 16×32 directions. The plain-DDA baseline (no empty-space skipping)
-/// runs on every 8th direction and its time is scaled by 8.
+/// 64×64×32), all with 16×32 directions. The per-ray baselines (DDA with and without
+/// empty-space skipping) run on 2×8 directions spread over the sphere and their times are
+/// scaled to the full grid.
 pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
     let dirs = DirectionGrid::PAPER;
+    let subset = DirectionGrid::new(2, 8)?;
+    let scale = dirs.count() as f64 / subset.count() as f64;
     let mut rows = Vec::new();
     for (id, kind, dims) in [
-        (
-            "W1 chain 64x64x32",
-            SampleKind::Chain,
-            Dims::new(64, 64, 32)?,
-        ),
-        (
-            "W2 bark 128x128x16",
-            SampleKind::Bark,
-            Dims::new(128, 128, 16)?,
-        ),
+        ("W1 chain 64x64x32", SampleKind::Chain, Dims::new(64, 64, 32)?),
+        ("W2 bark 128x128x16", SampleKind::Bark, Dims::new(128, 128, 16)?),
     ] {
         let volume = samples::volume(kind, dims, limits)?;
         let caster = VolumeCaster::new(&volume);
         let n = rays(&caster, dirs);
         let (exact_gdm, secs, peak) = timed(probe, || exact::bake(&caster, dirs, limits, &()))?;
-        rows.push(row(
-            id,
-            "volume exact (DDA + empty-space skipping)",
-            n,
-            secs,
-            peak,
-            &exact_gdm,
-            None,
-        ));
-        for stride in [1, fast::DEFAULT_STRIDE, 4] {
-            let (g, secs, peak) = timed(probe, || fast::bake(&caster, dirs, stride, limits, &()))?;
-            let err = compare(&g, &exact_gdm)?;
-            rows.push(row(
-                id,
-                &format!("volume fast (sweep stride {stride})"),
-                n,
-                secs,
-                peak,
-                &g,
-                Some(err),
-            ));
-        }
+        let path = "volume exact (ray templates, 64 rays per word)";
+        rows.push(row(id, path, n, secs, peak, &exact_gdm, None));
         let plain = VolumeCaster::from_occupancy(volume.occupancy(), false);
-        let subset = DirectionGrid::new(2, dirs.n_phi / 4)?;
-        let (g, secs, _) = timed(probe, || exact::bake(&plain, subset, limits, &()))?;
-        let scale = dirs.count() as f64 / subset.count() as f64;
-        let _ = g;
-        rows.push(Row {
-            workload: id.to_string(),
-            path: format!("baseline: plain DDA, {subset} directions, time ×{scale}"),
-            seconds: secs * scale,
-            mrays_per_s: rays(&plain, subset) / secs / 1e6,
-            peak_over_output: f64::NAN,
-            error: None,
-        });
+        for (name, c) in [("DDA + empty-space skipping", &caster), ("plain DDA", &plain)] {
+            let (_, secs, _) = timed(probe, || exact::bake_per_ray(c, subset, limits, &()))?;
+            rows.push(Row {
+                workload: id.to_string(),
+                path: format!("baseline: per-ray {name} ({subset} directions, time ×{scale})"),
+                seconds: secs * scale,
+                mrays_per_s: rays(c, subset) / secs / 1e6,
+                peak_over_output: f64::NAN,
+                error: None,
+            });
+        }
+        rows.extend(fast_rows(probe, limits, id, "volume", &caster, &exact_gdm, &FAST_SETTINGS)?);
     }
     let dims = Dims::new(64, 64, 32)?;
     let tile = MeshTile::new(samples::mesh(SampleKind::Chain, dims)?, false)?;
@@ -137,28 +146,9 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
     let n = rays(&caster, dirs);
     let (exact_gdm, secs, peak) = timed(probe, || exact::bake(&caster, dirs, limits, &()))?;
     let id = "W3 chain OBJ 64x64x32";
-    rows.push(row(
-        id,
-        &format!("mesh exact (obvhs CWBVH; +{secs_setup:.2} s BVH and inside vote)"),
-        n,
-        secs,
-        peak,
-        &exact_gdm,
-        None,
-    ));
-    let (g, secs, peak) = timed(probe, || {
-        fast::bake(&caster, dirs, fast::DEFAULT_STRIDE, limits, &())
-    })?;
-    let err = compare(&g, &exact_gdm)?;
-    rows.push(row(
-        id,
-        &format!("mesh fast (sweep stride {})", fast::DEFAULT_STRIDE),
-        n,
-        secs,
-        peak,
-        &g,
-        Some(err),
-    ));
+    let path = format!("mesh exact (obvhs CWBVH; +{secs_setup:.2} s BVH and inside vote)");
+    rows.push(row(id, &path, n, secs, peak, &exact_gdm, None));
+    rows.extend(fast_rows(probe, limits, id, "mesh", &caster, &exact_gdm, &[FastParams::default()])?);
     Ok(rows)
 }
 

@@ -2,14 +2,14 @@
 //!
 //! Orthographic camera looking along a grid direction `view` (cos θ < 0, into the surface)
 //! over a few tiles. Per pixel: the ray meets the top plane z = Z, moves to the top layer's
-//! centre plane, reads the GDM there ([`interpolate_layer`]); a hit gives the mesostructure
+//! centre plane, reads the GDM there ([`sample_layer`]); a hit gives the mesostructure
 //! point, shaded Lambert with the albedo and the density gradient's normal, and shadowed when
 //! the GDM towards the light (a grid direction) reports a hit; an escape shows the base surface.
 //! The full renderer on curved base meshes comes with the scene format.
 
 use crate::error::{Error, Result};
 use crate::gdm::Gdm;
-use crate::gdm::interpolate::interpolate_layer;
+use crate::gdm::interpolate::sample_layer;
 use crate::grid::{Dims, Wrap};
 use crate::volume::Volume;
 
@@ -79,7 +79,7 @@ pub fn render(volume: &Volume, gdm: &Gdm, setup: &PreviewSetup) -> Result<Vec<u8
             let q = [r[0] * sx - h[0] * sy, r[1] * sx - h[1] * sy, dims.z as f64];
             let t0 = 0.5 / -w[2];
             let p = [q[0] + t0 * w[0], q[1] + t0 * w[1], q[2] + t0 * w[2]];
-            let rgb = match interpolate_layer(dims, &occ, top_k, top, [p[0], p[1]]) {
+            let rgb = match sample_layer(dims, &occ, top_k, top, [p[0], p[1]]).blend() {
                 None => [0.18, 0.18, 0.2],
                 Some(d) => {
                     let d = d as f64;

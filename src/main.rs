@@ -63,8 +63,12 @@ enum Command {
         #[arg(long, default_value = "exact")]
         method: Method,
         /// Fast method: layers crossed exactly before interpolating (higher = slower, closer).
-        #[arg(long, default_value_t = gdm::fast::DEFAULT_STRIDE)]
+        #[arg(long, default_value_t = gdm::fast::FastParams::default().stride)]
         stride: u32,
+        /// Fast method: largest spread (voxels) of neighbouring hit distances that is still
+        /// interpolated; rays with more disagreeing neighbours are traced exactly.
+        #[arg(long, default_value_t = gdm::fast::FastParams::default().max_spread)]
+        spread: f32,
         /// Escape values in the file: inf (+inf), or boundary (distance to the top/bottom
         /// plane along the ray, the convention used for compression).
         #[arg(long, value_enum, default_value_t = EscapeArg::Inf)]
@@ -198,6 +202,7 @@ fn run(cli: Cli) -> Result<()> {
             dirs,
             method,
             stride,
+            spread,
             escape,
             allow_open,
             out,
@@ -208,7 +213,8 @@ fn run(cli: Cli) -> Result<()> {
             let load_s = start.elapsed().as_secs_f64();
             let progress = Progress::new("baking GDM");
             let start = Instant::now();
-            let mut g = gdm::bake(meso.caster(), dirs, method, stride, &limits, &progress)?;
+            let fast = gdm::fast::FastParams { stride, max_spread: spread };
+            let mut g = gdm::bake(meso.caster(), dirs, method, fast, &limits, &progress)?;
             let bake_s = start.elapsed().as_secs_f64();
             progress.0.finish_and_clear();
             if let EscapeArg::Boundary = escape {
@@ -224,7 +230,7 @@ fn run(cli: Cli) -> Result<()> {
                     "res": g.dims().to_string(),
                     "dirs": g.dirs().to_string(),
                     "method": method,
-                    "stride": stride,
+                    "fast": fast,
                     "escape": g.escape_convention(),
                     "samples": g.data().len(),
                     "seconds": {"load": load_s, "bake": bake_s, "write": write_s},
@@ -244,14 +250,7 @@ fn run(cli: Cli) -> Result<()> {
             let progress = Progress::new("baking GDM (exact)");
             let start = Instant::now();
             let caster = mesobake::gdm::volume_caster::VolumeCaster::new(&volume);
-            let g = gdm::bake(
-                &caster,
-                DirectionGrid::PAPER,
-                Method::Exact,
-                1,
-                &limits,
-                &progress,
-            )?;
+            let g = gdm::exact::bake(&caster, DirectionGrid::PAPER, &limits, &progress)?;
             progress.0.finish_and_clear();
             eprintln!(
                 "baked the {res} {name} GDM in {:.2} s",

@@ -25,7 +25,7 @@ fn volume(d: Dims, solid: impl Fn(u32, u32, u32) -> bool) -> VolumeCaster {
 }
 
 fn bake(c: &dyn Caster, dirs: DirectionGrid, method: Method) -> Gdm {
-    gdm::bake(c, dirs, method, 2, &Limits::default(), &()).unwrap()
+    gdm::bake(c, dirs, method, Default::default(), &Limits::default(), &()).unwrap()
 }
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
@@ -472,7 +472,8 @@ fn fast_with_full_stride_is_exact() {
     let c = volume(dims(12, 12, 6), |i, j, k| (i * 7 + j * 3 + k * 5) % 11 == 0);
     let dirs = DirectionGrid::new(8, 16).unwrap();
     let exact = bake(&c, dirs, Method::Exact);
-    let fast = gdm::fast::bake(&c, dirs, 6, &Limits::default(), &()).unwrap();
+    let params = gdm::fast::FastParams { stride: 6, max_spread: f32::INFINITY };
+    let fast = gdm::fast::bake(&c, dirs, params, &Limits::default(), &()).unwrap();
     assert_eq!(fast, exact);
 }
 

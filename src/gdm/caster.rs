@@ -36,4 +36,16 @@ pub trait Caster: Sync {
     fn is_voxel_grid(&self) -> bool {
         false
     }
+
+    /// Voxels that together contain all of the surface (a conservative superset), when known:
+    /// a ray from a sample outside solid cannot hit before it first touches one of them.
+    fn surface_candidates(&self) -> Option<&Occupancy> {
+        None
+    }
+
+    /// Like [`Caster::trace`], for a caller that knows there is no solid before `t_min`.
+    fn trace_from(&self, origin: [f64; 3], dir: [f64; 3], t_min: f64, max_t: f64) -> Trace {
+        let _ = t_min;
+        self.trace(origin, dir, max_t)
+    }
 }

@@ -23,7 +23,10 @@ pub fn bake(
     bake_per_ray(caster, dirs, limits, observer)
 }
 
-/// Bakes with one [`Caster::trace`] per sample and direction.
+/// Bakes with one [`Caster::trace`] per sample and direction, in parallel over directions.
+/// When the caster knows its [`Caster::surface_candidates`], one ray template per direction
+/// first finds where each ray meets the first candidate voxel: rays that meet none escape
+/// without being cast, the others start there.
 pub fn bake_per_ray(
     caster: &(impl Caster + ?Sized),
     dirs: DirectionGrid,
@@ -32,34 +35,41 @@ pub fn bake_per_ray(
 ) -> Result<Gdm> {
     let dims = caster.dims();
     let mut gdm = Gdm::zeroed(dims, dirs, limits)?;
-    let layer = (dims.x * dims.y) as usize;
-    let total = (dirs.count() * dims.z as usize) as u64;
+    let stride = gdm.direction_stride();
+    let total = dirs.count() as u64;
     let done = AtomicU64::new(0);
     let inside = caster.centres_inside();
+    let candidates = caster
+        .surface_candidates()
+        .filter(|_| super::template::supports(dims));
     gdm.data_mut()
-        .par_chunks_mut(layer)
+        .par_chunks_mut(stride)
         .enumerate()
-        .try_for_each(|(chunk, out)| {
+        .try_for_each(|(d, volume)| {
             if observer.cancelled() {
                 return Err(Error::Cancelled);
             }
-            let d = chunk / dims.z as usize;
-            let k = (chunk % dims.z as usize) as u32;
             let v = dirs.vector_of(d);
-            for j in 0..dims.y {
-                for i in 0..dims.x {
-                    let value = &mut out[(j * dims.x + i) as usize];
-                    if inside.get(i, j, k) {
-                        *value = 0.0;
-                        continue;
-                    }
-                    let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
-                    *value = match caster.trace(o, v, f64::INFINITY) {
-                        Trace::Inside => 0.0,
-                        Trace::Hit(t) => t as f32,
-                        Trace::Escape(_) | Trace::Limit => f32::INFINITY,
-                    };
+            match candidates {
+                Some(c) => super::template::bake_direction(c, v, volume),
+                None => volume.fill(0.0),
+            }
+            for (n, value) in volume.iter_mut().enumerate() {
+                let (i, j, k) = (n as u32 % dims.x, (n as u32 / dims.x) % dims.y, n as u32 / (dims.x * dims.y));
+                if inside.get(i, j, k) {
+                    *value = 0.0;
+                    continue;
                 }
+                if value.is_infinite() {
+                    continue; // no candidate voxel on the way: escapes
+                }
+                let start = (*value as f64 - 1e-4).max(0.0);
+                let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
+                *value = match caster.trace_from(o, v, start, f64::INFINITY) {
+                    Trace::Inside => 0.0,
+                    Trace::Hit(t) => t as f32,
+                    Trace::Escape(_) | Trace::Limit => f32::INFINITY,
+                };
             }
             observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             Ok(())

@@ -3,16 +3,18 @@
 //! For a direction going up (cos θ > 0) layers are processed from the top down (going down:
 //! bottom up). From a sample in layer k the ray is cast *exactly* until it reaches the centre
 //! plane of layer k+s (s = `stride`); a hit on the way is exact. Otherwise the remaining
-//! distance is read from layer k+s at the point reached, bilinearly interpolated between the
-//! four surrounding sample centres (x/y wrap-around), leaving out centres that lie in solid:
-//! the sample escapes if the escaping neighbours carry at least half of the weight, else it
-//! hits at the reached distance plus the weighted mean of the hitting neighbours.
+//! distance is read from layer k+s at the point reached, from the four surrounding sample
+//! centres (x/y wrap-around, [`sample_layer`]). Where they agree — all escape, or all hit at
+//! distances within `max_spread` voxels of each other, none inside solid — the sample escapes
+//! or takes the bilinear mean of their hits; where they disagree the ray is traced exactly to
+//! the end, so the approximation is confined to smooth regions.
 //!
-//! The only approximation is that interpolation; `stride` is its knob: rays from layers closer
-//! than `stride` to the exit plane are traced to the end, so stride ≥ Z is the exact bake.
+//! Knobs: `stride` (rays from layers closer than `stride` to the exit plane are traced to the
+//! end, so stride ≥ Z is the exact bake) and `max_spread` (0 traces every ray that does not
+//! escape with all its neighbours; +∞ interpolates everywhere).
 
 use super::caster::{Caster, Trace};
-use super::interpolate::interpolate_layer;
+use super::interpolate::sample_layer;
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
@@ -20,21 +22,39 @@ use crate::limits::Limits;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Default number of layers crossed exactly before interpolating.
-pub const DEFAULT_STRIDE: u32 = 2;
+/// The knobs of the fast bake.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct FastParams {
+    /// Layers crossed exactly before reading the layer already baked (≥ 1).
+    pub stride: u32,
+    /// Hit distances of the four neighbours may differ by this many voxels and still be
+    /// interpolated; beyond it (and where neighbours disagree on hit or escape, or one lies in
+    /// solid) the ray is traced exactly to the end. +∞ interpolates everywhere.
+    pub max_spread: f32,
+}
+
+impl Default for FastParams {
+    fn default() -> Self {
+        FastParams {
+            stride: 2,
+            max_spread: 1.0,
+        }
+    }
+}
 
 /// Bakes with layer sweeps, in parallel over directions.
 pub fn bake(
     caster: &(impl Caster + ?Sized),
     dirs: DirectionGrid,
-    stride: u32,
+    params: FastParams,
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Gdm> {
-    if stride == 0 {
-        return Err(Error::InvalidParameter(
-            "sweep stride must be at least 1 layer".into(),
-        ));
+    if params.stride == 0 || params.max_spread.is_nan() || params.max_spread < 0.0 {
+        return Err(Error::InvalidParameter(format!(
+            "fast bake: stride must be ≥ 1 layer and the spread ≥ 0 voxels, got {} and {}",
+            params.stride, params.max_spread
+        )));
     }
     let dims = caster.dims();
     let mut gdm = Gdm::zeroed(dims, dirs, limits)?;
@@ -48,7 +68,7 @@ pub fn bake(
             if observer.cancelled() {
                 return Err(Error::Cancelled);
             }
-            sweep_direction(caster, dirs.vector_of(d), stride, volume);
+            sweep_direction(caster, dirs.vector_of(d), params, volume);
             observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             Ok(())
         })?;
@@ -56,7 +76,12 @@ pub fn bake(
 }
 
 /// Fills one direction's X×Y×Z volume.
-fn sweep_direction(caster: &(impl Caster + ?Sized), v: [f64; 3], stride: u32, volume: &mut [f32]) {
+fn sweep_direction(
+    caster: &(impl Caster + ?Sized),
+    v: [f64; 3],
+    params: FastParams,
+    volume: &mut [f32],
+) {
     let dims = caster.dims();
     let inside = caster.centres_inside();
     let layer = (dims.x * dims.y) as usize;
@@ -70,7 +95,7 @@ fn sweep_direction(caster: &(impl Caster + ?Sized), v: [f64; 3], stride: u32, vo
         // Layers left between this one and the exit plane's side of the volume.
         // When the stride reaches past the last layer the ray is traced to the end, exactly.
         let remaining = if up { dims.z - 1 - k } else { k };
-        let step = if stride > remaining { 0 } else { stride };
+        let step = if params.stride > remaining { 0 } else { params.stride };
         let (done_part, rest) = if up {
             let (below, above) = volume.split_at_mut((k as usize + 1) * layer);
             (above, &mut below[k as usize * layer..])
@@ -102,9 +127,15 @@ fn sweep_direction(caster: &(impl Caster + ?Sized), v: [f64; 3], stride: u32, vo
                     Trace::Escape(_) => f32::INFINITY,
                     Trace::Limit => {
                         let q = [o[0] + t_step * v[0], o[1] + t_step * v[1]];
-                        match interpolate_layer(dims, inside, target, target_layer, q) {
-                            Some(d) => (t_step + d as f64) as f32,
-                            None => f32::INFINITY,
+                        let s = sample_layer(dims, inside, target, target_layer, q);
+                        if s.is_ambiguous(params.max_spread) {
+                            match caster.trace(o, v, f64::INFINITY) {
+                                Trace::Hit(t) => t as f32,
+                                Trace::Inside => 0.0,
+                                Trace::Escape(_) | Trace::Limit => f32::INFINITY,
+                            }
+                        } else {
+                            s.blend().map_or(f32::INFINITY, |d| (t_step + d as f64) as f32)
                         }
                     }
                 };

@@ -44,6 +44,8 @@ pub struct MeshCaster {
     /// Highest z of any triangle, voxel units.
     z_max: f64,
     inside: Occupancy,
+    /// Voxels overlapped by some triangle's bounding box (see [`Caster::surface_candidates`]).
+    candidates: Occupancy,
 }
 
 impl MeshCaster {
@@ -93,7 +95,7 @@ impl MeshCaster {
         limits.check("mesh tile triangles", tris.len() as u64, 256)?;
         let bvh = build_cwbvh_from_tris(
             &tris,
-            BvhBuildParams::medium_build(),
+            BvhBuildParams::very_slow_build(),
             &mut Duration::default(),
         );
         let tris: Vec<Triangle> = bvh
@@ -101,12 +103,14 @@ impl MeshCaster {
             .iter()
             .map(|&i| tris[i as usize])
             .collect();
+        let candidates = rasterize_bounds(&tris, dims);
         let mut caster = MeshCaster {
             dims,
             tris,
             bvh,
             z_max,
             inside: Occupancy::empty(dims),
+            candidates,
         };
         if tile.closed {
             caster.inside = caster.classify_centres();
@@ -155,7 +159,7 @@ impl MeshCaster {
     fn winding_number(&self, o: [f64; 3], v: [f64; 3]) -> i32 {
         let t_end = (self.z_max + 1.0 - o[2]) / v[2];
         let mut winding = 0;
-        self.walk_cells(o, v, t_end, |ray, t0, t1| {
+        self.walk_cells(o, v, 0.0, t_end, |ray, t0, t1| {
             self.bvh.ray_traverse_anyhit(*ray, |r, id| {
                 let tri = &self.tris[id];
                 let t = tri.intersect(r);
@@ -175,12 +179,16 @@ impl MeshCaster {
         &self,
         o: [f64; 3],
         v: [f64; 3],
+        t_start: f64,
         t_end: f64,
         mut visit: impl FnMut(&Ray, f32, f32) -> bool,
     ) -> bool {
         let size = self.dims.x as f64;
-        let mut cell = [(o[0] / size).floor(), (o[1] / size).floor()];
-        let mut t = 0.0f64;
+        let mut cell = [
+            ((o[0] + t_start * v[0]) / size).floor(),
+            ((o[1] + t_start * v[1]) / size).floor(),
+        ];
+        let mut t = t_start;
         let dir = Vec3A::new(v[0] as f32, v[1] as f32, v[2] as f32);
         loop {
             let mut t_next = t_end;
@@ -226,6 +234,14 @@ impl Caster for MeshCaster {
     }
 
     fn trace(&self, o: [f64; 3], v: [f64; 3], max_t: f64) -> Trace {
+        self.trace_from(o, v, 0.0, max_t)
+    }
+
+    fn surface_candidates(&self) -> Option<&Occupancy> {
+        Some(&self.candidates)
+    }
+
+    fn trace_from(&self, o: [f64; 3], v: [f64; 3], t_min: f64, max_t: f64) -> Trace {
         let top = self.dims.z as f64;
         let t_plane = if v[2] > 0.0 {
             (top - o[2]) / v[2]
@@ -236,7 +252,7 @@ impl Caster for MeshCaster {
         };
         let t_end = t_plane.min(max_t);
         let mut hit = RayHit::none();
-        let found = self.walk_cells(o, v, t_end, |ray, _, _| {
+        let found = self.walk_cells(o, v, t_min.min(t_end), t_end, |ray, _, _| {
             self.bvh
                 .ray_traverse(*ray, &mut hit, |r, id| self.tris[id].intersect(r))
         });
@@ -252,4 +268,32 @@ impl Caster for MeshCaster {
             Trace::Limit
         }
     }
+}
+
+/// Marks every voxel overlapped by a triangle's bounding box grown by 10⁻³ voxel (x and y
+/// wrap around, z is clipped to the grid).
+fn rasterize_bounds(tris: &[Triangle], dims: Dims) -> Occupancy {
+    let mut occ = Occupancy::empty(dims);
+    let wrap = [crate::grid::Wrap::new(dims.x), crate::grid::Wrap::new(dims.y)];
+    let eps = 1e-3;
+    for t in tris {
+        let lo = t.v0.min(t.v1).min(t.v2);
+        let hi = t.v0.max(t.v1).max(t.v2);
+        let range = |a: usize, clip: Option<u32>| {
+            let (mut l, mut h) = (((lo[a] - eps).floor()) as i64, ((hi[a] + eps).floor()) as i64);
+            if let Some(n) = clip {
+                l = l.max(0);
+                h = h.min(n as i64 - 1);
+            }
+            l..=h
+        };
+        for k in range(2, Some(dims.z)) {
+            for j in range(1, None) {
+                for i in range(0, None) {
+                    occ.set(wrap[0].apply(i) as u32, wrap[1].apply(j) as u32, k as u32);
+                }
+            }
+        }
+    }
+    occ
 }

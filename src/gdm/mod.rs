@@ -192,18 +192,18 @@ impl std::str::FromStr for Method {
     }
 }
 
-/// Bakes the GDM of `caster` on its grid with `method` (`stride`: layers per sweep step for
-/// [`Method::Fast`], see [`fast::bake`]). Values use the [`EscapeConvention::Infinite`].
+/// Bakes the GDM of `caster` on its grid with `method` (`fast`: the knobs of
+/// [`Method::Fast`]). Values use the [`EscapeConvention::Infinite`].
 pub fn bake(
     caster: &(impl caster::Caster + ?Sized),
     dirs: DirectionGrid,
     method: Method,
-    stride: u32,
+    fast: fast::FastParams,
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Gdm> {
     match method {
         Method::Exact => exact::bake(caster, dirs, limits, observer),
-        Method::Fast => fast::bake(caster, dirs, stride, limits, observer),
+        Method::Fast => fast::bake(caster, dirs, fast, limits, observer),
     }
 }

@@ -160,7 +160,9 @@ pub fn bake(
     Ok(gdm)
 }
 
-fn bake_direction(occ: &Occupancy, v: [f64; 3], volume: &mut [f32]) {
+/// Fills one direction's X×Y×Z volume: 0 for samples in solid voxels, the distance to the
+/// first solid voxel touched, +∞ for rays that leave the volume first.
+pub(crate) fn bake_direction(occ: &Occupancy, v: [f64; 3], volume: &mut [f32]) {
     let dims = occ.dims();
     let template = build_template(dims, v);
     let (nx, ny, nz) = (dims.x as usize, dims.y, dims.z as i32);
