@@ -4,9 +4,9 @@
 use crate::error::Result;
 use crate::gdm::caster::Caster;
 use crate::gdm::compare::{GdmError, compare};
+use crate::gdm::fast::FastParams;
 use crate::gdm::mesh_caster::MeshCaster;
 use crate::gdm::volume_caster::VolumeCaster;
-use crate::gdm::fast::FastParams;
 use crate::gdm::{Gdm, exact, fast};
 use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
@@ -76,9 +76,18 @@ fn row(
 
 /// The fast-bake settings measured: the default, then each knob pushed towards speed.
 const FAST_SETTINGS: [FastParams; 3] = [
-    FastParams { stride: 2, max_spread: 1.0 },
-    FastParams { stride: 1, max_spread: 1.0 },
-    FastParams { stride: 2, max_spread: f32::INFINITY },
+    FastParams {
+        stride: 2,
+        max_spread: 1.0,
+    },
+    FastParams {
+        stride: 1,
+        max_spread: 1.0,
+    },
+    FastParams {
+        stride: 2,
+        max_spread: f32::INFINITY,
+    },
 ];
 
 fn describe(p: FastParams) -> String {
@@ -117,8 +126,16 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
     let scale = dirs.count() as f64 / subset.count() as f64;
     let mut rows = Vec::new();
     for (id, kind, dims) in [
-        ("W1 chain 64x64x32", SampleKind::Chain, Dims::new(64, 64, 32)?),
-        ("W2 bark 128x128x16", SampleKind::Bark, Dims::new(128, 128, 16)?),
+        (
+            "W1 chain 64x64x32",
+            SampleKind::Chain,
+            Dims::new(64, 64, 32)?,
+        ),
+        (
+            "W2 bark 128x128x16",
+            SampleKind::Bark,
+            Dims::new(128, 128, 16)?,
+        ),
     ] {
         let volume = samples::volume(kind, dims, limits)?;
         let caster = VolumeCaster::new(&volume);
@@ -127,7 +144,10 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
         let path = "volume exact (ray templates, 64 rays per word)";
         rows.push(row(id, path, n, secs, peak, &exact_gdm, None));
         let plain = VolumeCaster::from_occupancy(volume.occupancy(), false);
-        for (name, c) in [("DDA + empty-space skipping", &caster), ("plain DDA", &plain)] {
+        for (name, c) in [
+            ("DDA + empty-space skipping", &caster),
+            ("plain DDA", &plain),
+        ] {
             let (_, secs, _) = timed(probe, || exact::bake_per_ray(c, subset, limits, &()))?;
             rows.push(Row {
                 workload: id.to_string(),
@@ -138,7 +158,15 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
                 error: None,
             });
         }
-        rows.extend(fast_rows(probe, limits, id, "volume", &caster, &exact_gdm, &FAST_SETTINGS)?);
+        rows.extend(fast_rows(
+            probe,
+            limits,
+            id,
+            "volume",
+            &caster,
+            &exact_gdm,
+            &FAST_SETTINGS,
+        )?);
     }
     let dims = Dims::new(64, 64, 32)?;
     let tile = MeshTile::new(samples::mesh(SampleKind::Chain, dims)?, false)?;
@@ -148,7 +176,15 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
     let id = "W3 chain OBJ 64x64x32";
     let path = format!("mesh exact (obvhs CWBVH; +{secs_setup:.2} s BVH and inside vote)");
     rows.push(row(id, &path, n, secs, peak, &exact_gdm, None));
-    rows.extend(fast_rows(probe, limits, id, "mesh", &caster, &exact_gdm, &[FastParams::default()])?);
+    rows.extend(fast_rows(
+        probe,
+        limits,
+        id,
+        "mesh",
+        &caster,
+        &exact_gdm,
+        &[FastParams::default()],
+    )?);
     Ok(rows)
 }
 

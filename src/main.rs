@@ -213,7 +213,10 @@ fn run(cli: Cli) -> Result<()> {
             let load_s = start.elapsed().as_secs_f64();
             let progress = Progress::new("baking GDM");
             let start = Instant::now();
-            let fast = gdm::fast::FastParams { stride, max_spread: spread };
+            let fast = gdm::fast::FastParams {
+                stride,
+                max_spread: spread,
+            };
             let mut g = gdm::bake(meso.caster(), dirs, method, fast, &limits, &progress)?;
             let bake_s = start.elapsed().as_secs_f64();
             progress.0.finish_and_clear();

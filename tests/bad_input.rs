@@ -110,7 +110,15 @@ fn gdm_over_memory_limit_is_refused() {
     let v = Volume::from_fn(d, &Limits::default(), |_, _, _| false).unwrap();
     let c = mesobake::gdm::volume_caster::VolumeCaster::new(&v);
     let limits = Limits { memory_bytes: 1000 };
-    let e = gdm::bake(&c, DirectionGrid::PAPER, Method::Exact, Default::default(), &limits, &()).unwrap_err();
+    let e = gdm::bake(
+        &c,
+        DirectionGrid::PAPER,
+        Method::Exact,
+        Default::default(),
+        &limits,
+        &(),
+    )
+    .unwrap_err();
     assert!(matches!(e, Error::MemoryLimit { needed: 65536, .. }), "{e}");
     assert!(
         "64x64x0"

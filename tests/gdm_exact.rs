@@ -472,7 +472,10 @@ fn fast_with_full_stride_is_exact() {
     let c = volume(dims(12, 12, 6), |i, j, k| (i * 7 + j * 3 + k * 5) % 11 == 0);
     let dirs = DirectionGrid::new(8, 16).unwrap();
     let exact = bake(&c, dirs, Method::Exact);
-    let params = gdm::fast::FastParams { stride: 6, max_spread: f32::INFINITY };
+    let params = gdm::fast::FastParams {
+        stride: 6,
+        max_spread: f32::INFINITY,
+    };
     let fast = gdm::fast::bake(&c, dirs, params, &Limits::default(), &()).unwrap();
     assert_eq!(fast, exact);
 }

@@ -55,7 +55,11 @@ pub fn bake_per_ray(
                 None => volume.fill(0.0),
             }
             for (n, value) in volume.iter_mut().enumerate() {
-                let (i, j, k) = (n as u32 % dims.x, (n as u32 / dims.x) % dims.y, n as u32 / (dims.x * dims.y));
+                let (i, j, k) = (
+                    n as u32 % dims.x,
+                    (n as u32 / dims.x) % dims.y,
+                    n as u32 / (dims.x * dims.y),
+                );
                 if inside.get(i, j, k) {
                     *value = 0.0;
                     continue;

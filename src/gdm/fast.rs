@@ -15,6 +15,7 @@
 
 use super::caster::{Caster, Trace};
 use super::interpolate::sample_layer;
+use super::template::Template;
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
@@ -75,7 +76,7 @@ pub fn bake(
     Ok(gdm)
 }
 
-/// Fills one direction's X×Y×Z volume.
+/// Fills one direction's X×Y×Z volume, layer by layer away from the exit plane.
 fn sweep_direction(
     caster: &(impl Caster + ?Sized),
     v: [f64; 3],
@@ -84,6 +85,23 @@ fn sweep_direction(
 ) {
     let dims = caster.dims();
     let inside = caster.centres_inside();
+    // Voxel grids walk one ray template per direction, 64 samples at a time.
+    let template = caster.is_voxel_grid().then(|| Template::new(dims, v));
+    let trace_to_end = |i: u32, j: u32, k: u32| {
+        let t = match &template {
+            Some(t) => t.walk(inside, i, j, k, f64::INFINITY),
+            None => caster.trace(
+                [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5],
+                v,
+                f64::INFINITY,
+            ),
+        };
+        match t {
+            Trace::Inside => 0.0,
+            Trace::Hit(t) => t as f32,
+            Trace::Escape(_) | Trace::Limit => f32::INFINITY,
+        }
+    };
     let layer = (dims.x * dims.y) as usize;
     let up = v[2] > 0.0;
     let layers: Vec<u32> = if up {
@@ -92,10 +110,13 @@ fn sweep_direction(
         (0..dims.z).collect()
     };
     for k in layers {
-        // Layers left between this one and the exit plane's side of the volume.
         // When the stride reaches past the last layer the ray is traced to the end, exactly.
         let remaining = if up { dims.z - 1 - k } else { k };
-        let step = if params.stride > remaining { 0 } else { params.stride };
+        let step = if params.stride > remaining {
+            0
+        } else {
+            params.stride
+        };
         let (done_part, rest) = if up {
             let (below, above) = volume.split_at_mut((k as usize + 1) * layer);
             (above, &mut below[k as usize * layer..])
@@ -111,34 +132,58 @@ fn sweep_direction(
         } else {
             &done_part[target as usize * layer..][..layer]
         };
-        let t_step = step as f64 / v[2].abs();
+        let t_step = if step == 0 {
+            f64::INFINITY
+        } else {
+            step as f64 / v[2].abs()
+        };
+        // A sample whose ray reached the target layer without a hit.
+        let finish = |i: u32, j: u32| -> f32 {
+            if step == 0 {
+                return f32::INFINITY;
+            }
+            let q = [
+                i as f64 + 0.5 + t_step * v[0],
+                j as f64 + 0.5 + t_step * v[1],
+            ];
+            let s = sample_layer(dims, inside, target, target_layer, q);
+            if s.is_ambiguous(params.max_spread) {
+                trace_to_end(i, j, k)
+            } else {
+                s.blend()
+                    .map_or(f32::INFINITY, |d| (t_step + d as f64) as f32)
+            }
+        };
         for j in 0..dims.y {
-            for i in 0..dims.x {
-                let out = &mut rest[(j * dims.x + i) as usize];
-                if inside.get(i, j, k) {
-                    *out = 0.0;
-                    continue;
-                }
-                let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
-                let max_t = if step == 0 { f64::INFINITY } else { t_step };
-                *out = match caster.trace(o, v, max_t) {
-                    Trace::Inside => 0.0,
-                    Trace::Hit(t) => t as f32,
-                    Trace::Escape(_) => f32::INFINITY,
-                    Trace::Limit => {
-                        let q = [o[0] + t_step * v[0], o[1] + t_step * v[1]];
-                        let s = sample_layer(dims, inside, target, target_layer, q);
-                        if s.is_ambiguous(params.max_spread) {
-                            match caster.trace(o, v, f64::INFINITY) {
-                                Trace::Hit(t) => t as f32,
-                                Trace::Inside => 0.0,
-                                Trace::Escape(_) | Trace::Limit => f32::INFINITY,
-                            }
-                        } else {
-                            s.blend().map_or(f32::INFINITY, |d| (t_step + d as f64) as f32)
+            let out = &mut rest[(j * dims.x) as usize..][..dims.x as usize];
+            match &template {
+                Some(tpl) => {
+                    let steps = tpl.steps_within(dims, k, t_step);
+                    for w in 0..(dims.x as usize).div_ceil(64) {
+                        let mut pending = tpl.walk_row(inside, steps, j, k, w, out);
+                        while pending != 0 {
+                            let i = 64 * w + pending.trailing_zeros() as usize;
+                            out[i] = finish(i as u32, j);
+                            pending &= pending - 1;
                         }
                     }
-                };
+                }
+                None => {
+                    for (i, value) in out.iter_mut().enumerate() {
+                        let i = i as u32;
+                        *value = if inside.get(i, j, k) {
+                            0.0
+                        } else {
+                            let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
+                            match caster.trace(o, v, t_step) {
+                                Trace::Inside => 0.0,
+                                Trace::Hit(t) => t as f32,
+                                Trace::Escape(_) => f32::INFINITY,
+                                Trace::Limit => finish(i, j),
+                            }
+                        };
+                    }
+                }
             }
         }
     }

@@ -38,7 +38,13 @@ impl LayerSample {
 /// Summarizes the four sample centres around point `q` = (x, y) of layer `k` (the plane
 /// z = k + ½) from that layer's values (`layer`, x fastest, escapes +∞), with bilinear
 /// weights; x and y wrap around.
-pub fn sample_layer(dims: Dims, inside: &Occupancy, k: u32, layer: &[f32], q: [f64; 2]) -> LayerSample {
+pub fn sample_layer(
+    dims: Dims,
+    inside: &Occupancy,
+    k: u32,
+    layer: &[f32],
+    q: [f64; 2],
+) -> LayerSample {
     let u = q[0] - 0.5;
     let w = q[1] - 0.5;
     let (i0, j0) = (u.floor(), w.floor());

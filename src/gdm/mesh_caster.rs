@@ -274,13 +274,19 @@ impl Caster for MeshCaster {
 /// wrap around, z is clipped to the grid).
 fn rasterize_bounds(tris: &[Triangle], dims: Dims) -> Occupancy {
     let mut occ = Occupancy::empty(dims);
-    let wrap = [crate::grid::Wrap::new(dims.x), crate::grid::Wrap::new(dims.y)];
+    let wrap = [
+        crate::grid::Wrap::new(dims.x),
+        crate::grid::Wrap::new(dims.y),
+    ];
     let eps = 1e-3;
     for t in tris {
         let lo = t.v0.min(t.v1).min(t.v2);
         let hi = t.v0.max(t.v1).max(t.v2);
         let range = |a: usize, clip: Option<u32>| {
-            let (mut l, mut h) = (((lo[a] - eps).floor()) as i64, ((hi[a] + eps).floor()) as i64);
+            let (mut l, mut h) = (
+                ((lo[a] - eps).floor()) as i64,
+                ((hi[a] + eps).floor()) as i64,
+            );
             if let Some(n) = clip {
                 l = l.max(0);
                 h = h.min(n as i64 - 1);

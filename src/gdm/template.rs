@@ -9,6 +9,7 @@
 //! of all samples of row (j, k) are the occupancy bits of row (j+dj, k+dk) rotated by di,
 //! so one rotate-and-mask tests 64 rays. Results are bit-identical to per-ray traversal.
 
+use super::caster::Trace;
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
@@ -19,7 +20,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// One voxel visited by the template ray.
 #[derive(Clone, Copy, Debug)]
-struct Step {
+pub(crate) struct Step {
     /// x offset modulo X: the rotation of the occupancy row.
     shift: u32,
     /// y offset modulo Y.
@@ -95,6 +96,105 @@ fn build_template(dims: Dims, v: [f64; 3]) -> Vec<Step> {
     steps
 }
 
+/// The template of one direction, walked one sample at a time.
+pub(crate) struct Template {
+    steps: Vec<Step>,
+}
+
+impl Template {
+    /// The template of direction `v` on the grid of `dims`.
+    pub(crate) fn new(dims: Dims, v: [f64; 3]) -> Self {
+        Template {
+            steps: build_template(dims, v),
+        }
+    }
+
+    /// The steps a ray from layer `k` takes inside the volume up to distance `max_t`.
+    pub(crate) fn steps_within(&self, dims: Dims, k: u32, max_t: f64) -> &[Step] {
+        let k = k as i32;
+        let end = self
+            .steps
+            .iter()
+            .position(|s| k + s.dk < 0 || k + s.dk >= dims.z as i32 || s.t as f64 > max_t)
+            .unwrap_or(self.steps.len());
+        &self.steps[..end]
+    }
+
+    /// Walks `steps` for the 64 samples of word `w` of row (j, k) at once: writes 0 for
+    /// samples in solid, the distance of the first solid voxel for rays that touch one, and
+    /// returns the lanes (bit i = sample 64w + i) still pending.
+    pub(crate) fn walk_row(
+        &self,
+        occ: &Occupancy,
+        steps: &[Step],
+        j: u32,
+        k: u32,
+        w: usize,
+        out: &mut [f32],
+    ) -> u64 {
+        let dims = occ.dims();
+        let lanes = (dims.x as usize - 64 * w).min(64);
+        let mask = if lanes == 64 {
+            u64::MAX
+        } else {
+            (1u64 << lanes) - 1
+        };
+        let own = occ.row(j, k)[w] & mask;
+        let mut pending = !own & mask;
+        let mut inside = own;
+        while inside != 0 {
+            out[64 * w + inside.trailing_zeros() as usize] = 0.0;
+            inside &= inside - 1;
+        }
+        for s in steps {
+            if pending == 0 {
+                break;
+            }
+            let jj = if j + s.dj >= dims.y {
+                j + s.dj - dims.y
+            } else {
+                j + s.dj
+            };
+            let row = occ.row(jj, (k as i32 + s.dk) as u32);
+            let mut hits = rotated_word(row, dims.x, s.shift, w) & pending;
+            pending &= !hits;
+            while hits != 0 {
+                out[64 * w + hits.trailing_zeros() as usize] = s.t;
+                hits &= hits - 1;
+            }
+        }
+        pending
+    }
+
+    /// The exact trace from sample (i, j, k) (outside solid) up to distance `max_t`.
+    pub(crate) fn walk(&self, occ: &Occupancy, i: u32, j: u32, k: u32, max_t: f64) -> Trace {
+        let dims = occ.dims();
+        for s in &self.steps {
+            if s.t as f64 > max_t {
+                return Trace::Limit;
+            }
+            let kk = k as i32 + s.dk;
+            if kk < 0 || kk >= dims.z as i32 {
+                return Trace::Escape(s.t as f64);
+            }
+            let ii = if i + s.shift >= dims.x {
+                i + s.shift - dims.x
+            } else {
+                i + s.shift
+            };
+            let jj = if j + s.dj >= dims.y {
+                j + s.dj - dims.y
+            } else {
+                j + s.dj
+            };
+            if occ.get(ii, jj, kk as u32) {
+                return Trace::Hit(s.t as f64);
+            }
+        }
+        Trace::Escape(f64::INFINITY)
+    }
+}
+
 /// Gathers row bits rotated by `shift`: bit i of the result is bit (i + shift) mod X of `row`.
 #[inline(always)]
 fn rotated_word(row: &[u64], x: u32, shift: u32, w: usize) -> u64 {
@@ -164,49 +264,14 @@ pub fn bake(
 /// first solid voxel touched, +∞ for rays that leave the volume first.
 pub(crate) fn bake_direction(occ: &Occupancy, v: [f64; 3], volume: &mut [f32]) {
     let dims = occ.dims();
-    let template = build_template(dims, v);
-    let (nx, ny, nz) = (dims.x as usize, dims.y, dims.z as i32);
-    let words = nx.div_ceil(64);
-    for k in 0..nz {
-        // Steps before the ray leaves the volume from layer k.
-        let end = template
-            .iter()
-            .position(|s| k + s.dk < 0 || k + s.dk >= nz)
-            .unwrap_or(template.len());
-        let steps = &template[..end];
-        for j in 0..ny {
-            let out = &mut volume[(k as usize * ny as usize + j as usize) * nx..][..nx];
-            let own = occ.row(j, k as u32);
-            for w in 0..words {
-                let lanes = if x_lanes(nx, w) == 64 {
-                    u64::MAX
-                } else {
-                    (1u64 << x_lanes(nx, w)) - 1
-                };
-                let mut pending = !own[w] & lanes;
-                // Inside solid: 0.
-                let mut inside = own[w] & lanes;
-                while inside != 0 {
-                    out[64 * w + inside.trailing_zeros() as usize] = 0.0;
-                    inside &= inside - 1;
-                }
-                for s in steps {
-                    if pending == 0 {
-                        break;
-                    }
-                    let jj = if j + s.dj >= ny {
-                        j + s.dj - ny
-                    } else {
-                        j + s.dj
-                    };
-                    let row = occ.row(jj, (k + s.dk) as u32);
-                    let mut hits = rotated_word(row, dims.x, s.shift, w) & pending;
-                    pending &= !hits;
-                    while hits != 0 {
-                        out[64 * w + hits.trailing_zeros() as usize] = s.t;
-                        hits &= hits - 1;
-                    }
-                }
+    let template = Template::new(dims, v);
+    let nx = dims.x as usize;
+    for k in 0..dims.z {
+        let steps = template.steps_within(dims, k, f64::INFINITY);
+        for j in 0..dims.y {
+            let out = &mut volume[(k as usize * dims.y as usize + j as usize) * nx..][..nx];
+            for w in 0..nx.div_ceil(64) {
+                let mut pending = template.walk_row(occ, steps, j, k, w, out);
                 while pending != 0 {
                     out[64 * w + pending.trailing_zeros() as usize] = f32::INFINITY;
                     pending &= pending - 1;
@@ -214,9 +279,4 @@ pub(crate) fn bake_direction(occ: &Occupancy, v: [f64; 3], volume: &mut [f32]) {
             }
         }
     }
-}
-
-/// Samples held by word `w` of a row of `nx`.
-fn x_lanes(nx: usize, w: usize) -> usize {
-    (nx - 64 * w).min(64)
 }
