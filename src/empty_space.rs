@@ -45,34 +45,15 @@ impl EmptySpace {
                 min_max_pass(&row, out, true);
             }
         }
-        // y pass, periodic.
-        let mut line = vec![0; ny];
-        let mut res = vec![0; ny];
-        for k in 0..nz {
-            for i in 0..nx {
-                for (j, l) in line.iter_mut().enumerate() {
-                    *l = dist[(k * ny + j) * nx + i];
-                }
-                min_max_pass(&line, &mut res, true);
-                for (j, r) in res.iter().enumerate() {
-                    dist[(k * ny + j) * nx + i] = *r;
-                }
-            }
-        }
-        // z pass, not periodic: outside the volume there is nothing solid.
-        let mut line = vec![0; nz];
-        let mut res = vec![0; nz];
-        for j in 0..ny {
-            for i in 0..nx {
-                for (k, l) in line.iter_mut().enumerate() {
-                    *l = dist[(k * ny + j) * nx + i];
-                }
-                min_max_pass(&line, &mut res, false);
-                for (k, r) in res.iter().enumerate() {
-                    dist[(k * ny + j) * nx + i] = *r;
-                }
-            }
-        }
+        // y pass (periodic), then z pass (not periodic: outside the volume nothing is solid).
+        pass_along_lines(
+            &mut dist,
+            ny,
+            nx,
+            (0..nz).flat_map(|k| (0..nx).map(move |i| k * ny * nx + i)),
+            true,
+        );
+        pass_along_lines(&mut dist, nz, nx * ny, 0..nx * ny, false);
         EmptySpace {
             wrap: [Wrap::new(dims.x), Wrap::new(dims.y)],
             nx: nx as i64,
@@ -87,6 +68,27 @@ impl EmptySpace {
         let i = self.wrap[0].apply(i) as i64;
         let j = self.wrap[1].apply(j) as i64;
         self.distance[((k * self.ny + j) * self.nx + i) as usize]
+    }
+}
+
+/// Runs [`min_max_pass`] along every line of `len` values `step` apart starting at `starts`.
+fn pass_along_lines(
+    dist: &mut [u32],
+    len: usize,
+    step: usize,
+    starts: impl Iterator<Item = usize>,
+    periodic: bool,
+) {
+    let mut line = vec![0; len];
+    let mut res = vec![0; len];
+    for start in starts {
+        for (n, l) in line.iter_mut().enumerate() {
+            *l = dist[start + n * step];
+        }
+        min_max_pass(&line, &mut res, periodic);
+        for (n, r) in res.iter().enumerate() {
+            dist[start + n * step] = *r;
+        }
     }
 }
 

@@ -2,11 +2,9 @@
 
 use super::caster::{Caster, Trace};
 use super::{BakeObserver, Gdm};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::grid::DirectionGrid;
 use crate::limits::Limits;
-use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Bakes every sample of every direction exactly: voxel grids with ray templates
 /// ([`super::template`]), anything else one ray per sample, in parallel over (direction,
@@ -35,48 +33,37 @@ pub fn bake_per_ray(
 ) -> Result<Gdm> {
     let dims = caster.dims();
     let mut gdm = Gdm::zeroed(dims, dirs, limits)?;
-    let stride = gdm.direction_stride();
-    let total = dirs.count() as u64;
-    let done = AtomicU64::new(0);
     let inside = caster.centres_inside();
     let candidates = caster
         .surface_candidates()
         .filter(|_| super::template::supports(dims));
-    gdm.data_mut()
-        .par_chunks_mut(stride)
-        .enumerate()
-        .try_for_each(|(d, volume)| {
-            if observer.cancelled() {
-                return Err(Error::Cancelled);
+    gdm.fill_directions(observer, |d, volume| {
+        let v = dirs.vector_of(d);
+        match candidates {
+            Some(c) => super::template::bake_direction(c, v, volume),
+            None => volume.fill(0.0),
+        }
+        for (n, value) in volume.iter_mut().enumerate() {
+            let (i, j, k) = (
+                n as u32 % dims.x,
+                (n as u32 / dims.x) % dims.y,
+                n as u32 / (dims.x * dims.y),
+            );
+            if inside.get(i, j, k) {
+                *value = 0.0;
+                continue;
             }
-            let v = dirs.vector_of(d);
-            match candidates {
-                Some(c) => super::template::bake_direction(c, v, volume),
-                None => volume.fill(0.0),
+            if value.is_infinite() {
+                continue; // no candidate voxel on the way: escapes
             }
-            for (n, value) in volume.iter_mut().enumerate() {
-                let (i, j, k) = (
-                    n as u32 % dims.x,
-                    (n as u32 / dims.x) % dims.y,
-                    n as u32 / (dims.x * dims.y),
-                );
-                if inside.get(i, j, k) {
-                    *value = 0.0;
-                    continue;
-                }
-                if value.is_infinite() {
-                    continue; // no candidate voxel on the way: escapes
-                }
-                let start = (*value as f64 - 1e-4).max(0.0);
-                let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
-                *value = match caster.trace_from(o, v, start, f64::INFINITY) {
-                    Trace::Inside => 0.0,
-                    Trace::Hit(t) => t as f32,
-                    Trace::Escape(_) | Trace::Limit => f32::INFINITY,
-                };
-            }
-            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-            Ok(())
-        })?;
+            let start = (*value as f64 - 1e-4).max(0.0);
+            let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
+            *value = match caster.trace_from(o, v, start, f64::INFINITY) {
+                Trace::Inside => 0.0,
+                Trace::Hit(t) => t as f32,
+                Trace::Escape(_) | Trace::Limit => f32::INFINITY,
+            };
+        }
+    })?;
     Ok(gdm)
 }

@@ -20,8 +20,6 @@ use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
 use crate::limits::Limits;
-use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The knobs of the fast bake.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -59,20 +57,9 @@ pub fn bake(
     }
     let dims = caster.dims();
     let mut gdm = Gdm::zeroed(dims, dirs, limits)?;
-    let stride_values = gdm.direction_stride();
-    let total = dirs.count() as u64;
-    let done = AtomicU64::new(0);
-    gdm.data_mut()
-        .par_chunks_mut(stride_values)
-        .enumerate()
-        .try_for_each(|(d, volume)| {
-            if observer.cancelled() {
-                return Err(Error::Cancelled);
-            }
-            sweep_direction(caster, dirs.vector_of(d), params, volume);
-            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-            Ok(())
-        })?;
+    gdm.fill_directions(observer, |d, volume| {
+        sweep_direction(caster, dirs.vector_of(d), params, volume)
+    })?;
     Ok(gdm)
 }
 

@@ -93,9 +93,29 @@ impl Gdm {
         &self.data
     }
 
-    /// Mutable values, for bakers.
-    pub(crate) fn data_mut(&mut self) -> &mut [f32] {
-        &mut self.data
+    /// Fills each direction's X×Y×Z volume with `fill(direction index, volume)`, in parallel
+    /// over directions, reporting progress per direction and stopping on cancellation.
+    pub(crate) fn fill_directions(
+        &mut self,
+        observer: &dyn BakeObserver,
+        fill: impl Fn(usize, &mut [f32]) + Sync,
+    ) -> Result<()> {
+        use rayon::prelude::*;
+        let total = self.dirs.count() as u64;
+        let done = std::sync::atomic::AtomicU64::new(0);
+        let stride = self.direction_stride();
+        self.data
+            .par_chunks_mut(stride)
+            .enumerate()
+            .try_for_each(|(d, volume)| {
+                if observer.cancelled() {
+                    return Err(crate::Error::Cancelled);
+                }
+                fill(d, volume);
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                observer.progress(n, total);
+                Ok(())
+            })
     }
 
     /// Number of values in one direction's volume, X·Y·Z.

@@ -15,8 +15,6 @@ use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
 use crate::volume::Occupancy;
-use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// One voxel visited by the template ray.
 #[derive(Clone, Copy, Debug)]
@@ -242,21 +240,9 @@ pub fn bake(
         longest as u64,
         per_template * rayon::current_num_threads() as u64,
     )?;
-    let stride = gdm.direction_stride();
-
-    let total = dirs.count() as u64;
-    let done = AtomicU64::new(0);
-    gdm.data_mut()
-        .par_chunks_mut(stride)
-        .enumerate()
-        .try_for_each(|(d, volume)| {
-            if observer.cancelled() {
-                return Err(Error::Cancelled);
-            }
-            bake_direction(occ, dirs.vector_of(d), volume);
-            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-            Ok(())
-        })?;
+    gdm.fill_directions(observer, |d, volume| {
+        bake_direction(occ, dirs.vector_of(d), volume)
+    })?;
     Ok(gdm)
 }
 
