@@ -10,7 +10,7 @@
 use crate::error::{Error, Result};
 use crate::gdm::Gdm;
 use crate::gdm::interpolate::sample_layer;
-use crate::grid::{Dims, Wrap};
+use crate::grid::Wrap;
 use crate::volume::Volume;
 
 /// What to render.
@@ -149,10 +149,10 @@ pub fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// The default setup for a grid of `dims`: looking 40° off the normal, light from the side.
+/// The default setup for `gdm`'s direction grid: looking about 40° off the normal, light from
+/// the side.
 pub fn default_setup(gdm: &Gdm) -> PreviewSetup {
     let dirs = gdm.dirs();
-    let _: Dims = gdm.dims();
     PreviewSetup {
         view: (dirs.n_theta * 11 / 16, dirs.n_phi / 8),
         light: (dirs.n_theta * 4 / 16, dirs.n_phi * 5 / 8),

@@ -44,8 +44,7 @@ pub trait Caster: Sync {
     }
 
     /// Like [`Caster::trace`], for a caller that knows there is no solid before `t_min`.
-    fn trace_from(&self, origin: [f64; 3], dir: [f64; 3], t_min: f64, max_t: f64) -> Trace {
-        let _ = t_min;
+    fn trace_from(&self, origin: [f64; 3], dir: [f64; 3], _t_min: f64, max_t: f64) -> Trace {
         self.trace(origin, dir, max_t)
     }
 }

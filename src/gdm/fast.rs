@@ -141,11 +141,14 @@ fn sweep_direction(
                     .map_or(f32::INFINITY, |d| (t_step + d as f64) as f32)
             }
         };
+        // The template steps of this layer's slab, shared by all its rows.
+        let steps = template
+            .as_ref()
+            .map_or(&[][..], |t| t.steps_within(dims, k, t_step));
         for j in 0..dims.y {
             let out = &mut rest[(j * dims.x) as usize..][..dims.x as usize];
             match &template {
                 Some(tpl) => {
-                    let steps = tpl.steps_within(dims, k, t_step);
                     for w in 0..(dims.x as usize).div_ceil(64) {
                         let mut pending = tpl.walk_row(inside, steps, j, k, w, out);
                         while pending != 0 {

@@ -25,7 +25,7 @@ pub struct VolumeCaster {
 }
 
 impl VolumeCaster {
-    /// A caster with empty-space skipping (the fast exact traversal).
+    /// A caster with exact empty-space skipping.
     pub fn new(volume: &Volume) -> Self {
         Self::from_occupancy(volume.occupancy(), true)
     }
