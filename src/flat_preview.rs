@@ -79,51 +79,49 @@ pub fn render(volume: &Volume, gdm: &Gdm, setup: &PreviewSetup) -> Result<Vec<u8
             let q = [r[0] * sx - h[0] * sy, r[1] * sx - h[1] * sy, dims.z as f64];
             let t0 = 0.5 / -w[2];
             let p = [q[0] + t0 * w[0], q[1] + t0 * w[1], q[2] + t0 * w[2]];
-            let rgb = match sample_layer(dims, &occ, top_k, top, [p[0], p[1]]).blend() {
-                None => [0.18, 0.18, 0.2],
-                Some(d) => {
-                    let d = d as f64;
-                    let hit = [p[0] + d * w[0], p[1] + d * w[1], p[2] + d * w[2]];
-                    let inside = [
-                        hit[0] + 0.3 * w[0],
-                        hit[1] + 0.3 * w[1],
-                        hit[2] + 0.3 * w[2],
-                    ];
-                    let base = match (albedo, voxel(inside)) {
-                        (Some(a), Some((i, j, k))) => {
-                            a[dims.index(i as u32, j as u32, k as u32)].map(|c| c as f64 / 255.0)
-                        }
-                        _ => [0.7, 0.7, 0.7],
-                    };
-                    let mut n = [0.0; 3];
-                    for (a, na) in n.iter_mut().enumerate() {
-                        let mut e = [0.0; 3];
-                        e[a] = 1.0;
-                        let f = |s: f64| {
-                            density([hit[0] + s * e[0], hit[1] + s * e[1], hit[2] + s * e[2]])
-                        };
-                        *na = f(-1.0) - f(1.0);
+            let d = sample_layer(dims, top, [p[0], p[1]]);
+            let rgb = if d.is_infinite() {
+                [0.18, 0.18, 0.2]
+            } else {
+                let d = d as f64;
+                let hit = [p[0] + d * w[0], p[1] + d * w[1], p[2] + d * w[2]];
+                let inside = [
+                    hit[0] + 0.3 * w[0],
+                    hit[1] + 0.3 * w[1],
+                    hit[2] + 0.3 * w[2],
+                ];
+                let base = match (albedo, voxel(inside)) {
+                    (Some(a), Some((i, j, k))) => {
+                        a[dims.index(i as u32, j as u32, k as u32)].map(|c| c as f64 / 255.0)
                     }
-                    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                    let n = if len > 0.0 {
-                        n.map(|c| c / len)
-                    } else {
-                        w.map(|c| -c)
-                    };
-                    let outside = [
-                        hit[0] - 0.5 * w[0],
-                        hit[1] - 0.5 * w[1],
-                        hit[2] - 0.5 * w[2],
-                    ];
-                    let shadowed = voxel(outside).is_some_and(|(i, j, k)| {
-                        let v =
-                            gdm.data()[light_d * stride + dims.index(i as u32, j as u32, k as u32)];
-                        v > 0.0 && v.is_finite()
-                    });
-                    let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
-                    let light = 0.25 + 0.75 * lambert * if shadowed { 0.2 } else { 1.0 };
-                    base.map(|c| c * light)
+                    _ => [0.7, 0.7, 0.7],
+                };
+                let mut n = [0.0; 3];
+                for (a, na) in n.iter_mut().enumerate() {
+                    let mut e = [0.0; 3];
+                    e[a] = 1.0;
+                    let f =
+                        |s: f64| density([hit[0] + s * e[0], hit[1] + s * e[1], hit[2] + s * e[2]]);
+                    *na = f(-1.0) - f(1.0);
                 }
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                let n = if len > 0.0 {
+                    n.map(|c| c / len)
+                } else {
+                    w.map(|c| -c)
+                };
+                let outside = [
+                    hit[0] - 0.5 * w[0],
+                    hit[1] - 0.5 * w[1],
+                    hit[2] - 0.5 * w[2],
+                ];
+                let shadowed = voxel(outside).is_some_and(|(i, j, k)| {
+                    let v = gdm.data()[light_d * stride + dims.index(i as u32, j as u32, k as u32)];
+                    v > 0.0 && v.is_finite()
+                });
+                let lambert = (n[0] * l[0] + n[1] * l[1] + n[2] * l[2]).max(0.0);
+                let light = 0.25 + 0.75 * lambert * if shadowed { 0.2 } else { 1.0 };
+                base.map(|c| c * light)
             };
             image.extend(rgb.map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8));
         }

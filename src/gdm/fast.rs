@@ -4,17 +4,19 @@
 //! bottom up). From a sample in layer k the ray is cast *exactly* until it reaches the centre
 //! plane of layer k+s (s = `stride`); a hit on the way is exact. Otherwise the remaining
 //! distance is read from layer k+s at the point reached, from the four surrounding sample
-//! centres (x/y wrap-around, [`sample_layer`]). Where they agree — all escape, or all hit at
-//! distances within `max_spread` voxels of each other, none inside solid — the sample escapes
-//! or takes the bilinear mean of their hits; where they disagree the ray is traced exactly to
-//! the end, so the approximation is confined to smooth regions.
+//! centres (x/y wrap-around, [`super::interpolate::blend`]). All samples of a layer land
+//! displaced by the same vector, so whole rows are read at once. Where the four agree — all
+//! escape, or all hit at distances within `max_spread` voxels of each other, at most half the
+//! weight in solid — the sample escapes or takes the bilinear mean of their hits; where they
+//! disagree the ray is traced exactly to the end (on voxel grids, the 64 lanes of a word
+//! together), so the approximation is confined to smooth regions.
 //!
 //! Knobs: `stride` (rays from layers closer than `stride` to the exit plane are traced to the
 //! end, so stride ≥ Z is the exact bake) and `max_spread` (0 traces every ray that does not
-//! escape with all its neighbours; +∞ interpolates everywhere).
+//! escape with all its neighbours; +∞ interpolates wherever neighbours agree on hit or escape).
 
 use super::caster::{Caster, Trace};
-use super::interpolate::sample_layer;
+use super::interpolate::{Ambiguity, LayerStencil};
 use super::template::Template;
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
@@ -27,8 +29,8 @@ pub struct FastParams {
     /// Layers crossed exactly before reading the layer already baked (≥ 1).
     pub stride: u32,
     /// Hit distances of the four neighbours may differ by this many voxels and still be
-    /// interpolated; beyond it (and where neighbours disagree on hit or escape, or one lies in
-    /// solid) the ray is traced exactly to the end. +∞ interpolates everywhere.
+    /// interpolated; beyond it (and where neighbours disagree on hit or escape, or more than
+    /// half their weight lies in solid) the ray is traced exactly to the end.
     pub max_spread: f32,
 }
 
@@ -74,22 +76,16 @@ fn sweep_direction(
     let inside = caster.centres_inside();
     // Voxel grids walk one ray template per direction, 64 samples at a time.
     let template = caster.is_voxel_grid().then(|| Template::new(dims, v));
-    let trace_to_end = |i: u32, j: u32, k: u32| {
-        let t = match &template {
-            Some(t) => t.walk(inside, i, j, k, f64::INFINITY),
-            None => caster.trace(
-                [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5],
-                v,
-                f64::INFINITY,
-            ),
-        };
-        match t {
-            Trace::Inside => 0.0,
-            Trace::Hit(t) => t as f32,
-            Trace::Escape(_) | Trace::Limit => f32::INFINITY,
-        }
+    let distance = |t: Trace| match t {
+        Trace::Inside => 0.0,
+        Trace::Hit(t) => t as f32,
+        Trace::Escape(_) | Trace::Limit => f32::INFINITY,
     };
     let layer = (dims.x * dims.y) as usize;
+    let ambiguity = Ambiguity {
+        max_spread: params.max_spread,
+    };
+    let (mut reused, mut ambiguous) = (vec![0.0; dims.x as usize], vec![false; dims.x as usize]);
     let up = v[2] > 0.0;
     let layers: Vec<u32> = if up {
         (0..dims.z).rev().collect()
@@ -124,52 +120,66 @@ fn sweep_direction(
         } else {
             step as f64 / v[2].abs()
         };
-        // A sample whose ray reached the target layer without a hit.
-        let finish = |i: u32, j: u32| -> f32 {
+        // Every sample reaching the target layer lands displaced by the same vector; a row
+        // of samples reads it in one pass (values from the target layer, ambiguity flags).
+        let mut stencil = LayerStencil::new(dims, [t_step * v[0], t_step * v[1]], ambiguity);
+        let mut read_row = |j: u32, value: &mut [f32], ambiguous: &mut [bool]| {
             if step == 0 {
-                return f32::INFINITY;
-            }
-            let q = [
-                i as f64 + 0.5 + t_step * v[0],
-                j as f64 + 0.5 + t_step * v[1],
-            ];
-            let s = sample_layer(dims, inside, target, target_layer, q);
-            if s.is_ambiguous(params.max_spread) {
-                trace_to_end(i, j, k)
+                value.fill(f32::INFINITY);
+                ambiguous.fill(false);
             } else {
-                s.blend()
-                    .map_or(f32::INFINITY, |d| (t_step + d as f64) as f32)
+                stencil.read_row(target_layer, j, value, ambiguous);
+                for d in value.iter_mut() {
+                    *d = (t_step + *d as f64) as f32;
+                }
             }
         };
-        // The template steps of this layer's slab, shared by all its rows.
-        let steps = template
-            .as_ref()
-            .map_or(&[][..], |t| t.steps_within(dims, k, t_step));
-        for j in 0..dims.y {
-            let out = &mut rest[(j * dims.x) as usize..][..dims.x as usize];
-            match &template {
-                Some(tpl) => {
+        match &template {
+            Some(tpl) => {
+                // The steps inside this layer's slab, then the rest of the ray.
+                let all = tpl.steps_within(dims, k, f64::INFINITY);
+                let slab = tpl.steps_within(dims, k, t_step);
+                let beyond = &all[slab.len()..];
+                for j in 0..dims.y {
+                    let out = &mut rest[(j * dims.x) as usize..][..dims.x as usize];
+                    read_row(j, &mut reused, &mut ambiguous);
                     for w in 0..(dims.x as usize).div_ceil(64) {
-                        let mut pending = tpl.walk_row(inside, steps, j, k, w, out);
+                        let mut pending = tpl.walk_row(inside, slab, j, k, w, out);
+                        let mut unresolved = 0u64;
                         while pending != 0 {
-                            let i = 64 * w + pending.trailing_zeros() as usize;
-                            out[i] = finish(i as u32, j);
+                            let lane = pending.trailing_zeros();
+                            let i = 64 * w + lane as usize;
+                            if ambiguous[i] {
+                                unresolved |= 1 << lane;
+                            } else {
+                                out[i] = reused[i];
+                            }
                             pending &= pending - 1;
+                        }
+                        // Ambiguous lanes walk the rest of the template together.
+                        let mut escaped = tpl.walk_lanes(inside, beyond, j, k, w, unresolved, out);
+                        while escaped != 0 {
+                            out[64 * w + escaped.trailing_zeros() as usize] = f32::INFINITY;
+                            escaped &= escaped - 1;
                         }
                     }
                 }
-                None => {
+            }
+            None => {
+                for j in 0..dims.y {
+                    read_row(j, &mut reused, &mut ambiguous);
+                    let out = &mut rest[(j * dims.x) as usize..][..dims.x as usize];
                     for (i, value) in out.iter_mut().enumerate() {
-                        let i = i as u32;
-                        *value = if inside.get(i, j, k) {
+                        *value = if inside.get(i as u32, j, k) {
                             0.0
                         } else {
                             let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
                             match caster.trace(o, v, t_step) {
-                                Trace::Inside => 0.0,
-                                Trace::Hit(t) => t as f32,
-                                Trace::Escape(_) => f32::INFINITY,
-                                Trace::Limit => finish(i, j),
+                                Trace::Limit if !ambiguous[i] => reused[i],
+                                Trace::Limit => {
+                                    distance(caster.trace_from(o, v, t_step, f64::INFINITY))
+                                }
+                                t => distance(t),
                             }
                         };
                     }

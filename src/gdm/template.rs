@@ -9,7 +9,6 @@
 //! of all samples of row (j, k) are the occupancy bits of row (j+dj, k+dk) rotated by di,
 //! so one rotate-and-mask tests 64 rays. Results are bit-identical to per-ray traversal.
 
-use super::caster::Trace;
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
@@ -138,12 +137,29 @@ impl Template {
             (1u64 << lanes) - 1
         };
         let own = occ.row(j, k)[w] & mask;
-        let mut pending = !own & mask;
         let mut inside = own;
         while inside != 0 {
             out[64 * w + inside.trailing_zeros() as usize] = 0.0;
             inside &= inside - 1;
         }
+        self.walk_lanes(occ, steps, j, k, w, !own & mask, out)
+    }
+
+    /// Walks `steps` for the lanes `pending` of word `w` of row (j, k) (samples outside
+    /// solid): writes the distance of the first solid voxel for rays that touch one and
+    /// returns the lanes still pending.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn walk_lanes(
+        &self,
+        occ: &Occupancy,
+        steps: &[Step],
+        j: u32,
+        k: u32,
+        w: usize,
+        mut pending: u64,
+        out: &mut [f32],
+    ) -> u64 {
+        let dims = occ.dims();
         for s in steps {
             if pending == 0 {
                 break;
@@ -162,34 +178,6 @@ impl Template {
             }
         }
         pending
-    }
-
-    /// The exact trace from sample (i, j, k) (outside solid) up to distance `max_t`.
-    pub(crate) fn walk(&self, occ: &Occupancy, i: u32, j: u32, k: u32, max_t: f64) -> Trace {
-        let dims = occ.dims();
-        for s in &self.steps {
-            if s.t as f64 > max_t {
-                return Trace::Limit;
-            }
-            let kk = k as i32 + s.dk;
-            if kk < 0 || kk >= dims.z as i32 {
-                return Trace::Escape(s.t as f64);
-            }
-            let ii = if i + s.shift >= dims.x {
-                i + s.shift - dims.x
-            } else {
-                i + s.shift
-            };
-            let jj = if j + s.dj >= dims.y {
-                j + s.dj - dims.y
-            } else {
-                j + s.dj
-            };
-            if occ.get(ii, jj, kk as u32) {
-                return Trace::Hit(s.t as f64);
-            }
-        }
-        Trace::Escape(f64::INFINITY)
     }
 }
 
