@@ -74,6 +74,18 @@ fn row(
     }
 }
 
+/// A baseline row: time scaled from a subset of directions, no error or memory figures.
+fn baseline(workload: &str, what: &str, seconds: f64, mrays_per_s: f64) -> Row {
+    Row {
+        workload: workload.to_string(),
+        path: format!("baseline: {what}"),
+        seconds,
+        mrays_per_s,
+        peak_over_output: f64::NAN,
+        error: None,
+    }
+}
+
 /// The fast-bake settings measured: the default, then each knob pushed towards speed.
 const FAST_SETTINGS: [FastParams; 3] = [
     FastParams {
@@ -118,7 +130,7 @@ fn fast_rows(
 
 /// Runs W1 (chain volume 64×64×32), W2 (bark volume 128×128×16) and W3 (chain OBJ tile
 /// 64×64×32), all with 16×32 directions. The per-ray baselines (DDA with and without
-/// empty-space skipping) run on 2×8 directions spread over the sphere and their times are
+/// empty-space skipping, BVH traversal) run on 2×8 directions spread over the sphere and their times are
 /// scaled to the full grid.
 pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
     let dirs = DirectionGrid::PAPER;
@@ -149,14 +161,12 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
             ("plain DDA", &plain),
         ] {
             let (_, secs, _) = timed(probe, || exact::bake_per_ray(c, subset, limits, &()))?;
-            rows.push(Row {
-                workload: id.to_string(),
-                path: format!("baseline: per-ray {name} ({subset} directions, time ×{scale})"),
-                seconds: secs * scale,
-                mrays_per_s: rays(c, subset) / secs / 1e6,
-                peak_over_output: f64::NAN,
-                error: None,
-            });
+            rows.push(baseline(
+                id,
+                &format!("per-ray {name} ({subset} directions, time ×{scale})"),
+                secs * scale,
+                rays(c, subset) / secs / 1e6,
+            ));
         }
         rows.extend(fast_rows(
             probe,
@@ -174,8 +184,16 @@ pub fn run(probe: &dyn MemoryProbe, limits: &Limits) -> Result<Vec<Row>> {
     let n = rays(&caster, dirs);
     let (exact_gdm, secs, peak) = timed(probe, || exact::bake(&caster, dirs, limits, &()))?;
     let id = "W3 chain OBJ 64x64x32";
-    let path = format!("mesh exact (obvhs CWBVH; +{secs_setup:.2} s BVH and inside vote)");
+    let path =
+        format!("mesh exact (ray templates over voxel-binned triangles; +{secs_setup:.2} s setup)");
     rows.push(row(id, &path, n, secs, peak, &exact_gdm, None));
+    let (_, secs, _) = timed(probe, || exact::bake_per_ray(&caster, subset, limits, &()))?;
+    rows.push(baseline(
+        id,
+        &format!("per-ray obvhs CWBVH traversal ({subset} directions, time ×{scale})"),
+        secs * scale,
+        rays(&caster, subset) / secs / 1e6,
+    ));
     rows.extend(fast_rows(
         probe,
         limits,

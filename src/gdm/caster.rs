@@ -37,10 +37,11 @@ pub trait Caster: Sync {
         false
     }
 
-    /// Voxels that together contain all of the surface (a conservative superset), when known:
-    /// a ray from a sample outside solid cannot hit before it first touches one of them.
-    fn surface_candidates(&self) -> Option<&Occupancy> {
-        None
+    /// Fills one direction's X×Y×Z volume exactly (the values of one [`Caster::trace`] per
+    /// sample) by a faster route when the caster has one, and returns whether it did;
+    /// otherwise leaves `volume` alone.
+    fn bake_direction(&self, _dir: [f64; 3], _volume: &mut [f32]) -> bool {
+        false
     }
 
     /// Like [`Caster::trace`], for a caller that knows there is no solid before `t_min`.

@@ -1,4 +1,4 @@
-//! The exact GDM bake: one ray per sample and direction, cast to its first hit or escape.
+//! The exact GDM bake: every sample's ray in every direction, cast to its first hit or escape.
 
 use super::caster::{Caster, Trace};
 use super::{BakeObserver, Gdm};
@@ -6,64 +6,60 @@ use crate::error::Result;
 use crate::grid::DirectionGrid;
 use crate::limits::Limits;
 
-/// Bakes every sample of every direction exactly: voxel grids with ray templates
-/// ([`super::template`]), anything else one ray per sample, in parallel over (direction,
-/// layer) pairs.
+/// Bakes every sample of every direction exactly, in parallel over directions: with the
+/// caster's own per-direction route where it has one ([`Caster::bake_direction`]: ray
+/// templates over voxels or binned triangles), else one [`Caster::trace`] per sample.
 pub fn bake(
     caster: &(impl Caster + ?Sized),
     dirs: DirectionGrid,
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Gdm> {
-    if caster.is_voxel_grid() && super::template::supports(caster.dims()) {
-        return super::template::bake(caster.centres_inside(), dirs, limits, observer);
-    }
-    bake_per_ray(caster, dirs, limits, observer)
+    let mut gdm = Gdm::zeroed(caster.dims(), dirs, limits)?;
+    super::template::check_memory(caster.dims(), dirs, limits)?;
+    gdm.fill_directions(observer, |d, volume| {
+        let v = dirs.vector_of(d);
+        if !caster.bake_direction(v, volume) {
+            trace_direction(caster, v, volume);
+        }
+    })?;
+    Ok(gdm)
 }
 
-/// Bakes with one [`Caster::trace`] per sample and direction, in parallel over directions.
-/// When the caster knows its [`Caster::surface_candidates`], one ray template per direction
-/// first finds where each ray meets the first candidate voxel: rays that meet none escape
-/// without being cast, the others start there.
+/// Bakes with one [`Caster::trace`] per sample and direction, in parallel over directions:
+/// the reference and baseline for the per-direction routes.
 pub fn bake_per_ray(
     caster: &(impl Caster + ?Sized),
     dirs: DirectionGrid,
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Gdm> {
-    let dims = caster.dims();
-    let mut gdm = Gdm::zeroed(dims, dirs, limits)?;
-    let inside = caster.centres_inside();
-    let candidates = caster
-        .surface_candidates()
-        .filter(|_| super::template::supports(dims));
+    let mut gdm = Gdm::zeroed(caster.dims(), dirs, limits)?;
     gdm.fill_directions(observer, |d, volume| {
-        let v = dirs.vector_of(d);
-        match candidates {
-            Some(c) => super::template::bake_direction(c, v, volume),
-            None => volume.fill(0.0),
-        }
-        for (n, value) in volume.iter_mut().enumerate() {
-            let (i, j, k) = (
-                n as u32 % dims.x,
-                (n as u32 / dims.x) % dims.y,
-                n as u32 / (dims.x * dims.y),
-            );
-            if inside.get(i, j, k) {
-                *value = 0.0;
-                continue;
-            }
-            if value.is_infinite() {
-                continue; // no candidate voxel on the way: escapes
-            }
-            let start = (*value as f64 - 1e-4).max(0.0);
+        trace_direction(caster, dirs.vector_of(d), volume)
+    })?;
+    Ok(gdm)
+}
+
+/// Fills one direction's volume with one trace per sample.
+fn trace_direction(caster: &(impl Caster + ?Sized), v: [f64; 3], volume: &mut [f32]) {
+    let dims = caster.dims();
+    let inside = caster.centres_inside();
+    for (n, value) in volume.iter_mut().enumerate() {
+        let (i, j, k) = (
+            n as u32 % dims.x,
+            (n as u32 / dims.x) % dims.y,
+            n as u32 / (dims.x * dims.y),
+        );
+        *value = if inside.get(i, j, k) {
+            0.0
+        } else {
             let o = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
-            *value = match caster.trace_from(o, v, start, f64::INFINITY) {
+            match caster.trace(o, v, f64::INFINITY) {
                 Trace::Inside => 0.0,
                 Trace::Hit(t) => t as f32,
                 Trace::Escape(_) | Trace::Limit => f32::INFINITY,
-            };
-        }
-    })?;
-    Ok(gdm)
+            }
+        };
+    }
 }

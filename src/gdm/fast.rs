@@ -17,7 +17,7 @@
 
 use super::caster::{Caster, Trace};
 use super::interpolate::{Ambiguity, LayerStencil};
-use super::template::Template;
+use super::template::{self, Template};
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
@@ -75,7 +75,8 @@ fn sweep_direction(
     let dims = caster.dims();
     let inside = caster.centres_inside();
     // Voxel grids walk one ray template per direction, 64 samples at a time.
-    let template = caster.is_voxel_grid().then(|| Template::new(dims, v));
+    let template =
+        (caster.is_voxel_grid() && template::supports(dims)).then(|| Template::new(dims, v));
     let distance = |t: Trace| match t {
         Trace::Inside => 0.0,
         Trace::Hit(t) => t as f32,

@@ -12,6 +12,7 @@
 //! a ray grazing an edge cannot flip the answer.
 
 use super::caster::{Caster, Trace};
+use super::mesh_template::BinnedTriangles;
 use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::limits::Limits;
@@ -44,8 +45,8 @@ pub struct MeshCaster {
     /// Highest z of any triangle, voxel units.
     z_max: f64,
     inside: Occupancy,
-    /// Voxels overlapped by some triangle's bounding box (see [`Caster::surface_candidates`]).
-    candidates: Occupancy,
+    /// The triangles binned by voxel for template bakes, when the grid supports templates.
+    bins: Option<BinnedTriangles>,
 }
 
 impl MeshCaster {
@@ -103,14 +104,16 @@ impl MeshCaster {
             .iter()
             .map(|&i| tris[i as usize])
             .collect();
-        let candidates = rasterize_bounds(&tris, dims);
+        let bins = super::template::supports(dims)
+            .then(|| BinnedTriangles::new(&tris, dims, limits))
+            .transpose()?;
         let mut caster = MeshCaster {
             dims,
             tris,
             bvh,
             z_max,
             inside: Occupancy::empty(dims),
-            candidates,
+            bins,
         };
         if tile.closed {
             caster.inside = caster.classify_centres();
@@ -237,8 +240,12 @@ impl Caster for MeshCaster {
         self.trace_from(o, v, 0.0, max_t)
     }
 
-    fn surface_candidates(&self) -> Option<&Occupancy> {
-        Some(&self.candidates)
+    fn bake_direction(&self, dir: [f64; 3], volume: &mut [f32]) -> bool {
+        match &self.bins {
+            Some(bins) => bins.bake_direction(&self.inside, dir, volume),
+            None => return false,
+        }
+        true
     }
 
     fn trace_from(&self, o: [f64; 3], v: [f64; 3], t_min: f64, max_t: f64) -> Trace {
@@ -268,38 +275,4 @@ impl Caster for MeshCaster {
             Trace::Limit
         }
     }
-}
-
-/// Marks every voxel overlapped by a triangle's bounding box grown by 10⁻³ voxel (x and y
-/// wrap around, z is clipped to the grid).
-fn rasterize_bounds(tris: &[Triangle], dims: Dims) -> Occupancy {
-    let mut occ = Occupancy::empty(dims);
-    let wrap = [
-        crate::grid::Wrap::new(dims.x),
-        crate::grid::Wrap::new(dims.y),
-    ];
-    let eps = 1e-3;
-    for t in tris {
-        let lo = t.v0.min(t.v1).min(t.v2);
-        let hi = t.v0.max(t.v1).max(t.v2);
-        let range = |a: usize, clip: Option<u32>| {
-            let (mut l, mut h) = (
-                ((lo[a] - eps).floor()) as i64,
-                ((hi[a] + eps).floor()) as i64,
-            );
-            if let Some(n) = clip {
-                l = l.max(0);
-                h = h.min(n as i64 - 1);
-            }
-            l..=h
-        };
-        for k in range(2, Some(dims.z)) {
-            for j in range(1, None) {
-                for i in range(0, None) {
-                    occ.set(wrap[0].apply(i) as u32, wrap[1].apply(j) as u32, k as u32);
-                }
-            }
-        }
-    }
-    occ
 }

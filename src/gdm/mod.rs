@@ -11,6 +11,7 @@ pub mod exact;
 pub mod fast;
 pub mod interpolate;
 pub mod mesh_caster;
+pub mod mesh_template;
 pub mod template;
 pub mod volume_caster;
 

@@ -9,8 +9,7 @@
 //! of all samples of row (j, k) are the occupancy bits of row (j+dj, k+dk) rotated by di,
 //! so one rotate-and-mask tests 64 rays. Results are bit-identical to per-ray traversal.
 
-use super::{BakeObserver, Gdm};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
 use crate::volume::Occupancy;
@@ -19,13 +18,15 @@ use crate::volume::Occupancy;
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Step {
     /// x offset modulo X: the rotation of the occupancy row.
-    shift: u32,
+    pub(crate) shift: u32,
     /// y offset modulo Y.
-    dj: u32,
+    pub(crate) dj: u32,
     /// z offset (layers are not periodic).
-    dk: i32,
+    pub(crate) dk: i32,
     /// Distance at which the ray enters (or first touches) the voxel.
-    t: f32,
+    pub(crate) t: f32,
+    /// x and y offsets before wrapping around.
+    pub(crate) unwrapped: [i32; 2],
 }
 
 /// Whether rows of width `x` can be rotated word-wise.
@@ -56,6 +57,7 @@ fn build_template(dims: Dims, v: [f64; 3]) -> Vec<Step> {
             dj: c[1].rem_euclid(dims.y as i64) as u32,
             dk: c[2] as i32,
             t: t as f32,
+            unwrapped: [c[0] as i32, c[1] as i32],
         })
     };
     while cell[2].abs() < dims.z as i64 {
@@ -183,7 +185,7 @@ impl Template {
 
 /// Gathers row bits rotated by `shift`: bit i of the result is bit (i + shift) mod X of `row`.
 #[inline(always)]
-fn rotated_word(row: &[u64], x: u32, shift: u32, w: usize) -> u64 {
+pub(crate) fn rotated_word(row: &[u64], x: u32, shift: u32, w: usize) -> u64 {
     if x < 64 {
         let mask = (1u64 << x) - 1;
         let r = row[0];
@@ -204,22 +206,11 @@ fn rotated_word(row: &[u64], x: u32, shift: u32, w: usize) -> u64 {
     }
 }
 
-/// Bakes the exact GDM of the voxel grid `occ` (solid voxels are closed boxes).
-pub fn bake(
-    occ: &Occupancy,
-    dirs: DirectionGrid,
-    limits: &Limits,
-    observer: &dyn BakeObserver,
-) -> Result<Gdm> {
-    let dims = occ.dims();
-    if !supports(dims) {
-        return Err(Error::InvalidParameter(format!(
-            "ray templates need X ≤ 64 or a multiple of 64, got {dims}"
-        )));
-    }
-    let mut gdm = Gdm::zeroed(dims, dirs, limits)?;
-    // The longest template: the most grazing θ bin, from one side of the volume to the other,
-    // crossing up to |tan θ|·(|cos φ| + |sin φ|) ≤ √2·|tan θ| voxel walls per layer.
+/// Refuses direction grids whose longest ray template (one per worker thread) would exceed
+/// the memory limit.
+pub fn check_memory(dims: Dims, dirs: DirectionGrid, limits: &Limits) -> Result<()> {
+    // The most grazing θ bin, from one side of the volume to the other, crosses up to
+    // |tan θ|·(|cos φ| + |sin φ|) ≤ √2·|tan θ| voxel walls per layer.
     let grazing = dirs.theta(dirs.n_theta / 2 - 1).tan().abs();
     let longest = (dims.z as f64 * (1.0 + std::f64::consts::SQRT_2 * grazing) + 8.0).ceil();
     let per_template = std::mem::size_of::<Step>() as u64;
@@ -228,10 +219,7 @@ pub fn bake(
         longest as u64,
         per_template * rayon::current_num_threads() as u64,
     )?;
-    gdm.fill_directions(observer, |d, volume| {
-        bake_direction(occ, dirs.vector_of(d), volume)
-    })?;
-    Ok(gdm)
+    Ok(())
 }
 
 /// Fills one direction's X×Y×Z volume: 0 for samples in solid voxels, the distance to the

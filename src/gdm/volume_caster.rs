@@ -101,6 +101,14 @@ impl Caster for VolumeCaster {
         true
     }
 
+    fn bake_direction(&self, dir: [f64; 3], volume: &mut [f32]) -> bool {
+        let supported = super::template::supports(self.occ.dims());
+        if supported {
+            super::template::bake_direction(&self.occ, dir, volume);
+        }
+        supported
+    }
+
     fn trace(&self, o: [f64; 3], v: [f64; 3], max_t: f64) -> Trace {
         let dims = self.occ.dims();
         let nz = dims.z as i64;
