@@ -17,7 +17,7 @@ pub enum Mesostructure {
     /// A voxel volume (`.mbvol`).
     Volume(VolumeCaster),
     /// An OBJ tile on a chosen grid.
-    Mesh(MeshCaster),
+    Mesh(Box<MeshCaster>),
 }
 
 impl Mesostructure {
@@ -25,7 +25,7 @@ impl Mesostructure {
     pub fn caster(&self) -> &dyn Caster {
         match self {
             Mesostructure::Volume(c) => c,
-            Mesostructure::Mesh(c) => c,
+            Mesostructure::Mesh(c) => c.as_ref(),
         }
     }
 }
@@ -60,5 +60,7 @@ pub fn load(
     })?;
     let mesh = TriMesh::read_obj(path, limits.memory_bytes / 8)?;
     let tile = MeshTile::new(mesh, allow_open)?;
-    Ok(Mesostructure::Mesh(MeshCaster::new(&tile, res, limits)?))
+    Ok(Mesostructure::Mesh(Box::new(MeshCaster::new(
+        &tile, res, limits,
+    )?)))
 }
