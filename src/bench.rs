@@ -1,13 +1,15 @@
 //! `mesobake bench gdm`: the GDM bake workloads W1–W3 of the benchmark plan, timed in one run
 //! with their baselines, error against the exact bake and peak memory.
 
+use crate::compress::layout::GdmRows;
+use crate::compress::svd::{DenseRows, RankChoice, RowSource, Truncated, truncated_svd};
 use crate::error::Result;
 use crate::gdm::caster::Caster;
 use crate::gdm::compare::{GdmError, compare};
 use crate::gdm::fast::FastParams;
 use crate::gdm::mesh_caster::MeshCaster;
 use crate::gdm::volume_caster::VolumeCaster;
-use crate::gdm::{Gdm, exact, fast};
+use crate::gdm::{EscapeConvention, Gdm, exact, fast};
 use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
 use crate::mesh_tile::MeshTile;
@@ -228,6 +230,107 @@ pub fn markdown(rows: &[Row]) -> String {
         s += &format!(
             "| {} | {} | {:.3} | {:.1} | {} | {} | {} | {} |\n",
             r.workload, r.path, r.seconds, r.mrays_per_s, peak, mean, max, mis
+        );
+    }
+    s
+}
+
+/// One measured row of the SVD table.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct SvdRow {
+    /// What was factored.
+    pub matrix: String,
+    /// Algorithm and rank.
+    pub method: String,
+    /// Wall time in seconds.
+    pub seconds: f64,
+    /// Root-mean-square reconstruction error over all entries, voxels.
+    pub rmse: f64,
+    /// The optimal RMSE of that rank (Eckart–Young, from the spectrum).
+    pub optimal_rmse: f64,
+}
+
+/// RMSE of a factorization over the whole matrix, read block by block.
+fn svd_rmse(a: &dyn RowSource, t: &Truncated) -> f64 {
+    let n = a.cols();
+    let mut buf = vec![0.0f32; 1024 * n];
+    let mut sum = 0.0f64;
+    let mut r = 0;
+    while r < a.rows() {
+        let count = 1024.min(a.rows() - r);
+        a.read_rows(r, &mut buf[..count * n]);
+        for (q, &v) in buf[..count * n].iter().enumerate() {
+            let d = v as f64 - t.reconstruct(r + q / n, q % n) as f64;
+            sum += d * d;
+        }
+        r += count;
+    }
+    (sum / (a.rows() * n) as f64).sqrt()
+}
+
+/// The SVD benchmark: the W1 GDM (chain 64×64×32, 16×32 directions, boundary escapes) as the
+/// paper's 131072 × 512 matrix to rank 16, and nalgebra's full SVD on a slice of its rows
+/// against ours on the same slice.
+pub fn run_svd(limits: &Limits) -> Result<Vec<SvdRow>> {
+    let dims = Dims::new(64, 64, 32)?;
+    let volume = samples::volume(SampleKind::Chain, dims, limits)?;
+    let mut gdm = exact::bake(
+        &VolumeCaster::new(&volume),
+        DirectionGrid::PAPER,
+        limits,
+        &(),
+    )?;
+    gdm.set_escape_convention(EscapeConvention::Boundary);
+    let a = GdmRows::new(&gdm)?;
+    let (m, n) = (a.rows(), a.cols());
+    let mut rows = Vec::new();
+    let mut measure = |matrix: String, source: &dyn RowSource, k: usize| -> Result<()> {
+        let start = Instant::now();
+        let t = truncated_svd(source, RankChoice::Rank(k), limits)?;
+        let seconds = start.elapsed().as_secs_f64();
+        rows.push(SvdRow {
+            matrix,
+            method: format!("Gram eigen + projection, rank {k}"),
+            seconds,
+            rmse: svd_rmse(source, &t),
+            optimal_rmse: t.optimal_rmse(t.rank),
+        });
+        Ok(())
+    };
+    measure(format!("W1 GDM {m}×{n}"), &a, 16)?;
+    // The slice: its first rows, dense.
+    let slice_rows = 4096;
+    let mut slice = vec![0.0f32; slice_rows * n];
+    a.read_rows(0, &mut slice);
+    let dense = DenseRows::new(&slice, n)?;
+    measure(format!("W1 slice {slice_rows}×{n}"), &dense, 16)?;
+    let start = Instant::now();
+    let full = nalgebra::DMatrix::from_row_slice(slice_rows, n, &slice)
+        .map(f64::from)
+        .svd(true, true);
+    let seconds = start.elapsed().as_secs_f64();
+    let mut s: Vec<f64> = full.singular_values.iter().copied().collect();
+    s.sort_by(|a, b| b.total_cmp(a));
+    let tail: f64 = s.iter().skip(16).map(|x| x * x).sum();
+    rows.push(SvdRow {
+        matrix: format!("W1 slice {slice_rows}×{n}"),
+        method: "baseline: nalgebra full SVD (f64), truncated to 16".into(),
+        seconds,
+        rmse: (tail / (slice_rows * n) as f64).sqrt(),
+        optimal_rmse: (tail / (slice_rows * n) as f64).sqrt(),
+    });
+    Ok(rows)
+}
+
+/// The SVD rows as a Markdown table.
+pub fn svd_markdown(rows: &[SvdRow]) -> String {
+    let mut s = String::from(
+        "| matrix | method | time (s) | RMSE (vox) | optimal RMSE (vox) |\n|---|---|---:|---:|---:|\n",
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {:.3} | {:.5} | {:.5} |\n",
+            r.matrix, r.method, r.seconds, r.rmse, r.optimal_rmse
         );
     }
     s

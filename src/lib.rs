@@ -23,6 +23,7 @@
 //! ```
 
 pub mod bench;
+pub mod compress;
 pub mod empty_space;
 pub mod error;
 pub mod flat_preview;

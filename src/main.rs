@@ -111,6 +111,8 @@ enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Truncated SVD of the W1 GDM matrix against nalgebra's full SVD (Markdown on stdout).
+    Svd,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -285,6 +287,16 @@ fn run(cli: Cli) -> Result<()> {
                         .map_err(|e| Error::InvalidParameter(e.to_string()))?
                 );
             }
+            Ok(())
+        }
+        Command::Bench {
+            which: BenchCommand::Svd,
+        } => {
+            eprintln!(
+                "mesobake bench svd on {} threads",
+                rayon::current_num_threads()
+            );
+            print!("{}", bench::svd_markdown(&bench::run_svd(&limits)?));
             Ok(())
         }
     }

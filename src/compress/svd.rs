@@ -1,0 +1,357 @@
+//! Truncated SVD of tall matrices, A ≈ W·Eᵀ, for the paper's compression layouts.
+//!
+//! Algorithm (deterministic; no random numbers):
+//! 1. **Gram matrix** G = AᵀA (n × n, n = columns). Rows are read in fixed blocks; each
+//!    block's product is formed in f32 (matrixmultiply via nalgebra) and accumulated in f64,
+//!    block by block in a fixed order, so the result does not depend on the thread count.
+//! 2. **Spectrum**: the symmetric eigendecomposition of G (f64) gives every σᵢ² = λᵢ, hence the
+//!    optimal error of every rank, sqrt(Σ_{i>k} σᵢ²) (Eckart–Young), which chooses the rank
+//!    for a target RMSE and is reported.
+//! 3. **Refinement**: with V the top k + 8 eigenvectors (oversampled), Q = qr(A·V) (f64
+//!    Householder) and the small SVD B = QᵀA = U_B Σ V_Bᵀ, whose top k components give
+//!    A ≈ (Q U_B Σ)·V_Bᵀ. Projecting A onto span(A·V) recovers the accuracy that squaring the
+//!    singular values in an f32 G loses, so small singular values and rank-deficient matrices
+//!    come out right to f32 rounding.
+//!
+//! The weight factor W = Q U_B Σ carries the singular values; the eigen factor E = V_B has
+//! orthonormal columns. Singular values below 10⁻⁶ σ₁ (f32 data carries no information there)
+//! are dropped, so a zero matrix has rank 0, a constant one rank 1, and no NaN arises.
+
+use crate::error::{Error, Result};
+use crate::limits::Limits;
+use nalgebra::{DMatrix, SymmetricEigen};
+use rayon::prelude::*;
+
+/// A matrix read a block of rows at a time (row-major f32), so that layouts over large
+/// arrays need no transposed copy.
+pub trait RowSource: Sync {
+    /// Number of rows m.
+    fn rows(&self) -> usize;
+    /// Number of columns n.
+    fn cols(&self) -> usize;
+    /// Writes rows `start..start + out.len() / cols` into `out`, row-major.
+    fn read_rows(&self, start: usize, out: &mut [f32]);
+}
+
+/// A dense row-major matrix as a [`RowSource`].
+#[derive(Clone, Copy, Debug)]
+pub struct DenseRows<'a> {
+    data: &'a [f32],
+    cols: usize,
+}
+
+impl<'a> DenseRows<'a> {
+    /// Wraps `data` (row-major, `cols` columns; its length must be a multiple of `cols`).
+    pub fn new(data: &'a [f32], cols: usize) -> Result<Self> {
+        if cols == 0 || data.len() % cols != 0 {
+            return Err(Error::InvalidParameter(format!(
+                "a dense matrix of {} values cannot have {cols} columns",
+                data.len()
+            )));
+        }
+        Ok(DenseRows { data, cols })
+    }
+}
+
+impl RowSource for DenseRows<'_> {
+    fn rows(&self) -> usize {
+        self.data.len() / self.cols
+    }
+    fn cols(&self) -> usize {
+        self.cols
+    }
+    fn read_rows(&self, start: usize, out: &mut [f32]) {
+        out.copy_from_slice(&self.data[start * self.cols..][..out.len()]);
+    }
+}
+
+/// How many components to keep.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RankChoice {
+    /// Exactly this many (fewer if the matrix has lower numerical rank).
+    Rank(usize),
+    /// The fewest whose optimal root-mean-square error over all entries is at most this.
+    MaxRmse(f64),
+}
+
+/// A rank-k factorization A ≈ W·Eᵀ.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Truncated {
+    /// Rows m and columns n of A.
+    pub shape: (usize, usize),
+    /// Components kept, k.
+    pub rank: usize,
+    /// Singular values of A, all min(m, n) of them, descending (from the Gram eigenvalues;
+    /// values below about 10⁻³ σ₁ are limited by f32 accumulation).
+    pub spectrum: Vec<f64>,
+    /// W, m × k row-major: left singular vectors scaled by their singular values.
+    pub weights: Vec<f32>,
+    /// E, n × k row-major: orthonormal right singular vectors.
+    pub eigen: Vec<f32>,
+}
+
+impl Truncated {
+    /// The optimal root-mean-square error of rank `k` over all m·n entries,
+    /// sqrt(Σ_{i>k} σᵢ² / (m·n)).
+    pub fn optimal_rmse(&self, k: usize) -> f64 {
+        let tail: f64 = self.spectrum.iter().skip(k).map(|s| s * s).sum();
+        (tail / (self.shape.0 as f64 * self.shape.1 as f64)).sqrt()
+    }
+
+    /// Entry (r, c) of W·Eᵀ.
+    pub fn reconstruct(&self, r: usize, c: usize) -> f32 {
+        let k = self.rank;
+        let w = &self.weights[r * k..][..k];
+        let e = &self.eigen[c * k..][..k];
+        w.iter().zip(e).map(|(a, b)| a * b).sum()
+    }
+}
+
+/// Rows per block of the Gram accumulation (a fixed function of the shape only).
+fn block_rows(m: usize) -> usize {
+    m.div_ceil(64).max(2048).min(m.max(1))
+}
+
+/// Extra basis vectors beyond the rank asked for.
+const OVERSAMPLING: usize = 8;
+
+/// Singular values below this fraction of the largest are dropped.
+const RELATIVE_FLOOR: f64 = 1e-6;
+
+/// Computes the truncated SVD of `a` with the rank chosen by `choice`.
+pub fn truncated_svd(a: &dyn RowSource, choice: RankChoice, limits: &Limits) -> Result<Truncated> {
+    let (m, n) = (a.rows(), a.cols());
+    if m == 0 || n == 0 {
+        return Err(Error::InvalidParameter(format!(
+            "cannot factor an empty {m}×{n} matrix"
+        )));
+    }
+    match choice {
+        RankChoice::MaxRmse(e) if !(e >= 0.0 && e.is_finite()) => {
+            return Err(Error::InvalidParameter(format!(
+                "the target RMSE must be a finite number ≥ 0, got {e}"
+            )));
+        }
+        _ => {}
+    }
+    let block = block_rows(m);
+    // G (n² f64) and, per block in flight, an f32 block and its f64 product; then Q (m·k f64).
+    limits.check("the SVD's Gram matrix", (n * n) as u64, 8 * 3)?;
+    limits.check(
+        "an SVD row block",
+        (block * n) as u64,
+        4 * rayon::current_num_threads() as u64,
+    )?;
+    let gram = gram_matrix(a, block);
+    if !gram.iter().all(|v| v.is_finite()) {
+        return Err(Error::InvalidParameter(
+            "the matrix holds NaN or infinite values (escapes must be replaced before compression)"
+                .into(),
+        ));
+    }
+    let eig = SymmetricEigen::new(gram);
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+    let spectrum: Vec<f64> = order
+        .iter()
+        .take(m.min(n))
+        .map(|&i| eig.eigenvalues[i].max(0.0).sqrt())
+        .collect();
+    let mut result = Truncated {
+        shape: (m, n),
+        rank: 0,
+        spectrum,
+        weights: Vec::new(),
+        eigen: Vec::new(),
+    };
+    let wanted = match choice {
+        RankChoice::Rank(k) => k,
+        RankChoice::MaxRmse(e) => (0..=n).find(|&k| result.optimal_rmse(k) <= e).unwrap_or(n),
+    };
+    let k = wanted.min(m).min(n);
+    if k == 0 || result.spectrum[0] == 0.0 {
+        return Ok(result);
+    }
+    // The basis is oversampled so that directions the f32 Gram matrix blurs near σ_k are
+    // still captured; the small SVD then keeps the best k.
+    let k_basis = (k + OVERSAMPLING).min(m).min(n);
+    limits.check("the SVD's range basis", (m * k_basis) as u64, 8 * 3)?;
+    let (k_out, k) = (k, k_basis);
+    // V, n × k row-major.
+    let v_k: Vec<f64> = (0..n * k)
+        .map(|x| eig.eigenvectors[(x / k, order[x % k])])
+        .collect();
+    // Y = A·V_k (m × k), then its orthonormal basis Q.
+    let mut y = vec![0.0f64; m * k];
+    y.par_chunks_mut(block * k)
+        .enumerate()
+        .for_each(|(b, out)| {
+            let rows = read_block_f64(a, b * block, out.len() / k);
+            gemm_f64(
+                out.len() / k,
+                n,
+                k,
+                (&rows, n, 1),
+                (&v_k, k, 1),
+                (out, k, 1),
+            );
+        });
+    let q = DMatrix::from_row_slice(m, k, &y).qr().q();
+    // B = QᵀA (k × n), block by block in order.
+    let parts: Vec<Vec<f64>> = blocks(m, block)
+        .into_par_iter()
+        .map(|(start, count)| {
+            let rows = read_block_f64(a, start, count);
+            let mut out = vec![0.0f64; k * n];
+            // Q is column-major m × k: Q_bᵀ (k × count) has row stride m.
+            let qb = &q.as_slice()[start..];
+            gemm_f64(k, count, n, (qb, m, 1), (&rows, n, 1), (&mut out, n, 1));
+            out
+        })
+        .collect();
+    let b_sum = parts.into_iter().fold(vec![0.0f64; k * n], |mut acc, p| {
+        acc.iter_mut().zip(p).for_each(|(x, y)| *x += y);
+        acc
+    });
+    let b = DMatrix::from_row_slice(k, n, &b_sum);
+    let svd = b.svd(true, true);
+    let (u_b, v_bt) = (svd.u.expect("requested"), svd.v_t.expect("requested"));
+    let mut idx: Vec<usize> = (0..svd.singular_values.len()).collect();
+    idx.sort_by(|&i, &j| svd.singular_values[j].total_cmp(&svd.singular_values[i]));
+    let top = svd.singular_values[idx[0]];
+    idx.truncate(k_out);
+    idx.retain(|&i| svd.singular_values[i] > top * RELATIVE_FLOOR);
+    let k = idx.len();
+    if k == 0 {
+        return Ok(result);
+    }
+    let scaled_u = DMatrix::from_fn(u_b.nrows(), k, |r, c| {
+        u_b[(r, idx[c])] * svd.singular_values[idx[c]]
+    });
+    let w = &q * scaled_u;
+    result.rank = k;
+    result.weights = (0..m)
+        .flat_map(|r| (0..k).map(move |c| (r, c)))
+        .map(|(r, c)| w[(r, c)] as f32)
+        .collect();
+    result.eigen = (0..n)
+        .flat_map(|r| (0..k).map(move |c| (r, c)))
+        .map(|(r, c)| v_bt[(idx[c], r)] as f32)
+        .collect();
+    Ok(result)
+}
+
+/// The row blocks of `a`: (first row, row count).
+fn blocks(m: usize, block: usize) -> Vec<(usize, usize)> {
+    (0..m.div_ceil(block))
+        .map(|b| (b * block, block.min(m - b * block)))
+        .collect()
+}
+
+/// Reads a block of rows, row-major f32.
+fn read_block(a: &dyn RowSource, start: usize, count: usize) -> Vec<f32> {
+    let mut buf = vec![0.0f32; count * a.cols()];
+    a.read_rows(start, &mut buf);
+    buf
+}
+
+/// Reads a block of rows, row-major f64.
+fn read_block_f64(a: &dyn RowSource, start: usize, count: usize) -> Vec<f64> {
+    read_block(a, start, count)
+        .into_iter()
+        .map(f64::from)
+        .collect()
+}
+
+/// A strided matrix operand: (data, row stride, column stride).
+type Strided<'a, T> = (&'a [T], usize, usize);
+
+/// The last element a strided r × c operand touches, plus one.
+fn extent(r: usize, c: usize, rs: usize, cs: usize) -> usize {
+    (r - 1) * rs + (c - 1) * cs + 1
+}
+
+/// C = A·B for strided A (r × l), B (l × c) and C (r × c), f32 (matrixmultiply).
+fn gemm_f32(
+    r: usize,
+    l: usize,
+    c: usize,
+    a: Strided<f32>,
+    b: Strided<f32>,
+    out: (&mut [f32], usize, usize),
+) {
+    assert!(a.0.len() >= extent(r, l, a.1, a.2) && b.0.len() >= extent(l, c, b.1, b.2));
+    assert!(out.0.len() >= extent(r, c, out.1, out.2));
+    // SAFETY: the three operands lie within their slices (checked above); C does not alias.
+    unsafe {
+        matrixmultiply::sgemm(
+            r,
+            l,
+            c,
+            1.0,
+            a.0.as_ptr(),
+            a.1 as isize,
+            a.2 as isize,
+            b.0.as_ptr(),
+            b.1 as isize,
+            b.2 as isize,
+            0.0,
+            out.0.as_mut_ptr(),
+            out.1 as isize,
+            out.2 as isize,
+        )
+    }
+}
+
+/// C = A·B for strided A (r × l), B (l × c) and C (r × c), f64 (matrixmultiply).
+fn gemm_f64(
+    r: usize,
+    l: usize,
+    c: usize,
+    a: Strided<f64>,
+    b: Strided<f64>,
+    out: (&mut [f64], usize, usize),
+) {
+    assert!(a.0.len() >= extent(r, l, a.1, a.2) && b.0.len() >= extent(l, c, b.1, b.2));
+    assert!(out.0.len() >= extent(r, c, out.1, out.2));
+    // SAFETY: the three operands lie within their slices (checked above); C does not alias.
+    unsafe {
+        matrixmultiply::dgemm(
+            r,
+            l,
+            c,
+            1.0,
+            a.0.as_ptr(),
+            a.1 as isize,
+            a.2 as isize,
+            b.0.as_ptr(),
+            b.1 as isize,
+            b.2 as isize,
+            0.0,
+            out.0.as_mut_ptr(),
+            out.1 as isize,
+            out.2 as isize,
+        )
+    }
+}
+
+/// AᵀA: per block in f32, accumulated in f64 in block order.
+fn gram_matrix(a: &dyn RowSource, block: usize) -> DMatrix<f64> {
+    let n = a.cols();
+    let partial: Vec<Vec<f32>> = blocks(a.rows(), block)
+        .into_par_iter()
+        .map(|(start, count)| {
+            let rows = read_block(a, start, count);
+            let mut g = vec![0.0f32; n * n];
+            // A_bᵀ (n × count) is A_b (row-major) read with swapped strides.
+            gemm_f32(n, count, n, (&rows, 1, n), (&rows, n, 1), (&mut g, n, 1));
+            g
+        })
+        .collect();
+    let mut sum = vec![0.0f64; n * n];
+    for g in partial {
+        sum.iter_mut().zip(g).for_each(|(s, v)| *s += v as f64);
+    }
+    DMatrix::from_row_slice(n, n, &sum)
+}
