@@ -203,3 +203,34 @@ fn bad_matrices_are_refused() {
         .is_err()
     );
 }
+
+/// The GDM layout: row (b·Y + j)·X + i, column a·Z + k holds d(i, j, k, a, b); raw escapes
+/// (+∞) are refused.
+#[test]
+fn gdm_layout_rows_and_columns() {
+    use mesobake::compress::layout::GdmRows;
+    use mesobake::compress::svd::RowSource;
+    use mesobake::gdm::{EscapeConvention, exact, volume_caster::VolumeCaster};
+    use mesobake::grid::{Dims, DirectionGrid};
+    use mesobake::volume::Volume;
+    let d = Dims::new(5, 3, 4).unwrap();
+    let limits = Limits::default();
+    let v = Volume::from_fn(d, &limits, |i, j, k| (i + 2 * j + k) % 4 == 0).unwrap();
+    let dirs = DirectionGrid::new(4, 6).unwrap();
+    let mut g = exact::bake(&VolumeCaster::new(&v), dirs, &limits, &()).unwrap();
+    assert!(GdmRows::new(&g).is_err());
+    g.set_escape_convention(EscapeConvention::Boundary);
+    let a = GdmRows::new(&g).unwrap();
+    assert_eq!((a.rows(), a.cols()), (5 * 3 * 6, 4 * 4));
+    // Read from an odd start so that runs cross φ boundaries.
+    let start = 7;
+    let mut out = vec![0.0f32; (a.rows() - start) * a.cols()];
+    a.read_rows(start, &mut out);
+    for (x, &value) in out.iter().enumerate() {
+        let (r, c) = (start + x / a.cols(), x % a.cols());
+        let (i, j, b) = (r % 5, (r / 5) % 3, r / 15);
+        let (th, k) = (c / 4, c % 4);
+        let want = g.get(i as u32, j as u32, k as u32, th as u32, b as u32);
+        assert_eq!(value, want, "row {r} column {c}");
+    }
+}
