@@ -188,7 +188,7 @@ pub fn truncated_svd(a: &dyn RowSource, choice: RankChoice, limits: &Limits) -> 
         .enumerate()
         .for_each(|(b, out)| {
             let rows = read_block_f64(a, b * block, out.len() / k);
-            gemm_f64(
+            gemm(
                 out.len() / k,
                 n,
                 k,
@@ -206,7 +206,7 @@ pub fn truncated_svd(a: &dyn RowSource, choice: RankChoice, limits: &Limits) -> 
             let mut out = vec![0.0f64; k * n];
             // Q is column-major m × k: Q_bᵀ (k × count) has row stride m.
             let qb = &q.as_slice()[start..];
-            gemm_f64(k, count, n, (qb, m, 1), (&rows, n, 1), (&mut out, n, 1));
+            gemm(k, count, n, (qb, m, 1), (&rows, n, 1), (&mut out, n, 1));
             out
         })
         .collect();
@@ -272,63 +272,92 @@ fn extent(r: usize, c: usize, rs: usize, cs: usize) -> usize {
     (r - 1) * rs + (c - 1) * cs + 1
 }
 
-/// C = A·B for strided A (r × l), B (l × c) and C (r × c), f32 (matrixmultiply).
-fn gemm_f32(
-    r: usize,
-    l: usize,
-    c: usize,
-    a: Strided<f32>,
-    b: Strided<f32>,
-    out: (&mut [f32], usize, usize),
-) {
-    assert!(a.0.len() >= extent(r, l, a.1, a.2) && b.0.len() >= extent(l, c, b.1, b.2));
-    assert!(out.0.len() >= extent(r, c, out.1, out.2));
-    // SAFETY: the three operands lie within their slices (checked above); C does not alias.
-    unsafe {
-        matrixmultiply::sgemm(
-            r,
-            l,
-            c,
-            1.0,
-            a.0.as_ptr(),
-            a.1 as isize,
-            a.2 as isize,
-            b.0.as_ptr(),
-            b.1 as isize,
-            b.2 as isize,
-            0.0,
-            out.0.as_mut_ptr(),
-            out.1 as isize,
-            out.2 as isize,
-        )
+/// The element types matrixmultiply multiplies.
+trait GemmScalar: Copy {
+    /// C = A·B on raw strided operands (`matrixmultiply::sgemm` / `dgemm`, α = 1, β = 0).
+    ///
+    /// # Safety
+    /// The operands must lie within their allocations and C must not alias A or B.
+    #[allow(clippy::too_many_arguments)]
+    unsafe fn gemm_raw(
+        r: usize,
+        l: usize,
+        c: usize,
+        a: *const Self,
+        rsa: isize,
+        csa: isize,
+        b: *const Self,
+        rsb: isize,
+        csb: isize,
+        out: *mut Self,
+        rso: isize,
+        cso: isize,
+    );
+}
+
+impl GemmScalar for f32 {
+    unsafe fn gemm_raw(
+        r: usize,
+        l: usize,
+        c: usize,
+        a: *const f32,
+        rsa: isize,
+        csa: isize,
+        b: *const f32,
+        rsb: isize,
+        csb: isize,
+        out: *mut f32,
+        rso: isize,
+        cso: isize,
+    ) {
+        // SAFETY: forwarded from the caller.
+        unsafe { matrixmultiply::sgemm(r, l, c, 1.0, a, rsa, csa, b, rsb, csb, 0.0, out, rso, cso) }
     }
 }
 
-/// C = A·B for strided A (r × l), B (l × c) and C (r × c), f64 (matrixmultiply).
-fn gemm_f64(
+impl GemmScalar for f64 {
+    unsafe fn gemm_raw(
+        r: usize,
+        l: usize,
+        c: usize,
+        a: *const f64,
+        rsa: isize,
+        csa: isize,
+        b: *const f64,
+        rsb: isize,
+        csb: isize,
+        out: *mut f64,
+        rso: isize,
+        cso: isize,
+    ) {
+        // SAFETY: forwarded from the caller.
+        unsafe { matrixmultiply::dgemm(r, l, c, 1.0, a, rsa, csa, b, rsb, csb, 0.0, out, rso, cso) }
+    }
+}
+
+/// C = A·B for strided A (r × l), B (l × c) and C (r × c) (matrixmultiply).
+fn gemm<T: GemmScalar>(
     r: usize,
     l: usize,
     c: usize,
-    a: Strided<f64>,
-    b: Strided<f64>,
-    out: (&mut [f64], usize, usize),
+    a: Strided<T>,
+    b: Strided<T>,
+    out: (&mut [T], usize, usize),
 ) {
     assert!(a.0.len() >= extent(r, l, a.1, a.2) && b.0.len() >= extent(l, c, b.1, b.2));
     assert!(out.0.len() >= extent(r, c, out.1, out.2));
     // SAFETY: the three operands lie within their slices (checked above); C does not alias.
     unsafe {
-        matrixmultiply::dgemm(
+        T::gemm_raw(
             r,
             l,
             c,
-            1.0,
             a.0.as_ptr(),
             a.1 as isize,
             a.2 as isize,
             b.0.as_ptr(),
             b.1 as isize,
             b.2 as isize,
-            0.0,
             out.0.as_mut_ptr(),
             out.1 as isize,
             out.2 as isize,
@@ -345,7 +374,7 @@ fn gram_matrix(a: &dyn RowSource, block: usize) -> DMatrix<f64> {
             let rows = read_block(a, start, count);
             let mut g = vec![0.0f32; n * n];
             // A_bᵀ (n × count) is A_b (row-major) read with swapped strides.
-            gemm_f32(n, count, n, (&rows, 1, n), (&rows, n, 1), (&mut g, n, 1));
+            gemm(n, count, n, (&rows, 1, n), (&rows, n, 1), (&mut g, n, 1));
             g
         })
         .collect();

@@ -16,7 +16,7 @@
 //! escape with all its neighbours; +∞ interpolates wherever neighbours agree on hit or escape).
 
 use super::caster::{Caster, Trace};
-use super::interpolate::{Ambiguity, LayerStencil};
+use super::interpolate::LayerStencil;
 use super::template::{self, Template};
 use super::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
@@ -83,9 +83,6 @@ fn sweep_direction(
         Trace::Escape(_) | Trace::Limit => f32::INFINITY,
     };
     let layer = (dims.x * dims.y) as usize;
-    let ambiguity = Ambiguity {
-        max_spread: params.max_spread,
-    };
     let (mut reused, mut ambiguous) = (vec![0.0; dims.x as usize], vec![false; dims.x as usize]);
     let up = v[2] > 0.0;
     let layers: Vec<u32> = if up {
@@ -123,7 +120,8 @@ fn sweep_direction(
         };
         // Every sample reaching the target layer lands displaced by the same vector; a row
         // of samples reads it in one pass (values from the target layer, ambiguity flags).
-        let mut stencil = LayerStencil::new(dims, [t_step * v[0], t_step * v[1]], ambiguity);
+        let mut stencil =
+            LayerStencil::new(dims, [t_step * v[0], t_step * v[1]], params.max_spread);
         let mut read_row = |j: u32, value: &mut [f32], ambiguous: &mut [bool]| {
             if step == 0 {
                 value.fill(f32::INFINITY);

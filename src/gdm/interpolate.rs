@@ -13,31 +13,17 @@ pub struct Blend {
     /// The weighted mean distance of the hitting neighbours, or +∞ (escape) when escaping
     /// neighbours carry at least as much weight as hitting ones.
     pub value: f32,
-    /// Whether interpolating guesses (see [`Ambiguity`]).
+    /// Whether interpolating guesses: some neighbours hit and others escape, more than half
+    /// the weight lies in solid (the point is at a surface), or the hit distances differ by
+    /// more than the allowed spread (different surfaces).
     pub ambiguous: bool,
 }
 
-/// When four neighbours disagree too much for their blend to be trusted.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ambiguity {
-    /// Hit distances may differ by this many voxels (more: different surfaces).
-    pub max_spread: f32,
-}
-
-impl Ambiguity {
-    /// The blend is ambiguous when some neighbours hit and others escape, when more than half
-    /// the weight lies in solid (the point is at a surface), or when the hit distances differ
-    /// by more than `max_spread`.
-    #[inline(always)]
-    fn judge(&self, hit: f32, escape: f32, solid: f32, spread: f32) -> bool {
-        (hit > 0.0 && escape > 0.0) | (solid > 0.5) | (spread > self.max_spread)
-    }
-}
-
-/// Blends four layer values with their bilinear weights (branch-free, so that row loops
+/// Blends four layer values with their bilinear weights; hit distances may differ by up to
+/// `max_spread` voxels before the blend is ambiguous (branch-free, so that row loops
 /// vectorize).
 #[inline(always)]
-pub fn blend(values: [f32; 4], weights: [f32; 4], ambiguity: Ambiguity) -> Blend {
+pub fn blend(values: [f32; 4], weights: [f32; 4], max_spread: f32) -> Blend {
     let (mut hit, mut escape, mut solid, mut sum) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for (d, w) in values.into_iter().zip(weights) {
@@ -57,7 +43,7 @@ pub fn blend(values: [f32; 4], weights: [f32; 4], ambiguity: Ambiguity) -> Blend
         } else {
             f32::INFINITY
         },
-        ambiguous: ambiguity.judge(hit, escape, solid, hi - lo),
+        ambiguous: (hit > 0.0 && escape > 0.0) | (solid > 0.5) | (hi - lo > max_spread),
     }
 }
 
@@ -71,7 +57,7 @@ pub struct LayerStencil {
     base: [u32; 2],
     /// Bilinear weights of the neighbours (0,0), (0,1), (1,0), (1,1) (x offset first).
     weights: [f32; 4],
-    ambiguity: Ambiguity,
+    max_spread: f32,
     /// The four neighbours' values, one row of samples each.
     gathered: [Vec<f32>; 4],
 }
@@ -79,7 +65,7 @@ pub struct LayerStencil {
 impl LayerStencil {
     /// The stencil reading the point displaced by `offset` = (dx, dy) voxels from a sample
     /// centre, on a grid of `dims` (x and y wrap around).
-    pub fn new(dims: Dims, offset: [f64; 2], ambiguity: Ambiguity) -> Self {
+    pub fn new(dims: Dims, offset: [f64; 2], max_spread: f32) -> Self {
         let (bx, by) = (offset[0].floor(), offset[1].floor());
         let (fx, fy) = ((offset[0] - bx) as f32, (offset[1] - by) as f32);
         LayerStencil {
@@ -94,7 +80,7 @@ impl LayerStencil {
                 fx * (1.0 - fy),
                 fx * fy,
             ],
-            ambiguity,
+            max_spread,
             gathered: Default::default(),
         }
     }
@@ -115,7 +101,7 @@ impl LayerStencil {
         }
         let [a, b, c, d] = &self.gathered;
         for i in 0..x {
-            let r = blend([a[i], b[i], c[i], d[i]], self.weights, self.ambiguity);
+            let r = blend([a[i], b[i], c[i], d[i]], self.weights, self.max_spread);
             value[i] = r.value;
             ambiguous[i] = r.ambiguous;
         }
@@ -125,10 +111,7 @@ impl LayerStencil {
 /// Reads `layer` (one GDM layer, x fastest) at point `q` = (x, y) of its centre plane with
 /// [`blend`]: the distance there, +∞ for an escape; x and y wrap around.
 pub fn sample_layer(dims: Dims, layer: &[f32], q: [f64; 2]) -> f32 {
-    let any = Ambiguity {
-        max_spread: f32::INFINITY,
-    };
-    let stencil = LayerStencil::new(dims, [q[0] - 0.5, q[1] - 0.5], any);
+    let stencil = LayerStencil::new(dims, [q[0] - 0.5, q[1] - 0.5], f32::INFINITY);
     let (x, y) = (dims.x, dims.y);
     let [i0, j0] = stencil.base;
     let value = |n: usize| {
@@ -136,14 +119,14 @@ pub fn sample_layer(dims: Dims, layer: &[f32], q: [f64; 2]) -> f32 {
         let j = (j0 + (n & 1) as u32) % y;
         layer[(j * x + i) as usize]
     };
-    blend([0, 1, 2, 3].map(value), stencil.weights, any).value
+    blend([0, 1, 2, 3].map(value), stencil.weights, f32::INFINITY).value
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    const STRICT: Ambiguity = Ambiguity { max_spread: 1.0 };
+    const STRICT: f32 = 1.0;
 
     #[test]
     fn blend_rules() {
@@ -188,11 +171,8 @@ mod tests {
                 m => 1.0 + 0.1 * m as f32 + 0.01 * n as f32,
             })
             .collect();
-        let any = Ambiguity {
-            max_spread: f32::INFINITY,
-        };
         for offset in [[0.25, 0.75], [-3.6, 9.2], [13.0, -0.5]] {
-            let mut stencil = LayerStencil::new(dims, offset, any);
+            let mut stencil = LayerStencil::new(dims, offset, f32::INFINITY);
             let (mut value, mut ambiguous) = (vec![0.0; 7], vec![false; 7]);
             for j in 0..5 {
                 stencil.read_row(&layer, j, &mut value, &mut ambiguous);
