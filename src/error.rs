@@ -28,6 +28,9 @@ pub enum Error {
     /// An OBJ mesostructure tile is malformed or unusable.
     #[error("OBJ tile: {0}")]
     MeshTile(String),
+    /// A `.mbpkg` package is malformed, corrupt or of an unsupported version.
+    #[error("package: {0}")]
+    Package(String),
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {

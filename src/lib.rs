@@ -22,10 +22,12 @@
 //! # Ok::<(), mesobake::Error>(())
 //! ```
 
+pub mod bake_package;
 pub mod bench;
 pub mod compress;
 pub mod empty_space;
 pub mod error;
+pub mod exr_export;
 pub mod flat_preview;
 pub mod fsutil;
 pub mod gdm;
@@ -34,6 +36,7 @@ pub mod input;
 pub mod limits;
 pub mod mesh_tile;
 pub mod npy;
+pub mod package;
 pub mod samples;
 pub mod trimesh;
 pub mod volume;

@@ -2,9 +2,13 @@
 
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use mesobake::bake_package::{PackageParams, bake_package};
+use mesobake::compress::quantize::Quantization;
+use mesobake::compress::svd::RankChoice;
 use mesobake::gdm::{self, BakeObserver, Method};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::{Limits, parse_bytes};
+use mesobake::package::Package;
 use mesobake::samples::{self, SampleKind};
 use mesobake::{Error, Result, bench, input, npy, volume_format};
 use peak_alloc::PeakAlloc;
@@ -82,6 +86,58 @@ enum Command {
         /// Print a JSON summary on stdout.
         #[arg(long)]
         json: bool,
+    },
+    /// Bake a GDM package (.mbpkg) for CI builds: bake, SVD-compress, quantize, measure the
+    /// error and write the package. Output is byte-identical for identical inputs and options.
+    Bake {
+        /// A .mbvol volume or an OBJ tile.
+        #[arg(long)]
+        input: PathBuf,
+        /// Output package (.mbpkg).
+        #[arg(long)]
+        out: PathBuf,
+        /// Grid X×Y×Z: required for OBJ tiles; for volumes it must match the volume.
+        #[arg(long)]
+        res: Option<Dims>,
+        /// Direction grid Nθ×Nφ.
+        #[arg(long, default_value = "16x32")]
+        dirs: DirectionGrid,
+        /// Baking algorithm (see `mesobake gdm`).
+        #[arg(long, default_value = "exact")]
+        method: Method,
+        /// Fast method: layers crossed exactly before interpolating.
+        #[arg(long, default_value_t = gdm::fast::FastParams::default().stride)]
+        stride: u32,
+        /// Fast method: largest spread of neighbouring hit distances still interpolated.
+        #[arg(long, default_value_t = gdm::fast::FastParams::default().max_spread)]
+        spread: f32,
+        /// SVD components to keep [default: 8].
+        #[arg(long, conflicts_with = "max_rmse")]
+        rank: Option<usize>,
+        /// Keep the fewest components whose optimal RMSE (voxels) is at most this.
+        #[arg(long)]
+        max_rmse: Option<f64>,
+        /// Number format of weight maps and eigenmaps: f32, f16, or u8 (per-map scale and bias).
+        #[arg(long, default_value = "f16")]
+        quant: Quantization,
+        /// Treat an open OBJ tile as infinitely thin sheets instead of refusing it.
+        #[arg(long)]
+        allow_open: bool,
+        /// Print a JSON summary (sizes, rank, errors, seconds per stage) on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Reconstruct the dense GDM from a package into .npy (the convention of `mesobake gdm`:
+    /// escapes +inf), optionally exporting the weight maps and eigenmaps as a multi-layer EXR.
+    Unpack {
+        /// The package.
+        package: PathBuf,
+        /// Output .npy file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write the dequantized factor maps as a multi-layer OpenEXR image.
+        #[arg(long)]
+        exr: Option<PathBuf>,
     },
     /// Bake a built-in sample end to end and render a preview from its GDM: writes
     /// SAMPLE.mbvol, SAMPLE.obj, SAMPLE-gdm.npy and SAMPLE-preview.png into --out.
@@ -241,6 +297,83 @@ fn run(cli: Cli) -> Result<()> {
                     "seconds": {"load": load_s, "bake": bake_s, "write": write_s},
                 });
                 println!("{summary}");
+            }
+            Ok(())
+        }
+        Command::Bake {
+            input,
+            out,
+            res,
+            dirs,
+            method,
+            stride,
+            spread,
+            rank,
+            max_rmse,
+            quant,
+            allow_open,
+            json,
+        } => {
+            let params = PackageParams {
+                res,
+                dirs,
+                method,
+                fast: gdm::fast::FastParams {
+                    stride,
+                    max_spread: spread,
+                },
+                rank: match max_rmse {
+                    Some(e) => RankChoice::MaxRmse(e),
+                    None => RankChoice::Rank(rank.unwrap_or(8)),
+                },
+                quantization: quant,
+                allow_open,
+            };
+            let progress = Progress::new("baking GDM");
+            let baked = bake_package(&input, &params, &limits, &progress)?;
+            progress.0.finish_and_clear();
+            let start = Instant::now();
+            mesobake::fsutil::write_atomic(&out, &baked.bytes)?;
+            let write_s = start.elapsed().as_secs_f64();
+            let a = &baked.gdm.accuracy;
+            eprintln!(
+                "wrote {} ({} bytes): rank {}, {quant}, RMSE {:.4} voxel, max {:.3}, \
+                 hit/escape flips {:.4} %",
+                out.display(),
+                baked.bytes.len(),
+                baked.gdm.svd.rank,
+                a.rmse,
+                a.max_abs,
+                100.0 * a.flip_rate
+            );
+            if json {
+                let summary = serde_json::json!({
+                    "input": input,
+                    "output": out,
+                    "bytes": baked.bytes.len(),
+                    "rank": baked.gdm.svd.rank,
+                    "quantization": quant,
+                    "accuracy": a,
+                    "svd_rmse": baked.gdm.svd.optimal_rmse(baked.gdm.svd.rank),
+                    "seconds": {
+                        "load": baked.seconds.load,
+                        "bake": baked.seconds.bake,
+                        "svd": baked.seconds.svd,
+                        "quantize": baked.seconds.quantize,
+                        "encode": baked.seconds.encode,
+                        "write": write_s,
+                    },
+                });
+                println!("{summary}");
+            }
+            Ok(())
+        }
+        Command::Unpack { package, out, exr } => {
+            let pkg = Package::read(&package, &limits)?;
+            let g = pkg.reconstruct(&limits)?;
+            npy::write_gdm(&g, &out)?;
+            if let Some(path) = exr {
+                mesobake::exr_export::write_factors(&pkg, &path)?;
             }
             Ok(())
         }

@@ -1,4 +1,8 @@
-//! Compression of baked data: truncated SVD over the paper's matrix layouts.
+//! Compression of baked data: truncated SVD over the paper's matrix layouts, quantization of
+//! the factors, and the accuracy it costs.
 
+pub mod accuracy;
+pub mod gdm;
 pub mod layout;
+pub mod quantize;
 pub mod svd;

@@ -121,125 +121,173 @@ const RELATIVE_FLOOR: f64 = 1e-6;
 
 /// Computes the truncated SVD of `a` with the rank chosen by `choice`.
 pub fn truncated_svd(a: &dyn RowSource, choice: RankChoice, limits: &Limits) -> Result<Truncated> {
-    let (m, n) = (a.rows(), a.cols());
-    if m == 0 || n == 0 {
-        return Err(Error::InvalidParameter(format!(
-            "cannot factor an empty {m}×{n} matrix"
-        )));
+    GramEigen::new(a, limits)?.truncate(a, choice, limits)
+}
+
+/// Steps 1 and 2 of the algorithm: the eigendecomposition of AᵀA, which fixes the spectrum
+/// and serves truncations to any rank (each costs only step 3).
+pub struct GramEigen {
+    shape: (usize, usize),
+    /// Eigenvectors of AᵀA (columns), in the order of `order`.
+    vectors: DMatrix<f64>,
+    /// Column indices of `vectors` by descending eigenvalue.
+    order: Vec<usize>,
+    /// Singular values, descending.
+    spectrum: Vec<f64>,
+}
+
+impl GramEigen {
+    /// Forms and decomposes AᵀA; refuses empty matrices and NaN or infinite entries.
+    pub fn new(a: &dyn RowSource, limits: &Limits) -> Result<Self> {
+        let (m, n) = (a.rows(), a.cols());
+        if m == 0 || n == 0 {
+            return Err(Error::InvalidParameter(format!(
+                "cannot factor an empty {m}×{n} matrix"
+            )));
+        }
+        let block = block_rows(m);
+        // G (n² f64) and, per block in flight, an f32 block and its f64 product.
+        limits.check("the SVD's Gram matrix", (n * n) as u64, 8 * 3)?;
+        limits.check(
+            "an SVD row block",
+            (block * n) as u64,
+            4 * rayon::current_num_threads() as u64,
+        )?;
+        let gram = gram_matrix(a, block);
+        if !gram.iter().all(|v| v.is_finite()) {
+            return Err(Error::InvalidParameter(
+                "the matrix holds NaN or infinite values (escapes must be replaced before compression)"
+                    .into(),
+            ));
+        }
+        let eig = SymmetricEigen::new(gram);
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
+        let spectrum = order
+            .iter()
+            .take(m.min(n))
+            .map(|&i| eig.eigenvalues[i].max(0.0).sqrt())
+            .collect();
+        Ok(GramEigen {
+            shape: (m, n),
+            vectors: eig.eigenvectors,
+            order,
+            spectrum,
+        })
     }
-    match choice {
-        RankChoice::MaxRmse(e) if !(e >= 0.0 && e.is_finite()) => {
+
+    /// Singular values of A, descending.
+    pub fn spectrum(&self) -> &[f64] {
+        &self.spectrum
+    }
+
+    /// The truncation of `a` (the matrix this was formed from) with the rank chosen by
+    /// `choice`.
+    pub fn truncate(
+        &self,
+        a: &dyn RowSource,
+        choice: RankChoice,
+        limits: &Limits,
+    ) -> Result<Truncated> {
+        let (m, n) = self.shape;
+        if (a.rows(), a.cols()) != self.shape {
+            return Err(Error::InvalidParameter(format!(
+                "a {}×{} matrix cannot be truncated with the spectrum of a {m}×{n} one",
+                a.rows(),
+                a.cols()
+            )));
+        }
+        if let RankChoice::MaxRmse(e) = choice
+            && !(e >= 0.0 && e.is_finite())
+        {
             return Err(Error::InvalidParameter(format!(
                 "the target RMSE must be a finite number ≥ 0, got {e}"
             )));
         }
-        _ => {}
-    }
-    let block = block_rows(m);
-    // G (n² f64) and, per block in flight, an f32 block and its f64 product; then Q (m·k f64).
-    limits.check("the SVD's Gram matrix", (n * n) as u64, 8 * 3)?;
-    limits.check(
-        "an SVD row block",
-        (block * n) as u64,
-        4 * rayon::current_num_threads() as u64,
-    )?;
-    let gram = gram_matrix(a, block);
-    if !gram.iter().all(|v| v.is_finite()) {
-        return Err(Error::InvalidParameter(
-            "the matrix holds NaN or infinite values (escapes must be replaced before compression)"
-                .into(),
-        ));
-    }
-    let eig = SymmetricEigen::new(gram);
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&i, &j| eig.eigenvalues[j].total_cmp(&eig.eigenvalues[i]));
-    let spectrum: Vec<f64> = order
-        .iter()
-        .take(m.min(n))
-        .map(|&i| eig.eigenvalues[i].max(0.0).sqrt())
-        .collect();
-    let mut result = Truncated {
-        shape: (m, n),
-        rank: 0,
-        spectrum,
-        weights: Vec::new(),
-        eigen: Vec::new(),
-    };
-    let wanted = match choice {
-        RankChoice::Rank(k) => k,
-        RankChoice::MaxRmse(e) => (0..=n).find(|&k| result.optimal_rmse(k) <= e).unwrap_or(n),
-    };
-    let k = wanted.min(m).min(n);
-    if k == 0 || result.spectrum[0] == 0.0 {
-        return Ok(result);
-    }
-    // The basis is oversampled so that directions the f32 Gram matrix blurs near σ_k are
-    // still captured; the small SVD then keeps the best k.
-    let k_basis = (k + OVERSAMPLING).min(m).min(n);
-    limits.check("the SVD's range basis", (m * k_basis) as u64, 8 * 3)?;
-    let (k_out, k) = (k, k_basis);
-    // V, n × k row-major.
-    let v_k: Vec<f64> = (0..n * k)
-        .map(|x| eig.eigenvectors[(x / k, order[x % k])])
-        .collect();
-    // Y = A·V_k (m × k), then its orthonormal basis Q.
-    let mut y = vec![0.0f64; m * k];
-    y.par_chunks_mut(block * k)
-        .enumerate()
-        .for_each(|(b, out)| {
-            let rows = read_block_f64(a, b * block, out.len() / k);
-            gemm(
-                out.len() / k,
-                n,
-                k,
-                (&rows, n, 1),
-                (&v_k, k, 1),
-                (out, k, 1),
-            );
+        let mut result = Truncated {
+            shape: (m, n),
+            rank: 0,
+            spectrum: self.spectrum.clone(),
+            weights: Vec::new(),
+            eigen: Vec::new(),
+        };
+        let wanted = match choice {
+            RankChoice::Rank(k) => k,
+            RankChoice::MaxRmse(e) => (0..=n).find(|&k| result.optimal_rmse(k) <= e).unwrap_or(n),
+        };
+        let k = wanted.min(m).min(n);
+        if k == 0 || result.spectrum[0] == 0.0 {
+            return Ok(result);
+        }
+        let block = block_rows(m);
+        // The basis is oversampled so that directions the f32 Gram matrix blurs near σ_k are
+        // still captured; the small SVD then keeps the best k.
+        let k_basis = (k + OVERSAMPLING).min(m).min(n);
+        limits.check("the SVD's range basis", (m * k_basis) as u64, 8 * 3)?;
+        let (k_out, k) = (k, k_basis);
+        // V, n × k row-major.
+        let v_k: Vec<f64> = (0..n * k)
+            .map(|x| self.vectors[(x / k, self.order[x % k])])
+            .collect();
+        // Y = A·V_k (m × k), then its orthonormal basis Q.
+        let mut y = vec![0.0f64; m * k];
+        y.par_chunks_mut(block * k)
+            .enumerate()
+            .for_each(|(b, out)| {
+                let rows = read_block_f64(a, b * block, out.len() / k);
+                gemm(
+                    out.len() / k,
+                    n,
+                    k,
+                    (&rows, n, 1),
+                    (&v_k, k, 1),
+                    (out, k, 1),
+                );
+            });
+        let q = DMatrix::from_row_slice(m, k, &y).qr().q();
+        // B = QᵀA (k × n), block by block in order.
+        let parts: Vec<Vec<f64>> = blocks(m, block)
+            .into_par_iter()
+            .map(|(start, count)| {
+                let rows = read_block_f64(a, start, count);
+                let mut out = vec![0.0f64; k * n];
+                // Q is column-major m × k: Q_bᵀ (k × count) has row stride m.
+                let qb = &q.as_slice()[start..];
+                gemm(k, count, n, (qb, m, 1), (&rows, n, 1), (&mut out, n, 1));
+                out
+            })
+            .collect();
+        let b_sum = parts.into_iter().fold(vec![0.0f64; k * n], |mut acc, p| {
+            acc.iter_mut().zip(p).for_each(|(x, y)| *x += y);
+            acc
         });
-    let q = DMatrix::from_row_slice(m, k, &y).qr().q();
-    // B = QᵀA (k × n), block by block in order.
-    let parts: Vec<Vec<f64>> = blocks(m, block)
-        .into_par_iter()
-        .map(|(start, count)| {
-            let rows = read_block_f64(a, start, count);
-            let mut out = vec![0.0f64; k * n];
-            // Q is column-major m × k: Q_bᵀ (k × count) has row stride m.
-            let qb = &q.as_slice()[start..];
-            gemm(k, count, n, (qb, m, 1), (&rows, n, 1), (&mut out, n, 1));
-            out
-        })
-        .collect();
-    let b_sum = parts.into_iter().fold(vec![0.0f64; k * n], |mut acc, p| {
-        acc.iter_mut().zip(p).for_each(|(x, y)| *x += y);
-        acc
-    });
-    let b = DMatrix::from_row_slice(k, n, &b_sum);
-    let svd = b.svd(true, true);
-    let (u_b, v_bt) = (svd.u.expect("requested"), svd.v_t.expect("requested"));
-    let mut idx: Vec<usize> = (0..svd.singular_values.len()).collect();
-    idx.sort_by(|&i, &j| svd.singular_values[j].total_cmp(&svd.singular_values[i]));
-    let top = svd.singular_values[idx[0]];
-    idx.truncate(k_out);
-    idx.retain(|&i| svd.singular_values[i] > top * RELATIVE_FLOOR);
-    let k = idx.len();
-    if k == 0 {
-        return Ok(result);
+        let b = DMatrix::from_row_slice(k, n, &b_sum);
+        let svd = b.svd(true, true);
+        let (u_b, v_bt) = (svd.u.expect("requested"), svd.v_t.expect("requested"));
+        let mut idx: Vec<usize> = (0..svd.singular_values.len()).collect();
+        idx.sort_by(|&i, &j| svd.singular_values[j].total_cmp(&svd.singular_values[i]));
+        let top = svd.singular_values[idx[0]];
+        idx.truncate(k_out);
+        idx.retain(|&i| svd.singular_values[i] > top * RELATIVE_FLOOR);
+        let k = idx.len();
+        if k == 0 {
+            return Ok(result);
+        }
+        let scaled_u = DMatrix::from_fn(u_b.nrows(), k, |r, c| {
+            u_b[(r, idx[c])] * svd.singular_values[idx[c]]
+        });
+        let w = &q * scaled_u;
+        result.rank = k;
+        result.weights = (0..m)
+            .flat_map(|r| (0..k).map(move |c| (r, c)))
+            .map(|(r, c)| w[(r, c)] as f32)
+            .collect();
+        result.eigen = (0..n)
+            .flat_map(|r| (0..k).map(move |c| (r, c)))
+            .map(|(r, c)| v_bt[(idx[c], r)] as f32)
+            .collect();
+        Ok(result)
     }
-    let scaled_u = DMatrix::from_fn(u_b.nrows(), k, |r, c| {
-        u_b[(r, idx[c])] * svd.singular_values[idx[c]]
-    });
-    let w = &q * scaled_u;
-    result.rank = k;
-    result.weights = (0..m)
-        .flat_map(|r| (0..k).map(move |c| (r, c)))
-        .map(|(r, c)| w[(r, c)] as f32)
-        .collect();
-    result.eigen = (0..n)
-        .flat_map(|r| (0..k).map(move |c| (r, c)))
-        .map(|(r, c)| v_bt[(idx[c], r)] as f32)
-        .collect();
-    Ok(result)
 }
 
 /// The row blocks of `a`: (first row, row count).
@@ -273,7 +321,7 @@ fn extent(r: usize, c: usize, rs: usize, cs: usize) -> usize {
 }
 
 /// The element types matrixmultiply multiplies.
-trait GemmScalar: Copy {
+pub(crate) trait GemmScalar: Copy {
     /// C = A·B on raw strided operands (`matrixmultiply::sgemm` / `dgemm`, α = 1, β = 0).
     ///
     /// # Safety
@@ -336,7 +384,7 @@ impl GemmScalar for f64 {
 }
 
 /// C = A·B for strided A (r × l), B (l × c) and C (r × c) (matrixmultiply).
-fn gemm<T: GemmScalar>(
+pub(crate) fn gemm<T: GemmScalar>(
     r: usize,
     l: usize,
     c: usize,

@@ -24,7 +24,8 @@ use crate::grid::DirectionGrid;
 use crate::limits::Limits;
 
 /// The knobs of the fast bake.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FastParams {
     /// Layers crossed exactly before reading the layer already baked (≥ 1).
     pub stride: u32,

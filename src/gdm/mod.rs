@@ -74,6 +74,33 @@ impl Gdm {
         })
     }
 
+    /// A GDM holding `values` (laid out as documented on the type) in convention `escape`.
+    pub fn from_values(
+        dims: Dims,
+        dirs: DirectionGrid,
+        escape: EscapeConvention,
+        values: Vec<f32>,
+    ) -> Result<Self> {
+        let count = dims.voxel_count() * dirs.count() as u64;
+        if values.len() as u64 != count {
+            return Err(crate::Error::InvalidParameter(format!(
+                "a {dims} GDM with {dirs} directions has {count} values, not {}",
+                values.len()
+            )));
+        }
+        Ok(Gdm {
+            dims,
+            dirs,
+            escape,
+            data: values,
+        })
+    }
+
+    /// The values, giving up the GDM.
+    pub fn into_values(self) -> Vec<f32> {
+        self.data
+    }
+
     /// The voxel grid.
     pub fn dims(&self) -> Dims {
         self.dims

@@ -1,0 +1,139 @@
+//! From an input file to a package: load, bake, compress, encode. The stages `mesobake bake`
+//! runs (and that the server will queue), with the time each takes.
+
+use crate::compress::gdm::{CompressedGdm, compress};
+use crate::compress::layout::GdmRows;
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::{GramEigen, RankChoice};
+use crate::error::{Error, Result};
+use crate::gdm::fast::FastParams;
+use crate::gdm::{self, BakeObserver, EscapeConvention, Gdm, Method};
+use crate::grid::{Dims, DirectionGrid};
+use crate::input::{self, Mesostructure};
+use crate::limits::Limits;
+use crate::package::Package;
+use crate::package::manifest::{BakeInfo, InputInfo};
+use std::path::Path;
+use std::time::Instant;
+
+/// Everything that decides a package's content (with the input's bytes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PackageParams {
+    /// Voxel grid: required for OBJ tiles; for volumes it must match when given.
+    pub res: Option<Dims>,
+    /// Direction grid.
+    pub dirs: DirectionGrid,
+    /// Baking algorithm.
+    pub method: Method,
+    /// Knobs of [`Method::Fast`].
+    pub fast: FastParams,
+    /// How many SVD components to keep.
+    pub rank: RankChoice,
+    /// Number format of the factors.
+    pub quantization: Quantization,
+    /// Accept open OBJ tiles as thin sheets.
+    pub allow_open: bool,
+}
+
+/// Seconds spent in each stage.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct StageSeconds {
+    /// Reading, hashing and preparing the input.
+    pub load: f64,
+    /// Baking the GDM.
+    pub bake: f64,
+    /// The truncated SVD (Gram matrix, eigendecomposition and projection).
+    pub svd: f64,
+    /// Quantizing the factors and measuring the reconstruction's error.
+    pub quantize: f64,
+    /// Encoding the package.
+    pub encode: f64,
+}
+
+/// A baked package and what it took.
+pub struct BakedPackage {
+    /// The package's bytes.
+    pub bytes: Vec<u8>,
+    /// The compressed GDM they encode.
+    pub gdm: CompressedGdm,
+    /// Time per stage.
+    pub seconds: StageSeconds,
+}
+
+/// Reads `path`, returning its bytes' identity and the loaded mesostructure.
+pub fn load_input(
+    path: &Path,
+    res: Option<Dims>,
+    allow_open: bool,
+    limits: &Limits,
+) -> Result<(InputInfo, Mesostructure)> {
+    let len = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    limits.check(&format!("input {}", path.display()), len, 1)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let meso = input::load(path, res, allow_open, limits)?;
+    let kind = match meso {
+        Mesostructure::Volume(_) => "volume",
+        Mesostructure::Mesh(_) => "mesh",
+    };
+    let info = InputInfo {
+        kind: kind.into(),
+        bytes: bytes.len() as u64,
+        blake3: blake3::hash(&bytes).to_hex().to_string(),
+    };
+    Ok((info, meso))
+}
+
+/// The bake parameters as recorded in a manifest.
+pub fn bake_info(g: &Gdm, params: &PackageParams) -> BakeInfo {
+    let (d, dirs) = (g.dims(), g.dirs());
+    BakeInfo {
+        res: [d.x, d.y, d.z],
+        dirs: [dirs.n_theta, dirs.n_phi],
+        method: params.method,
+        fast: (params.method == Method::Fast).then_some(params.fast),
+        allow_open: params.allow_open,
+    }
+}
+
+/// Bakes the package of the input at `path`.
+pub fn bake_package(
+    path: &Path,
+    params: &PackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<BakedPackage> {
+    let mut seconds = StageSeconds::default();
+    let start = Instant::now();
+    let (input, meso) = load_input(path, params.res, params.allow_open, limits)?;
+    seconds.load = start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    let mut g = gdm::bake(
+        meso.caster(),
+        params.dirs,
+        params.method,
+        params.fast,
+        limits,
+        observer,
+    )?;
+    g.set_escape_convention(EscapeConvention::Boundary);
+    seconds.bake = start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    let gram = GramEigen::new(&GdmRows::new(&g)?, limits)?;
+    let gram_s = start.elapsed().as_secs_f64();
+    let compressed = compress(&g, &gram, params.rank, params.quantization, limits)?;
+    seconds.svd = gram_s + compressed.seconds.svd;
+    seconds.quantize = compressed.seconds.quantize;
+
+    let start = Instant::now();
+    let bytes = Package::encode(input, bake_info(&g, params), &compressed);
+    seconds.encode = start.elapsed().as_secs_f64();
+    Ok(BakedPackage {
+        bytes,
+        gdm: compressed,
+        seconds,
+    })
+}

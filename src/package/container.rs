@@ -1,0 +1,203 @@
+//! The `.mbpkg` container: a fixed header, 256-byte-aligned binary sections, and the JSON
+//! manifest last. Every byte is covered by a checksum or must be zero, so any corruption is
+//! detected. The byte-exact layout is specified in `docs/package-format.md`.
+
+use super::manifest::{FORMAT_NAME, Manifest, TextureDimension};
+use crate::error::{Error, Result};
+
+/// The first eight bytes of every package.
+pub const MAGIC: [u8; 8] = *b"\x89MBPKG\r\n";
+
+/// The container version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// Bytes in the fixed header.
+pub const HEADER_BYTES: usize = 64;
+
+/// Alignment of every section and of the manifest.
+pub const ALIGNMENT: u64 = 256;
+
+/// Largest manifest accepted.
+pub const MAX_MANIFEST_BYTES: u64 = 16 << 20;
+
+/// Most sections accepted.
+pub const MAX_SECTIONS: usize = 4096;
+
+fn invalid(message: impl Into<String>) -> Error {
+    Error::Package(message.into())
+}
+
+/// Lays out `payloads` (one per entry of `manifest.sections`, in order) and the manifest,
+/// filling in each section's offset, length and checksum.
+pub fn assemble(manifest: &mut Manifest, payloads: &[Vec<u8>]) -> Vec<u8> {
+    assert_eq!(
+        manifest.sections.len(),
+        payloads.len(),
+        "one payload per section"
+    );
+    let mut file = vec![0u8; HEADER_BYTES];
+    for (section, payload) in manifest.sections.iter_mut().zip(payloads) {
+        file.resize(file.len().next_multiple_of(ALIGNMENT as usize), 0);
+        section.offset = file.len() as u64;
+        section.bytes = payload.len() as u64;
+        section.crc32 = crc32fast::hash(payload);
+        file.extend_from_slice(payload);
+    }
+    file.resize(file.len().next_multiple_of(ALIGNMENT as usize), 0);
+    let json = serde_json::to_vec(manifest).expect("manifests hold only finite numbers");
+    let manifest_offset = file.len() as u64;
+    file.extend_from_slice(&json);
+    let total = file.len() as u64;
+    let header = &mut file[..HEADER_BYTES];
+    header[0..8].copy_from_slice(&MAGIC);
+    header[8..12].copy_from_slice(&VERSION.to_le_bytes());
+    header[12..16].copy_from_slice(&(HEADER_BYTES as u32).to_le_bytes());
+    header[16..24].copy_from_slice(&manifest_offset.to_le_bytes());
+    header[24..32].copy_from_slice(&(json.len() as u64).to_le_bytes());
+    header[32..36].copy_from_slice(&crc32fast::hash(&json).to_le_bytes());
+    header[40..48].copy_from_slice(&total.to_le_bytes());
+    let crc = crc32fast::hash(&header[..60]);
+    header[60..64].copy_from_slice(&crc.to_le_bytes());
+    file
+}
+
+/// Validates the container structure of `bytes` and returns its manifest: header, checksums,
+/// section bounds, alignment, texture sizes and zero padding. What the sections mean is
+/// checked by the caller.
+pub fn parse(bytes: &[u8]) -> Result<Manifest> {
+    if bytes.len() < HEADER_BYTES {
+        return Err(invalid(format!(
+            "truncated: {} bytes, shorter than the {HEADER_BYTES}-byte header",
+            bytes.len()
+        )));
+    }
+    let header = &bytes[..HEADER_BYTES];
+    if header[..8] != MAGIC {
+        return Err(invalid("not a mesobake package (bad magic number)"));
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(header[o..o + 4].try_into().expect("4 bytes"));
+    let u64_at = |o: usize| u64::from_le_bytes(header[o..o + 8].try_into().expect("8 bytes"));
+    if crc32fast::hash(&header[..60]) != u32_at(60) {
+        return Err(invalid("header checksum mismatch: the file is corrupt"));
+    }
+    let version = u32_at(8);
+    if version != VERSION {
+        return Err(invalid(format!(
+            "unsupported package version {version} (this build reads version {VERSION})"
+        )));
+    }
+    if u32_at(12) != HEADER_BYTES as u32
+        || u32_at(36) != 0
+        || header[48..60].iter().any(|&b| b != 0)
+    {
+        return Err(invalid(
+            "malformed header: unexpected header size or reserved bytes",
+        ));
+    }
+    let (manifest_offset, manifest_len, total) = (u64_at(16), u64_at(24), u64_at(40));
+    if total != bytes.len() as u64 {
+        return Err(invalid(format!(
+            "the header declares {total} bytes but the file has {} (truncated or extended)",
+            bytes.len()
+        )));
+    }
+    if manifest_len > MAX_MANIFEST_BYTES {
+        return Err(invalid(format!(
+            "the manifest's declared size, {manifest_len} bytes, exceeds the limit of {MAX_MANIFEST_BYTES}"
+        )));
+    }
+    if manifest_offset % ALIGNMENT != 0
+        || manifest_offset < HEADER_BYTES as u64
+        || manifest_offset.checked_add(manifest_len) != Some(total)
+    {
+        return Err(invalid(format!(
+            "the manifest ({manifest_len} bytes at offset {manifest_offset}) must be aligned and end the file"
+        )));
+    }
+    let json = &bytes[manifest_offset as usize..];
+    if crc32fast::hash(json) != u32_at(32) {
+        return Err(invalid("manifest checksum mismatch: the file is corrupt"));
+    }
+    let manifest: Manifest = serde_json::from_slice(json)
+        .map_err(|e| invalid(format!("the manifest is not valid: {e}")))?;
+    if manifest.format != FORMAT_NAME || manifest.version != VERSION {
+        return Err(invalid(format!(
+            "the manifest describes {:?} version {}, not {FORMAT_NAME:?} version {VERSION}",
+            manifest.format, manifest.version
+        )));
+    }
+    check_sections(bytes, &manifest, manifest_offset)?;
+    Ok(manifest)
+}
+
+/// Checks section bounds, order, alignment, sizes, checksums and the zero padding between.
+fn check_sections(bytes: &[u8], manifest: &Manifest, manifest_offset: u64) -> Result<()> {
+    if manifest.sections.len() > MAX_SECTIONS {
+        return Err(invalid(format!(
+            "{} sections, over the limit of {MAX_SECTIONS}",
+            manifest.sections.len()
+        )));
+    }
+    let mut names = std::collections::BTreeSet::new();
+    let mut end = HEADER_BYTES as u64;
+    for s in &manifest.sections {
+        let what = format!("section {:?}", s.name);
+        if !names.insert(s.name.as_str()) {
+            return Err(invalid(format!("{what} appears twice")));
+        }
+        let t = &s.texture;
+        let min_row = (t.width as u64) * t.format.texel_bytes() as u64;
+        if t.width == 0
+            || t.height == 0
+            || t.depth == 0
+            || (t.dimension == TextureDimension::D2 && t.depth != 1)
+            || t.bytes_per_row as u64 % ALIGNMENT != 0
+            || (t.bytes_per_row as u64) < min_row
+        {
+            return Err(invalid(format!(
+                "{what} has an invalid texture shape {t:?}"
+            )));
+        }
+        if t.byte_len() != Some(s.bytes) {
+            return Err(invalid(format!(
+                "{what} holds {} bytes but its {}×{}×{} texture needs {:?}",
+                s.bytes,
+                t.width,
+                t.height,
+                t.depth,
+                t.byte_len()
+            )));
+        }
+        let section_end = s
+            .offset
+            .checked_add(s.bytes)
+            .filter(|&e| e <= manifest_offset);
+        let Some(section_end) =
+            section_end.filter(|_| s.offset >= end && s.offset % ALIGNMENT == 0)
+        else {
+            return Err(invalid(format!(
+                "{what} ({} bytes at offset {}) is misplaced: sections must be aligned, in order, \
+                 and lie before the manifest",
+                s.bytes, s.offset
+            )));
+        };
+        zero_padding(bytes, end, s.offset)?;
+        let payload = &bytes[s.offset as usize..section_end as usize];
+        if crc32fast::hash(payload) != s.crc32 {
+            return Err(invalid(format!(
+                "{what}: checksum mismatch, the file is corrupt"
+            )));
+        }
+        end = section_end;
+    }
+    zero_padding(bytes, end, manifest_offset)
+}
+
+fn zero_padding(bytes: &[u8], from: u64, to: u64) -> Result<()> {
+    if bytes[from as usize..to as usize].iter().any(|&b| b != 0) {
+        return Err(invalid(format!(
+            "non-zero padding between bytes {from} and {to}: the file is corrupt"
+        )));
+    }
+    Ok(())
+}

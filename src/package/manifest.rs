@@ -1,0 +1,202 @@
+//! The JSON manifest of a package (see `docs/package-format.md`). Every map is a struct or a
+//! list, so serialization order is fixed and identical packages are byte-identical.
+
+use crate::compress::accuracy::Accuracy;
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::RankChoice;
+use crate::gdm::Method;
+use crate::gdm::fast::FastParams;
+
+/// The value of [`Manifest::format`].
+pub const FORMAT_NAME: &str = "mesobake-package";
+
+/// Everything a loader needs to interpret the binary sections, and how they were made.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// Always [`FORMAT_NAME`].
+    pub format: String,
+    /// The container version, equal to the header's.
+    pub version: u32,
+    /// The tool that wrote the package, `mesobake <version>`.
+    pub generator: String,
+    /// Unit of every distance: `"voxel"` (the edge of one mesostructure voxel).
+    pub units: String,
+    /// The mesostructure input.
+    pub input: InputInfo,
+    /// How the GDM was baked.
+    pub bake: BakeInfo,
+    /// The compressed GDM.
+    pub gdm: GdmInfo,
+    /// The binary sections, in file order.
+    pub sections: Vec<Section>,
+}
+
+/// Identity of the input file.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputInfo {
+    /// `"volume"` (`.mbvol`) or `"mesh"` (OBJ tile).
+    pub kind: String,
+    /// Size of the input file in bytes.
+    pub bytes: u64,
+    /// BLAKE3 hash of the input file's bytes, lowercase hex.
+    pub blake3: String,
+}
+
+/// The bake parameters.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BakeInfo {
+    /// Voxel grid [X, Y, Z].
+    pub res: [u32; 3],
+    /// Direction grid [Nθ, Nφ] (θ_a = (a + ½)·π/Nθ, φ_b = b·2π/Nφ).
+    pub dirs: [u32; 2],
+    /// The baking algorithm.
+    pub method: Method,
+    /// The fast method's knobs (absent for exact bakes).
+    pub fast: Option<FastParams>,
+    /// Whether an open OBJ tile was accepted as thin sheets.
+    pub allow_open: bool,
+}
+
+/// The GDM's factorization and its accuracy.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GdmInfo {
+    /// How the rank was chosen.
+    pub rank_choice: RankChoice,
+    /// Components kept, k.
+    pub rank: u32,
+    /// All singular values of the GDM matrix, descending.
+    pub spectrum: Vec<f64>,
+    /// The number format of both factors.
+    pub quantization: Quantization,
+    /// Weight maps W_i(x, y, φ): per-component decode and the sections that hold them.
+    pub weights: FactorInfo,
+    /// Eigenmaps E_i(z, θ): per-component decode and the sections that hold them.
+    pub eigen: FactorInfo,
+    /// Error of the quantized reconstruction against the baked GDM; its `escape_margin` is the
+    /// escape rule's relative margin μ (d̃ ≥ (1 − μ)·b is an escape).
+    pub accuracy: Accuracy,
+    /// The optimal (unquantized) rank-k RMSE, sqrt(Σ_{i>k} σᵢ² / (m·n)).
+    pub svd_rmse: f64,
+}
+
+/// Decode parameters of one factor.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FactorInfo {
+    /// Section names, one per group of four components (group g holds components 4g..4g+3
+    /// in channels r, g, b, a).
+    pub sections: Vec<String>,
+    /// Per component: value = bias + scale · stored (stored = code / 255 for u8).
+    pub scale: Vec<f32>,
+    /// Per component: see `scale`.
+    pub bias: Vec<f32>,
+}
+
+/// One binary section.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Section {
+    /// Unique name.
+    pub name: String,
+    /// Byte offset from the start of the file, a multiple of 256.
+    pub offset: u64,
+    /// Length in bytes.
+    pub bytes: u64,
+    /// CRC-32 (IEEE 802.3, as zlib's `crc32`) of the section's bytes.
+    pub crc32: u32,
+    /// The texture the bytes upload to.
+    pub texture: Texture,
+}
+
+/// A texture laid out for a buffer-to-texture copy: rows of `bytes_per_row` bytes (a
+/// multiple of 256, zero-padded), `height` rows per image, `depth` images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Texture {
+    /// `"2d"` or `"3d"`.
+    pub dimension: TextureDimension,
+    /// The texel format.
+    pub format: TexelFormat,
+    /// Texels per row.
+    pub width: u32,
+    /// Rows per image.
+    pub height: u32,
+    /// Images (1 for 2D textures).
+    pub depth: u32,
+    /// Bytes per row including padding.
+    pub bytes_per_row: u32,
+}
+
+/// Texture dimensionality.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum TextureDimension {
+    /// A 2D texture.
+    #[serde(rename = "2d")]
+    D2,
+    /// A 3D texture.
+    #[serde(rename = "3d")]
+    D3,
+}
+
+/// Texel formats, named as in WebGPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TexelFormat {
+    /// Four little-endian f32.
+    Rgba32float,
+    /// Four little-endian IEEE binary16.
+    Rgba16float,
+    /// Four bytes, read as code / 255.
+    Rgba8unorm,
+}
+
+impl TexelFormat {
+    /// The format that stores four components quantized with `q`.
+    pub fn of(q: Quantization) -> Self {
+        match q {
+            Quantization::F32 => TexelFormat::Rgba32float,
+            Quantization::F16 => TexelFormat::Rgba16float,
+            Quantization::U8 => TexelFormat::Rgba8unorm,
+        }
+    }
+
+    /// Bytes per texel.
+    pub fn texel_bytes(self) -> u32 {
+        match self {
+            TexelFormat::Rgba32float => 16,
+            TexelFormat::Rgba16float => 8,
+            TexelFormat::Rgba8unorm => 4,
+        }
+    }
+}
+
+impl Texture {
+    /// A texture of `format` and extent, rows padded to a multiple of 256 bytes.
+    pub fn new(
+        dimension: TextureDimension,
+        format: TexelFormat,
+        width: u32,
+        height: u32,
+        depth: u32,
+    ) -> Self {
+        Texture {
+            dimension,
+            format,
+            width,
+            height,
+            depth,
+            bytes_per_row: (width * format.texel_bytes()).next_multiple_of(256),
+        }
+    }
+
+    /// Total bytes, computed without overflow (None when it would overflow).
+    pub fn byte_len(&self) -> Option<u64> {
+        (self.bytes_per_row as u64)
+            .checked_mul(self.height as u64)?
+            .checked_mul(self.depth as u64)
+    }
+}

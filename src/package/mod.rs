@@ -1,0 +1,296 @@
+//! GDM packages (`.mbpkg`): the compressed GDM as textures ready for GPU upload, with a
+//! manifest that says how it was made and how accurate it is. Writing is deterministic;
+//! reading validates everything (see `docs/package-format.md`).
+
+pub mod container;
+pub mod manifest;
+
+use crate::compress::accuracy::{MAX_MARGIN, resolve_escapes};
+use crate::compress::gdm::CompressedGdm;
+use crate::compress::quantize::QuantizedFactor;
+use crate::compress::svd::gemm;
+use crate::error::{Error, Result};
+use crate::gdm::{EscapeConvention, Gdm};
+use crate::grid::{Dims, DirectionGrid};
+use crate::limits::Limits;
+use manifest::{
+    BakeInfo, FORMAT_NAME, FactorInfo, GdmInfo, InputInfo, Manifest, Section, TexelFormat, Texture,
+    TextureDimension,
+};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// Components per texture (RGBA).
+const CHANNELS: usize = 4;
+
+/// A validated package in memory.
+#[derive(Debug)]
+pub struct Package {
+    manifest: Manifest,
+    bytes: Vec<u8>,
+    dims: Dims,
+    dirs: DirectionGrid,
+}
+
+/// The texture a factor's component group is stored in: weight maps as 3D textures
+/// W(x, y, φ), eigenmaps as 2D textures E(z, θ).
+fn factor_texture(weights: bool, format: TexelFormat, dims: Dims, dirs: DirectionGrid) -> Texture {
+    if weights {
+        Texture::new(TextureDimension::D3, format, dims.x, dims.y, dirs.n_phi)
+    } else {
+        Texture::new(TextureDimension::D2, format, dims.z, dirs.n_theta, 1)
+    }
+}
+
+/// Packs components 4g..4g+3 of `factor` (rows in texel order, `texture.width` per row) into
+/// the texture's bytes; missing components are zero.
+fn pack(factor: &QuantizedFactor, group: usize, texture: &Texture) -> Vec<u8> {
+    let len = texture.byte_len().expect("writer textures are small") as usize;
+    let mut bytes = vec![0u8; len];
+    let elem = factor.format.bytes();
+    let width = texture.width as usize;
+    for r in 0..factor.rows {
+        let texel = (r / width) * texture.bytes_per_row as usize
+            + (r % width) * texture.format.texel_bytes() as usize;
+        for ch in 0..CHANNELS.min(factor.rank - group * CHANNELS) {
+            let code = factor.code(r, group * CHANNELS + ch);
+            bytes[texel + ch * elem..][..elem].copy_from_slice(code);
+        }
+    }
+    bytes
+}
+
+impl Package {
+    /// Encodes a compressed GDM with its provenance into package bytes.
+    pub fn encode(input: InputInfo, bake: BakeInfo, gdm: &CompressedGdm) -> Vec<u8> {
+        let (dims, dirs) = (
+            Dims {
+                x: bake.res[0],
+                y: bake.res[1],
+                z: bake.res[2],
+            },
+            DirectionGrid {
+                n_theta: bake.dirs[0],
+                n_phi: bake.dirs[1],
+            },
+        );
+        let format = TexelFormat::of(gdm.weights.format);
+        let groups = gdm.svd.rank.div_ceil(CHANNELS);
+        let mut sections = Vec::new();
+        let mut payloads = Vec::new();
+        let mut factor_info = |name: &str, factor: &QuantizedFactor, weights: bool| {
+            let texture = factor_texture(weights, format, dims, dirs);
+            let names: Vec<String> = (0..groups).map(|g| format!("gdm.{name}.{g}")).collect();
+            for (g, section) in names.iter().enumerate() {
+                payloads.push(pack(factor, g, &texture));
+                sections.push(Section {
+                    name: section.clone(),
+                    offset: 0,
+                    bytes: 0,
+                    crc32: 0,
+                    texture,
+                });
+            }
+            FactorInfo {
+                sections: names,
+                scale: factor.scale.clone(),
+                bias: factor.bias.clone(),
+            }
+        };
+        let weights = factor_info("weights", &gdm.weights, true);
+        let eigen = factor_info("eigen", &gdm.eigen, false);
+        let mut manifest = Manifest {
+            format: FORMAT_NAME.into(),
+            version: container::VERSION,
+            generator: format!("mesobake {}", env!("CARGO_PKG_VERSION")),
+            units: "voxel".into(),
+            input,
+            bake,
+            gdm: GdmInfo {
+                rank_choice: gdm.rank_choice,
+                rank: gdm.svd.rank as u32,
+                spectrum: gdm.svd.spectrum.clone(),
+                quantization: gdm.weights.format,
+                weights,
+                eigen,
+                accuracy: gdm.accuracy,
+                svd_rmse: gdm.svd.optimal_rmse(gdm.svd.rank),
+            },
+            sections,
+        };
+        container::assemble(&mut manifest, &payloads)
+    }
+
+    /// Validates `bytes` as a package: the container (see [`container::parse`]) and the GDM
+    /// it describes (grids, ranks, decode parameters, and every section's texture shape).
+    pub fn parse(bytes: Vec<u8>) -> Result<Package> {
+        let manifest = container::parse(&bytes)?;
+        let bad = |what: String| Error::Package(format!("manifest: {what}"));
+        let [x, y, z] = manifest.bake.res;
+        let dims = Dims::new(x, y, z).map_err(|e| bad(e.to_string()))?;
+        let [n_theta, n_phi] = manifest.bake.dirs;
+        let dirs = DirectionGrid::new(n_theta, n_phi).map_err(|e| bad(e.to_string()))?;
+        let g = &manifest.gdm;
+        let (m, n) = (
+            dims.x as u64 * dims.y as u64 * dirs.n_phi as u64,
+            dims.z as u64 * dirs.n_theta as u64,
+        );
+        let rank = g.rank as usize;
+        if g.rank as u64 > m.min(n) {
+            return Err(bad(format!("rank {} exceeds the matrix's {m}×{n}", g.rank)));
+        }
+        if g.spectrum.len() as u64 != m.min(n)
+            || g.spectrum.iter().any(|s| !(s.is_finite() && *s >= 0.0))
+        {
+            return Err(bad(
+                "the spectrum must hold min(m, n) finite values ≥ 0".into()
+            ));
+        }
+        let a = &g.accuracy;
+        if !(0.0..=MAX_MARGIN).contains(&a.escape_margin) {
+            return Err(bad(format!("escape margin {} is invalid", a.escape_margin)));
+        }
+        let format = TexelFormat::of(g.quantization);
+        for (name, info, weights) in [("weights", &g.weights, true), ("eigen", &g.eigen, false)] {
+            if info.sections.len() != rank.div_ceil(CHANNELS)
+                || info.scale.len() != rank
+                || info.bias.len() != rank
+                || info.scale.iter().chain(&info.bias).any(|v| !v.is_finite())
+            {
+                return Err(bad(format!(
+                    "the {name} factor must list {} sections and {rank} finite scales and biases",
+                    rank.div_ceil(CHANNELS)
+                )));
+            }
+            let expected = factor_texture(weights, format, dims, dirs);
+            for section in &info.sections {
+                match manifest.sections.iter().find(|s| &s.name == section) {
+                    Some(s) if s.texture == expected => {}
+                    Some(s) => {
+                        return Err(bad(format!(
+                            "section {section:?} has texture {:?}, expected {expected:?}",
+                            s.texture
+                        )));
+                    }
+                    None => return Err(bad(format!("section {section:?} is missing"))),
+                }
+            }
+        }
+        Ok(Package {
+            manifest,
+            bytes,
+            dims,
+            dirs,
+        })
+    }
+
+    /// Reads and validates the package at `path`, refusing files over the memory limit.
+    pub fn read(path: &Path, limits: &Limits) -> Result<Package> {
+        let len = std::fs::metadata(path)
+            .map_err(|e| Error::io(path, e))?
+            .len();
+        limits.check(&format!("package {}", path.display()), len, 1)?;
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        Package::parse(bytes)
+    }
+
+    /// The manifest.
+    pub fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    /// The package's bytes, as written.
+    pub fn bytes(&self) -> &[u8] {
+        &self.bytes
+    }
+
+    /// The voxel grid.
+    pub fn dims(&self) -> Dims {
+        self.dims
+    }
+
+    /// The direction grid.
+    pub fn dirs(&self) -> DirectionGrid {
+        self.dirs
+    }
+
+    /// The bytes of section `name`, if present.
+    pub fn section(&self, name: &str) -> Option<&[u8]> {
+        let s = self.manifest.sections.iter().find(|s| s.name == name)?;
+        Some(&self.bytes[s.offset as usize..][..s.bytes as usize])
+    }
+
+    /// The quantized weight maps and eigenmaps, unpacked from their textures.
+    pub fn factors(&self) -> (QuantizedFactor, QuantizedFactor) {
+        let g = &self.manifest.gdm;
+        let rows_w = self.dims.x as usize * self.dims.y as usize * self.dirs.n_phi as usize;
+        let rows_e = self.dims.z as usize * self.dirs.n_theta as usize;
+        let unpack = |info: &FactorInfo, rows: usize| {
+            let (rank, format) = (g.rank as usize, g.quantization);
+            let elem = format.bytes();
+            let mut codes = vec![0u8; rows * rank * elem];
+            for (group, name) in info.sections.iter().enumerate() {
+                let t = self
+                    .manifest
+                    .sections
+                    .iter()
+                    .find(|s| &s.name == name)
+                    .expect("validated")
+                    .texture;
+                let bytes = self.section(name).expect("validated");
+                for r in 0..rows {
+                    let texel = (r / t.width as usize) * t.bytes_per_row as usize
+                        + (r % t.width as usize) * t.format.texel_bytes() as usize;
+                    for ch in 0..CHANNELS.min(rank - group * CHANNELS) {
+                        let c = group * CHANNELS + ch;
+                        codes[(r * rank + c) * elem..][..elem]
+                            .copy_from_slice(&bytes[texel + ch * elem..][..elem]);
+                    }
+                }
+            }
+            QuantizedFactor {
+                rows,
+                rank,
+                format,
+                scale: info.scale.clone(),
+                bias: info.bias.clone(),
+                codes,
+            }
+        };
+        (unpack(&g.weights, rows_w), unpack(&g.eigen, rows_e))
+    }
+
+    /// The dense GDM a renderer sees: W·Eᵀ with the escape rule applied (escapes +∞, the
+    /// [`EscapeConvention::Infinite`] of `mesobake gdm`).
+    pub fn reconstruct(&self, limits: &Limits) -> Result<Gdm> {
+        let (dims, dirs) = (self.dims, self.dirs);
+        let count = dims.voxel_count() * dirs.count() as u64;
+        limits.check("the reconstructed GDM", count, 4)?;
+        let (w, e) = self.factors();
+        let (w, e, k) = (w.dequantize(), e.dequantize(), w.rank);
+        let layer = (dims.x * dims.y) as usize;
+        let stride = dims.voxel_count() as usize;
+        let mut values = vec![0.0f32; count as usize];
+        if k > 0 {
+            values
+                .par_chunks_mut(stride)
+                .enumerate()
+                .for_each(|(d, volume)| {
+                    let (a, b) = (d / dirs.n_phi as usize, d % dirs.n_phi as usize);
+                    // volume[k·layer + t] = W[b·layer + t] · E[a·Z + k]
+                    let w_b = &w[b * layer * k..][..layer * k];
+                    let e_a = &e[a * dims.z as usize * k..][..dims.z as usize * k];
+                    gemm(
+                        layer,
+                        k,
+                        dims.z as usize,
+                        (w_b, k, 1),
+                        (e_a, 1, k),
+                        (volume, 1, layer),
+                    );
+                });
+        }
+        let gdm = Gdm::from_values(dims, dirs, EscapeConvention::Boundary, values)?;
+        resolve_escapes(gdm, self.manifest.gdm.accuracy.escape_margin)
+    }
+}

@@ -1,0 +1,303 @@
+//! GDM packages: round trips, determinism, and rejection of every kind of corrupt file.
+
+use mesobake::bake_package::{PackageParams, bake_info, bake_package};
+use mesobake::compress::gdm::{CompressedGdm, compress};
+use mesobake::compress::layout::GdmRows;
+use mesobake::compress::quantize::Quantization;
+use mesobake::compress::svd::{GramEigen, RankChoice};
+use mesobake::gdm::volume_caster::VolumeCaster;
+use mesobake::gdm::{self, EscapeConvention, Gdm, Method};
+use mesobake::grid::{Dims, DirectionGrid};
+use mesobake::limits::Limits;
+use mesobake::package::Package;
+use mesobake::package::manifest::{InputInfo, Manifest};
+use mesobake::samples::{self, SampleKind};
+use proptest::prelude::*;
+
+fn params(rank: usize, quantization: Quantization) -> PackageParams {
+    PackageParams {
+        res: None,
+        dirs: DirectionGrid::new(4, 8).unwrap(),
+        method: Method::Exact,
+        fast: Default::default(),
+        rank: RankChoice::Rank(rank),
+        quantization,
+        allow_open: false,
+    }
+}
+
+/// The exact GDM of a small `chain` (boundary convention) and its compression.
+fn compressed(res: Dims, rank: usize, q: Quantization) -> (Gdm, CompressedGdm) {
+    let limits = Limits::default();
+    let volume = samples::volume(SampleKind::Chain, res, &limits).unwrap();
+    let p = params(rank, q);
+    let mut g = gdm::exact::bake(&VolumeCaster::new(&volume), p.dirs, &limits, &()).unwrap();
+    g.set_escape_convention(EscapeConvention::Boundary);
+    let gram = GramEigen::new(&GdmRows::new(&g).unwrap(), &limits).unwrap();
+    let c = compress(&g, &gram, p.rank, q, &limits).unwrap();
+    (g, c)
+}
+
+fn input_info() -> InputInfo {
+    InputInfo {
+        kind: "volume".into(),
+        bytes: 1,
+        blake3: "00".into(),
+    }
+}
+
+fn small_package() -> Vec<u8> {
+    let (g, c) = compressed(Dims::new(8, 8, 4).unwrap(), 5, Quantization::F16);
+    Package::encode(
+        input_info(),
+        bake_info(&g, &params(5, Quantization::F16)),
+        &c,
+    )
+}
+
+#[test]
+fn round_trip_gives_back_the_measured_reconstruction() {
+    let limits = Limits::default();
+    for q in Quantization::ALL {
+        let (g, c) = compressed(Dims::new(16, 16, 8).unwrap(), 6, q);
+        let bytes = Package::encode(input_info(), bake_info(&g, &params(6, q)), &c);
+        let pkg = Package::parse(bytes).unwrap();
+        // The unpacked codes are the quantized factors, bit for bit.
+        let (w, e) = pkg.factors();
+        assert_eq!((&w, &e), (&c.weights, &c.eigen), "{q}");
+        // Reconstruction through the package (a GEMM per direction) agrees with the
+        // measurement (a GEMM per row block): same flips, same error on agreeing hits.
+        let recon = pkg.reconstruct(&limits).unwrap();
+        let (mut flips, mut sum_sq) = (0u64, 0.0f64);
+        let mut exact = g.clone();
+        exact.set_escape_convention(EscapeConvention::Infinite);
+        for (&r, &x) in recon.data().iter().zip(exact.data()) {
+            if r.is_infinite() != x.is_infinite() {
+                flips += 1;
+            } else if x.is_finite() {
+                sum_sq += ((r - x) as f64).powi(2);
+            }
+        }
+        assert_eq!(flips, c.accuracy.flips, "{q}");
+        // Errors on hits are part of the total (which also counts escapes and flips).
+        let rmse_hits_part = (sum_sq / c.accuracy.samples as f64).sqrt();
+        assert!(rmse_hits_part <= c.accuracy.rmse * (1.0 + 1e-4), "{q}");
+        let m = pkg.manifest();
+        assert_eq!(m.gdm.rank, 6);
+        assert_eq!(m.gdm.weights.sections.len(), 2);
+        assert_eq!(m.gdm.spectrum.len(), 4 * 8);
+    }
+}
+
+#[test]
+fn quantization_error_is_measured_and_ordered() {
+    let (_, f32q) = compressed(Dims::new(16, 16, 8).unwrap(), 8, Quantization::F32);
+    let (_, f16q) = compressed(Dims::new(16, 16, 8).unwrap(), 8, Quantization::F16);
+    let (_, u8q) = compressed(Dims::new(16, 16, 8).unwrap(), 8, Quantization::U8);
+    // f32 loses nothing beyond the SVD's own optimum (within the SVD test's 1 %).
+    let optimal = f32q.svd.optimal_rmse(8);
+    assert!(f32q.accuracy.rmse <= optimal * 1.01 + 1e-4);
+    // f16 adds at most its half-ulp relative rounding; u8 adds more.
+    assert!((f16q.accuracy.rmse - f32q.accuracy.rmse).abs() <= 0.01 * f32q.accuracy.rmse);
+    assert!(u8q.accuracy.rmse > f16q.accuracy.rmse);
+}
+
+#[test]
+fn packages_are_byte_identical_across_runs_and_thread_counts() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("chain.mbvol");
+    let limits = Limits::default();
+    let volume =
+        samples::volume(SampleKind::Chain, Dims::new(16, 16, 8).unwrap(), &limits).unwrap();
+    mesobake::volume_format::write(&volume, &path).unwrap();
+    let bake = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| bake_package(&path, &params(4, Quantization::F16), &limits, &()))
+            .unwrap()
+            .bytes
+    };
+    let one = bake(1);
+    assert_eq!(one, bake(2));
+    assert_eq!(one, bake(3));
+    let m = Package::parse(one).unwrap().manifest().clone();
+    let file = std::fs::read(&path).unwrap();
+    assert_eq!(m.input.blake3, blake3::hash(&file).to_hex().to_string());
+    assert_eq!(m.input.bytes, file.len() as u64);
+}
+
+#[test]
+fn every_flipped_byte_is_rejected() {
+    let bytes = small_package();
+    assert!(Package::parse(bytes.clone()).is_ok());
+    for offset in 0..bytes.len() {
+        for mask in [0x01u8, 0x80] {
+            let mut bad = bytes.clone();
+            bad[offset] ^= mask;
+            assert!(
+                Package::parse(bad).is_err(),
+                "flipping {mask:#x} at byte {offset} of {} went unnoticed",
+                bytes.len()
+            );
+        }
+    }
+}
+
+#[test]
+fn every_truncation_and_extension_is_rejected() {
+    let bytes = small_package();
+    for len in 0..bytes.len() {
+        let err = Package::parse(bytes[..len].to_vec())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("truncated") || err.contains("bytes"),
+            "{len}: {err}"
+        );
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(Package::parse(longer).is_err());
+}
+
+/// Rewrites the header's checksum after an edit, as a malicious or buggy writer would.
+fn reseal_header(bytes: &mut [u8]) {
+    let crc = crc32fast::hash(&bytes[..60]);
+    bytes[60..64].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// Replaces the manifest with `edit(manifest)`, keeping every checksum valid.
+fn with_manifest(bytes: &[u8], edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
+    let offset = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&bytes[offset..]).unwrap();
+    edit(&mut json);
+    let text = serde_json::to_vec(&json).unwrap();
+    let mut out = bytes[..offset].to_vec();
+    out.extend_from_slice(&text);
+    let total = out.len() as u64;
+    out[24..32].copy_from_slice(&(text.len() as u64).to_le_bytes());
+    out[32..36].copy_from_slice(&crc32fast::hash(&text).to_le_bytes());
+    out[40..48].copy_from_slice(&total.to_le_bytes());
+    reseal_header(&mut out);
+    out
+}
+
+fn error_of(bytes: Vec<u8>) -> String {
+    Package::parse(bytes).unwrap_err().to_string()
+}
+
+#[test]
+fn wrong_versions_and_absurd_sizes_get_clear_errors() {
+    let bytes = small_package();
+    // Sanity: resealing an unchanged manifest keeps the package valid.
+    assert!(Package::parse(with_manifest(&bytes, |_| {})).is_ok());
+
+    let mut v2 = bytes.clone();
+    v2[8..12].copy_from_slice(&2u32.to_le_bytes());
+    reseal_header(&mut v2);
+    assert!(error_of(v2).contains("unsupported package version 2"));
+
+    let mut huge = bytes.clone();
+    huge[24..32].copy_from_slice(&(1u64 << 62).to_le_bytes());
+    reseal_header(&mut huge);
+    assert!(error_of(huge).contains("manifest's declared size"));
+
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["sections"][0]["bytes"] = serde_json::json!(1u64 << 60);
+    }));
+    assert!(e.contains("section \"gdm.weights.0\""), "{e}");
+
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["sections"][0]["texture"]["depth"] = serde_json::json!(1u32 << 31);
+    }));
+    assert!(e.contains("gdm.weights.0"), "{e}");
+
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["gdm"]["rank"] = serde_json::json!(9)
+    }));
+    assert!(e.contains("sections"), "{e}");
+
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["bake"]["res"] = serde_json::json!([8, 8, 0])
+    }));
+    assert!(e.contains("manifest"), "{e}");
+
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["version"] = serde_json::json!(7)
+    }));
+    assert!(e.contains("version 7"), "{e}");
+
+    let e = error_of(with_manifest(&bytes, |m| m["extra"] = serde_json::json!(1)));
+    assert!(e.contains("unknown field"), "{e}");
+
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["gdm"]["accuracy"]["escape_margin"] = serde_json::json!(3.0)
+    }));
+    assert!(e.contains("escape margin"), "{e}");
+}
+
+#[test]
+fn a_huge_declared_grid_fails_on_the_memory_limit_not_on_allocation() {
+    // A rank-0 package has no sections, so nothing in the file bounds its grid.
+    let (g, c) = compressed(Dims::new(8, 8, 4).unwrap(), 0, Quantization::F16);
+    let bytes = Package::encode(
+        input_info(),
+        bake_info(&g, &params(0, Quantization::F16)),
+        &c,
+    );
+    let bytes = with_manifest(&bytes, |m| {
+        m["bake"]["res"] = serde_json::json!([65536, 65536, 65536]);
+        m["gdm"]["spectrum"] = serde_json::json!(vec![0.0; 65536 * 4]);
+    });
+    let pkg = Package::parse(bytes).unwrap();
+    let e = pkg.reconstruct(&Limits::default()).unwrap_err().to_string();
+    assert!(e.contains("memory limit"), "{e}");
+}
+
+#[test]
+fn reconstruction_refuses_grids_over_the_memory_limit() {
+    let pkg = Package::parse(small_package()).unwrap();
+    let tiny = Limits { memory_bytes: 1024 };
+    let e = pkg.reconstruct(&tiny).unwrap_err().to_string();
+    assert!(e.contains("memory limit"), "{e}");
+}
+
+#[test]
+fn manifests_round_trip_through_json() {
+    let pkg = Package::parse(small_package()).unwrap();
+    let text = serde_json::to_string(pkg.manifest()).unwrap();
+    let back: Manifest = serde_json::from_str(&text).unwrap();
+    assert_eq!(&back, pkg.manifest());
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..4096)) {
+        prop_assert!(Package::parse(bytes).is_err());
+    }
+
+    #[test]
+    fn arbitrary_edits_of_a_valid_package_are_rejected_or_harmless(
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8)
+    ) {
+        let mut bytes = small_package_cached().clone();
+        let original = bytes.clone();
+        for (at, value) in edits {
+            let i = at.index(bytes.len());
+            bytes[i] = value;
+        }
+        match Package::parse(bytes.clone()) {
+            Ok(_) => prop_assert_eq!(bytes, original),
+            Err(_) => prop_assert_ne!(bytes, original),
+        }
+    }
+}
+
+fn small_package_cached() -> &'static Vec<u8> {
+    static PACKAGE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    PACKAGE.get_or_init(small_package)
+}
