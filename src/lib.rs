@@ -37,6 +37,7 @@ pub mod limits;
 pub mod mesh_tile;
 pub mod npy;
 pub mod package;
+pub mod report;
 pub mod samples;
 pub mod trimesh;
 pub mod volume;

@@ -10,7 +10,7 @@ use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::{Limits, parse_bytes};
 use mesobake::package::Package;
 use mesobake::samples::{self, SampleKind};
-use mesobake::{Error, Result, bench, input, npy, volume_format};
+use mesobake::{Error, Result, bench, input, npy, report, volume_format};
 use peak_alloc::PeakAlloc;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -152,6 +152,11 @@ enum Command {
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
     },
+    /// Reports on what accuracy costs.
+    Report {
+        #[command(subcommand)]
+        which: ReportCommand,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -169,6 +174,33 @@ enum BenchCommand {
     },
     /// Truncated SVD of the W1 GDM matrix against nalgebra's full SVD (Markdown on stdout).
     Svd,
+}
+
+#[derive(Subcommand)]
+enum ReportCommand {
+    /// Accuracy against time and bytes over direction resolutions × ranks × quantizations,
+    /// against the exact uncompressed GDM: Markdown on stdout; accuracy.md, accuracy.csv and
+    /// accuracy.svg in --out.
+    Accuracy {
+        /// A .mbvol volume or a closed OBJ tile.
+        #[arg(long)]
+        input: PathBuf,
+        /// Grid X×Y×Z: required for OBJ tiles.
+        #[arg(long)]
+        res: Option<Dims>,
+        /// Direction grids, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "8x16,16x32,32x64")]
+        dirs: Vec<DirectionGrid>,
+        /// Ranks, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
+        ranks: Vec<usize>,
+        /// Quantizations, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "f32,f16")]
+        quants: Vec<Quantization>,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -401,6 +433,35 @@ fn run(cli: Cli) -> Result<()> {
             let path = out.join(format!("{name}-preview.png"));
             mesobake::fsutil::write_atomic(&path, &png)?;
             eprintln!("wrote {}", path.display());
+            Ok(())
+        }
+        Command::Report {
+            which:
+                ReportCommand::Accuracy {
+                    input,
+                    res,
+                    dirs,
+                    ranks,
+                    quants,
+                    out,
+                },
+        } => {
+            let sweep = report::Sweep {
+                dirs,
+                ranks,
+                quantizations: quants,
+            };
+            let progress = Progress::new("accuracy report");
+            let rows = report::accuracy(&input, res, &sweep, &limits, &progress)?;
+            progress.0.finish_and_clear();
+            let table = report::markdown(&rows);
+            std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+            let fsutil = mesobake::fsutil::write_atomic;
+            fsutil(&out.join("accuracy.md"), table.as_bytes())?;
+            fsutil(&out.join("accuracy.csv"), report::csv(&rows).as_bytes())?;
+            fsutil(&out.join("accuracy.svg"), report::svg_plot(&rows)?.as_bytes())?;
+            print!("{table}");
+            eprintln!("wrote accuracy.md, accuracy.csv and accuracy.svg in {}", out.display());
             Ok(())
         }
         Command::Bench {

@@ -46,23 +46,33 @@ pub fn compress(
     limits: &Limits,
 ) -> Result<CompressedGdm> {
     let start = Instant::now();
-    let rows = GdmRows::new(gdm)?;
-    let svd = gram.truncate(&rows, rank_choice, limits)?;
+    let svd = gram.truncate(&GdmRows::new(gdm)?, rank_choice, limits)?;
     let svd_s = start.elapsed().as_secs_f64();
+    let mut compressed = quantize(gdm, svd, rank_choice, quantization)?;
+    compressed.seconds.svd = svd_s;
+    Ok(compressed)
+}
+
+/// Quantizes the factorization `svd` of `gdm` (boundary convention) and measures it.
+pub fn quantize(
+    gdm: &Gdm,
+    svd: Truncated,
+    rank_choice: RankChoice,
+    quantization: Quantization,
+) -> Result<CompressedGdm> {
     let start = Instant::now();
     let weights = QuantizedFactor::new(&svd.weights, svd.rank, quantization);
     let eigen = QuantizedFactor::new(&svd.eigen, svd.rank, quantization);
     let accuracy = measure(gdm, &weights.dequantize(), &eigen.dequantize(), svd.rank)?;
-    let seconds = CompressSeconds {
-        svd: svd_s,
-        quantize: start.elapsed().as_secs_f64(),
-    };
     Ok(CompressedGdm {
         rank_choice,
         svd,
         weights,
         eigen,
         accuracy,
-        seconds,
+        seconds: CompressSeconds {
+            svd: 0.0,
+            quantize: start.elapsed().as_secs_f64(),
+        },
     })
 }

@@ -146,13 +146,10 @@ fn check_sections(bytes: &[u8], manifest: &Manifest, manifest_offset: u64) -> Re
             return Err(invalid(format!("{what} appears twice")));
         }
         let t = &s.texture;
-        let min_row = (t.width as u64) * t.format.texel_bytes() as u64;
         if t.width == 0
             || t.height == 0
             || t.depth == 0
             || (t.dimension == TextureDimension::D2 && t.depth != 1)
-            || t.bytes_per_row as u64 % ALIGNMENT != 0
-            || (t.bytes_per_row as u64) < min_row
         {
             return Err(invalid(format!(
                 "{what} has an invalid texture shape {t:?}"

@@ -112,8 +112,8 @@ pub struct Section {
     pub texture: Texture,
 }
 
-/// A texture laid out for a buffer-to-texture copy: rows of `bytes_per_row` bytes (a
-/// multiple of 256, zero-padded), `height` rows per image, `depth` images.
+/// A texture with tightly packed texels: `width` texels per row (x fastest), `height` rows
+/// per image, `depth` images.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Texture {
@@ -127,8 +127,6 @@ pub struct Texture {
     pub height: u32,
     /// Images (1 for 2D textures).
     pub depth: u32,
-    /// Bytes per row including padding.
-    pub bytes_per_row: u32,
 }
 
 /// Texture dimensionality.
@@ -142,60 +140,65 @@ pub enum TextureDimension {
     D3,
 }
 
-/// Texel formats, named as in WebGPU.
+/// Texel formats, named as in WebGPU: one, two or four channels of little-endian f32,
+/// IEEE binary16, or 8-bit codes read as code / 255.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
+#[allow(missing_docs)]
 pub enum TexelFormat {
-    /// Four little-endian f32.
+    R32float,
+    Rg32float,
     Rgba32float,
-    /// Four little-endian IEEE binary16.
+    R16float,
+    Rg16float,
     Rgba16float,
-    /// Four bytes, read as code / 255.
+    R8unorm,
+    Rg8unorm,
     Rgba8unorm,
 }
 
 impl TexelFormat {
-    /// The format that stores four components quantized with `q`.
-    pub fn of(q: Quantization) -> Self {
-        match q {
-            Quantization::F32 => TexelFormat::Rgba32float,
-            Quantization::F16 => TexelFormat::Rgba16float,
-            Quantization::U8 => TexelFormat::Rgba8unorm,
+    /// The narrowest format that holds `components` (1 to 4) values quantized with `q`.
+    pub fn of(q: Quantization, components: usize) -> Self {
+        use TexelFormat::*;
+        let [one, two, four] = match q {
+            Quantization::F32 => [R32float, Rg32float, Rgba32float],
+            Quantization::F16 => [R16float, Rg16float, Rgba16float],
+            Quantization::U8 => [R8unorm, Rg8unorm, Rgba8unorm],
+        };
+        match components {
+            0 | 1 => one,
+            2 => two,
+            _ => four,
+        }
+    }
+
+    /// Channels per texel.
+    pub fn channels(self) -> u32 {
+        use TexelFormat::*;
+        match self {
+            R32float | R16float | R8unorm => 1,
+            Rg32float | Rg16float | Rg8unorm => 2,
+            Rgba32float | Rgba16float | Rgba8unorm => 4,
         }
     }
 
     /// Bytes per texel.
     pub fn texel_bytes(self) -> u32 {
-        match self {
-            TexelFormat::Rgba32float => 16,
-            TexelFormat::Rgba16float => 8,
-            TexelFormat::Rgba8unorm => 4,
-        }
+        use TexelFormat::*;
+        let per_channel = match self {
+            R32float | Rg32float | Rgba32float => 4,
+            R16float | Rg16float | Rgba16float => 2,
+            R8unorm | Rg8unorm | Rgba8unorm => 1,
+        };
+        per_channel * self.channels()
     }
 }
 
 impl Texture {
-    /// A texture of `format` and extent, rows padded to a multiple of 256 bytes.
-    pub fn new(
-        dimension: TextureDimension,
-        format: TexelFormat,
-        width: u32,
-        height: u32,
-        depth: u32,
-    ) -> Self {
-        Texture {
-            dimension,
-            format,
-            width,
-            height,
-            depth,
-            bytes_per_row: (width * format.texel_bytes()).next_multiple_of(256),
-        }
-    }
-
     /// Total bytes, computed without overflow (None when it would overflow).
     pub fn byte_len(&self) -> Option<u64> {
-        (self.bytes_per_row as u64)
+        (self.width as u64 * self.format.texel_bytes() as u64)
             .checked_mul(self.height as u64)?
             .checked_mul(self.depth as u64)
     }

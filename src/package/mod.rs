@@ -7,7 +7,7 @@ pub mod manifest;
 
 use crate::compress::accuracy::{MAX_MARGIN, resolve_escapes};
 use crate::compress::gdm::CompressedGdm;
-use crate::compress::quantize::QuantizedFactor;
+use crate::compress::quantize::{Quantization, QuantizedFactor};
 use crate::compress::svd::gemm;
 use crate::error::{Error, Result};
 use crate::gdm::{EscapeConvention, Gdm};
@@ -32,26 +32,40 @@ pub struct Package {
     dirs: DirectionGrid,
 }
 
-/// The texture a factor's component group is stored in: weight maps as 3D textures
-/// W(x, y, φ), eigenmaps as 2D textures E(z, θ).
-fn factor_texture(weights: bool, format: TexelFormat, dims: Dims, dirs: DirectionGrid) -> Texture {
-    if weights {
-        Texture::new(TextureDimension::D3, format, dims.x, dims.y, dirs.n_phi)
+/// The texture holding components 4g..4g+3 of a rank-`rank` factor quantized with `q`:
+/// weight maps as 3D textures W(x, y, φ), eigenmaps as 2D textures E(z, θ); the last group
+/// in the narrowest format that holds what is left (r, rg or rgba).
+fn factor_texture(
+    weights: bool,
+    q: Quantization,
+    rank: usize,
+    group: usize,
+    dims: Dims,
+    dirs: DirectionGrid,
+) -> Texture {
+    let format = TexelFormat::of(q, rank - group * CHANNELS);
+    let (dimension, width, height, depth) = if weights {
+        (TextureDimension::D3, dims.x, dims.y, dirs.n_phi)
     } else {
-        Texture::new(TextureDimension::D2, format, dims.z, dirs.n_theta, 1)
+        (TextureDimension::D2, dims.z, dirs.n_theta, 1)
+    };
+    Texture {
+        dimension,
+        format,
+        width,
+        height,
+        depth,
     }
 }
 
-/// Packs components 4g..4g+3 of `factor` (rows in texel order, `texture.width` per row) into
-/// the texture's bytes; missing components are zero.
+/// Packs the components of `factor` that `group` holds into `texture`'s bytes (texel r is
+/// factor row r); channels past the rank are zero.
 fn pack(factor: &QuantizedFactor, group: usize, texture: &Texture) -> Vec<u8> {
     let len = texture.byte_len().expect("writer textures are small") as usize;
     let mut bytes = vec![0u8; len];
     let elem = factor.format.bytes();
-    let width = texture.width as usize;
     for r in 0..factor.rows {
-        let texel = (r / width) * texture.bytes_per_row as usize
-            + (r % width) * texture.format.texel_bytes() as usize;
+        let texel = r * texture.format.texel_bytes() as usize;
         for ch in 0..CHANNELS.min(factor.rank - group * CHANNELS) {
             let code = factor.code(r, group * CHANNELS + ch);
             bytes[texel + ch * elem..][..elem].copy_from_slice(code);
@@ -74,14 +88,14 @@ impl Package {
                 n_phi: bake.dirs[1],
             },
         );
-        let format = TexelFormat::of(gdm.weights.format);
-        let groups = gdm.svd.rank.div_ceil(CHANNELS);
+        let (q, rank) = (gdm.weights.format, gdm.svd.rank);
+        let groups = rank.div_ceil(CHANNELS);
         let mut sections = Vec::new();
         let mut payloads = Vec::new();
         let mut factor_info = |name: &str, factor: &QuantizedFactor, weights: bool| {
-            let texture = factor_texture(weights, format, dims, dirs);
             let names: Vec<String> = (0..groups).map(|g| format!("gdm.{name}.{g}")).collect();
             for (g, section) in names.iter().enumerate() {
+                let texture = factor_texture(weights, q, rank, g, dims, dirs);
                 payloads.push(pack(factor, g, &texture));
                 sections.push(Section {
                     name: section.clone(),
@@ -150,7 +164,6 @@ impl Package {
         if !(0.0..=MAX_MARGIN).contains(&a.escape_margin) {
             return Err(bad(format!("escape margin {} is invalid", a.escape_margin)));
         }
-        let format = TexelFormat::of(g.quantization);
         for (name, info, weights) in [("weights", &g.weights, true), ("eigen", &g.eigen, false)] {
             if info.sections.len() != rank.div_ceil(CHANNELS)
                 || info.scale.len() != rank
@@ -162,8 +175,8 @@ impl Package {
                     rank.div_ceil(CHANNELS)
                 )));
             }
-            let expected = factor_texture(weights, format, dims, dirs);
-            for section in &info.sections {
+            for (group, section) in info.sections.iter().enumerate() {
+                let expected = factor_texture(weights, g.quantization, rank, group, dims, dirs);
                 match manifest.sections.iter().find(|s| &s.name == section) {
                     Some(s) if s.texture == expected => {}
                     Some(s) => {
@@ -239,8 +252,7 @@ impl Package {
                     .texture;
                 let bytes = self.section(name).expect("validated");
                 for r in 0..rows {
-                    let texel = (r / t.width as usize) * t.bytes_per_row as usize
-                        + (r % t.width as usize) * t.format.texel_bytes() as usize;
+                    let texel = r * t.format.texel_bytes() as usize;
                     for ch in 0..CHANNELS.min(rank - group * CHANNELS) {
                         let c = group * CHANNELS + ch;
                         codes[(r * rank + c) * elem..][..elem]

@@ -1,0 +1,225 @@
+//! The CI commands end to end: bake → package → unpack (.npy, EXR), and report accuracy.
+
+use mesobake::limits::Limits;
+use mesobake::package::Package;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn mesobake(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mesobake"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok(out: Output) -> Output {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn sample(dir: &Path) -> String {
+    let vol = dir.join("weave.mbvol");
+    let vol = vol.to_str().unwrap().to_string();
+    ok(mesobake(&["sample", "weave", "--res", "16x16x8", "--out", &vol]));
+    vol
+}
+
+#[test]
+fn bake_then_unpack_gives_the_documented_npy_and_exr() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sample(dir.path());
+    let pkg = dir.path().join("weave.mbpkg");
+    let out = ok(mesobake(&[
+        "bake",
+        "--input",
+        &vol,
+        "--out",
+        pkg.to_str().unwrap(),
+        "--dirs",
+        "4x8",
+        "--rank",
+        "5",
+        "--quant",
+        "u8",
+        "--json",
+    ]));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let bytes = std::fs::read(&pkg).unwrap();
+    assert_eq!(summary["bytes"], bytes.len());
+    assert_eq!(summary["rank"], 5);
+    assert_eq!(summary["quantization"], "u8");
+    for stage in ["load", "bake", "svd", "quantize", "encode", "write"] {
+        assert!(summary["seconds"][stage].as_f64().unwrap() >= 0.0, "{stage}");
+    }
+    let package = Package::parse(bytes).unwrap();
+    assert_eq!(
+        summary["accuracy"]["flips"],
+        package.manifest().gdm.accuracy.flips
+    );
+
+    let npy = dir.path().join("recon.npy");
+    let exr = dir.path().join("maps.exr");
+    ok(mesobake(&[
+        "unpack",
+        pkg.to_str().unwrap(),
+        "--out",
+        npy.to_str().unwrap(),
+        "--exr",
+        exr.to_str().unwrap(),
+    ]));
+    // The .npy holds exactly the package's reconstruction, in `mesobake gdm`'s layout.
+    let file = std::fs::read(&npy).unwrap();
+    let array = npyz::NpyFile::new(&file[..]).unwrap();
+    assert_eq!(array.shape(), &[16, 16, 8, 4, 8]);
+    let values = array.into_vec::<f32>().unwrap();
+    let recon = package.reconstruct(&Limits::default()).unwrap();
+    for (x, y, z, a, b) in [(0, 0, 0, 0, 0), (3, 7, 5, 2, 6), (15, 15, 7, 3, 7)] {
+        let v = values[(((x * 16 + y) * 8 + z) * 4 + a) * 8 + b];
+        let r = recon.get(x as u32, y as u32, z as u32, a as u32, b as u32);
+        assert!(v == r || (v.is_infinite() && r.is_infinite()), "{v} vs {r}");
+    }
+    assert!(values.iter().any(|v| v.is_infinite()), "escapes are +inf");
+    assert!(values.iter().all(|v| *v >= 0.0 && !v.is_nan()));
+
+    // The EXR holds W0..W4 (16 × 16·8) and E0..E4 (8 × 4) with the dequantized values.
+    let image = exr::prelude::read_all_flat_layers_from_file(&exr).unwrap();
+    let (w, e) = package.factors();
+    let (w, e) = (w.dequantize(), e.dequantize());
+    assert_eq!(image.layer_data.len(), 10);
+    for layer in &image.layer_data {
+        let name = layer.attributes.layer_name.as_ref().unwrap().to_string();
+        let (factor, width, height) = if name.starts_with('W') {
+            (&w, 16, 16 * 8)
+        } else {
+            (&e, 8, 4)
+        };
+        let c: usize = name[1..].parse().unwrap();
+        assert_eq!((layer.size.0, layer.size.1), (width, height), "{name}");
+        let exr::prelude::FlatSamples::F32(samples) = &layer.channel_data.list[0].sample_data
+        else {
+            panic!("{name} is not f32");
+        };
+        for (r, s) in samples.iter().enumerate() {
+            assert_eq!(*s, factor[r * 5 + c], "{name} texel {r}");
+        }
+    }
+}
+
+#[test]
+fn bake_chooses_the_rank_from_a_target_rmse() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sample(dir.path());
+    let pkg = dir.path().join("weave.mbpkg");
+    let out = ok(mesobake(&[
+        "bake",
+        "--input",
+        &vol,
+        "--out",
+        pkg.to_str().unwrap(),
+        "--dirs",
+        "4x8",
+        "--max-rmse",
+        "0.5",
+        "--quant",
+        "f32",
+        "--json",
+    ]));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let package = Package::read(&pkg, &Limits::default()).unwrap();
+    let g = &package.manifest().gdm;
+    let rank = g.rank as usize;
+    assert_eq!(summary["rank"], rank);
+    // The fewest components whose optimal error meets the target.
+    let optimal = |k: usize| {
+        let tail: f64 = g.spectrum[k..].iter().map(|s| s * s).sum();
+        (tail / (16.0 * 16.0 * 8.0 * 8.0 * 4.0)).sqrt()
+    };
+    assert!(optimal(rank) <= 0.5 && optimal(rank - 1) > 0.5);
+    assert!(g.accuracy.rmse <= 0.5 * 1.01);
+}
+
+#[test]
+fn report_accuracy_writes_table_csv_and_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sample(dir.path());
+    let report = dir.path().join("report");
+    let out = ok(mesobake(&[
+        "report",
+        "accuracy",
+        "--input",
+        &vol,
+        "--dirs",
+        "2x4,4x8",
+        "--ranks",
+        "1,4",
+        "--quants",
+        "f32,f16",
+        "--out",
+        report.to_str().unwrap(),
+    ]));
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(table.lines().count(), 2 + 2 * 2 * 2, "{table}");
+    let csv = std::fs::read_to_string(report.join("accuracy.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 8);
+    // More components never increase the error at the same resolution and format.
+    for pair in rows.chunks(4) {
+        let rmse = |r: &Vec<&str>| r[6].parse::<f64>().unwrap();
+        assert!(rmse(&pair[2]) <= rmse(&pair[0]) + 1e-6, "{csv}");
+        // f16 halves the factor bytes (the manifest is the same size to within a few).
+        let bytes = |r: &Vec<&str>| r[5].parse::<f64>().unwrap();
+        assert!(bytes(&pair[1]) < bytes(&pair[0]), "{csv}");
+    }
+    let svg = std::fs::read_to_string(report.join("accuracy.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("RMSE against"));
+    assert!(report.join("accuracy.md").exists());
+}
+
+#[test]
+fn bad_packages_and_options_exit_non_zero_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = sample(dir.path());
+    let pkg = dir.path().join("p.mbpkg");
+    let p = pkg.to_str().unwrap();
+    ok(mesobake(&["bake", "--input", &vol, "--out", p, "--dirs", "2x4"]));
+    let good = std::fs::read(&pkg).unwrap();
+    let mut corrupt = good.clone();
+    corrupt[300] ^= 0x10;
+    let bad = dir.path().join("bad.mbpkg");
+    std::fs::write(&bad, &corrupt).unwrap();
+    let npy = dir.path().join("never.npy");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["unpack", bad.to_str().unwrap(), "--out", npy.to_str().unwrap()],
+            "checksum mismatch",
+        ),
+        (
+            vec!["unpack", &vol, "--out", npy.to_str().unwrap()],
+            "bad magic",
+        ),
+        (
+            vec!["bake", "--input", &vol, "--out", p, "--rank", "2", "--max-rmse", "1"],
+            "cannot be used with",
+        ),
+        (
+            vec!["bake", "--input", &vol, "--out", p, "--max-rmse", "NaN"],
+            "target RMSE",
+        ),
+        (
+            vec!["bake", "--input", &vol, "--out", p, "--quant", "f8"],
+            "quantization",
+        ),
+    ];
+    for (args, want) in cases {
+        let out = mesobake(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(want), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    assert!(!npy.exists(), "nothing is written on failure");
+    assert_eq!(std::fs::read(&pkg).unwrap(), good, "a failed bake keeps the old package");
+}
