@@ -2,7 +2,13 @@
 //! with their baselines, error against the exact bake and peak memory.
 
 use crate::compress::layout::GdmRows;
-use crate::compress::svd::{DenseRows, RankChoice, RowSource, Truncated, truncated_svd};
+use crate::compress::accuracy::Accuracy;
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::{
+    DenseRows, GramEigen, RankChoice, RowSource, Truncated, truncated_svd,
+};
+use crate::package::Package;
+use crate::package::manifest::InputInfo;
 use crate::error::Result;
 use crate::gdm::caster::Caster;
 use crate::gdm::compare::{GdmError, compare};
@@ -268,19 +274,20 @@ fn svd_rmse(a: &dyn RowSource, t: &Truncated) -> f64 {
     (sum / (a.rows() * n) as f64).sqrt()
 }
 
+/// The W1 GDM (chain 64×64×32, 16×32 directions, exact) with boundary escapes.
+fn w1_gdm(limits: &Limits) -> Result<crate::gdm::Gdm> {
+    let volume = samples::volume(SampleKind::Chain, Dims::new(64, 64, 32)?, limits)?;
+    let caster = VolumeCaster::new(&volume);
+    let mut gdm = exact::bake(&caster, DirectionGrid::PAPER, limits, &())?;
+    gdm.set_escape_convention(EscapeConvention::Boundary);
+    Ok(gdm)
+}
+
 /// The SVD benchmark: the W1 GDM (chain 64×64×32, 16×32 directions, boundary escapes) as the
 /// paper's 131072 × 512 matrix to rank 16, and nalgebra's full SVD on a slice of its rows
 /// against ours on the same slice.
 pub fn run_svd(limits: &Limits) -> Result<Vec<SvdRow>> {
-    let dims = Dims::new(64, 64, 32)?;
-    let volume = samples::volume(SampleKind::Chain, dims, limits)?;
-    let mut gdm = exact::bake(
-        &VolumeCaster::new(&volume),
-        DirectionGrid::PAPER,
-        limits,
-        &(),
-    )?;
-    gdm.set_escape_convention(EscapeConvention::Boundary);
+    let gdm = w1_gdm(limits)?;
     let a = GdmRows::new(&gdm)?;
     let (m, n) = (a.rows(), a.cols());
     let mut rows = Vec::new();
@@ -331,6 +338,114 @@ pub fn svd_markdown(rows: &[SvdRow]) -> String {
         s += &format!(
             "| {} | {} | {:.3} | {:.5} | {:.5} |\n",
             r.matrix, r.method, r.seconds, r.rmse, r.optimal_rmse
+        );
+    }
+    s
+}
+
+/// One package of the package benchmark.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PackageRow {
+    /// Why this package is in the table.
+    pub setting: String,
+    /// Rank kept.
+    pub rank: usize,
+    /// Quantization.
+    pub quantization: Quantization,
+    /// Package size in bytes.
+    pub bytes: usize,
+    /// Accuracy against the exact GDM.
+    pub accuracy: Accuracy,
+}
+
+/// Target RMSE of the smallest-package search, voxels.
+pub const PACKAGE_TARGET_RMSE: f64 = 0.5;
+
+/// The package benchmark on W1: the paper's setting (rank 8, f16), and per quantization the
+/// smallest rank whose measured RMSE (quantization included) is at most
+/// [`PACKAGE_TARGET_RMSE`], found by bisection on the leading components of one SVD.
+pub fn run_package(limits: &Limits) -> Result<Vec<PackageRow>> {
+    let gdm = w1_gdm(limits)?;
+    let a = GdmRows::new(&gdm)?;
+    let gram = GramEigen::new(&a, limits)?;
+    let input = InputInfo {
+        kind: "volume".into(),
+        bytes: 0,
+        blake3: "chain 64x64x32 (built in)".into(),
+    };
+    let row = |setting: String, svd: Truncated, q: Quantization| -> Result<PackageRow> {
+        let choice = RankChoice::Rank(svd.rank);
+        let c = crate::compress::gdm::quantize(&gdm, svd, choice, q)?;
+        let params = crate::bake_package::PackageParams {
+            res: None,
+            dirs: gdm.dirs(),
+            method: crate::gdm::Method::Exact,
+            fast: Default::default(),
+            rank: choice,
+            quantization: q,
+            allow_open: false,
+        };
+        let info = crate::bake_package::bake_info(&gdm, &params);
+        Ok(PackageRow {
+            setting,
+            rank: c.svd.rank,
+            quantization: q,
+            bytes: Package::encode(input.clone(), info, &c).len(),
+            accuracy: c.accuracy,
+        })
+    };
+    let mut rows = vec![row(
+        "the paper's setting".into(),
+        gram.truncate(&a, RankChoice::Rank(8), limits)?,
+        Quantization::F16,
+    )?];
+    // The optimal error reaches the target at k0; quantization needs a few more components.
+    let k0 = gram
+        .truncate(&a, RankChoice::MaxRmse(PACKAGE_TARGET_RMSE), limits)?
+        .rank;
+    let widest = gram.truncate(&a, RankChoice::Rank(k0 + 64), limits)?;
+    for q in [Quantization::F16, Quantization::U8] {
+        let (mut lo, mut hi) = (k0, widest.rank);
+        let mut best = row(String::new(), widest.leading(hi), q)?;
+        if best.accuracy.rmse > PACKAGE_TARGET_RMSE {
+            best.setting = format!("RMSE ≤ {PACKAGE_TARGET_RMSE} not reached by rank {hi}");
+            rows.push(best);
+            continue;
+        }
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            let candidate = row(String::new(), widest.leading(mid), q)?;
+            if candidate.accuracy.rmse <= PACKAGE_TARGET_RMSE {
+                (hi, best) = (mid, candidate);
+            } else {
+                lo = mid + 1;
+            }
+        }
+        best.setting = format!("smallest {q} package with RMSE ≤ {PACKAGE_TARGET_RMSE}");
+        rows.push(best);
+    }
+    Ok(rows)
+}
+
+/// The package rows as a Markdown table.
+pub fn package_markdown(rows: &[PackageRow]) -> String {
+    let mut s = String::from(
+        "| setting | rank | quant | bytes | MiB | RMSE (vox) | max (vox) | flips % | margin μ |\n\
+         |---|---:|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let a = &r.accuracy;
+        s += &format!(
+            "| {} | {} | {} | {} | {:.3} | {:.4} | {:.2} | {:.3} | {:.4} |\n",
+            r.setting,
+            r.rank,
+            r.quantization,
+            r.bytes,
+            r.bytes as f64 / (1 << 20) as f64,
+            a.rmse,
+            a.max_abs,
+            100.0 * a.flip_rate,
+            a.escape_margin
         );
     }
     s

@@ -174,6 +174,8 @@ enum BenchCommand {
     },
     /// Truncated SVD of the W1 GDM matrix against nalgebra's full SVD (Markdown on stdout).
     Svd,
+    /// Package sizes and errors on W1: rank 8 f16, and the smallest package with RMSE ≤ 0.5.
+    Package,
 }
 
 #[derive(Subcommand)]
@@ -481,6 +483,12 @@ fn run(cli: Cli) -> Result<()> {
                         .map_err(|e| Error::InvalidParameter(e.to_string()))?
                 );
             }
+            Ok(())
+        }
+        Command::Bench {
+            which: BenchCommand::Package,
+        } => {
+            print!("{}", bench::package_markdown(&bench::run_package(&limits)?));
             Ok(())
         }
         Command::Bench {

@@ -99,6 +99,26 @@ impl Truncated {
         (tail / (self.shape.0 as f64 * self.shape.1 as f64)).sqrt()
     }
 
+    /// The leading `k` components (all of them if `k` ≥ rank): the rank-k truncation, as
+    /// accurate as this factorization's basis.
+    pub fn leading(&self, k: usize) -> Truncated {
+        let (m, n) = self.shape;
+        let k = k.min(self.rank);
+        let cut = |f: &[f32], rows: usize| -> Vec<f32> {
+            (0..rows)
+                .flat_map(|r| &f[r * self.rank..][..k])
+                .copied()
+                .collect()
+        };
+        Truncated {
+            shape: self.shape,
+            rank: k,
+            spectrum: self.spectrum.clone(),
+            weights: cut(&self.weights, m),
+            eigen: cut(&self.eigen, n),
+        }
+    }
+
     /// Entry (r, c) of W·Eᵀ.
     pub fn reconstruct(&self, r: usize, c: usize) -> f32 {
         let k = self.rank;
