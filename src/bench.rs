@@ -1,14 +1,10 @@
 //! `mesobake bench gdm`: the GDM bake workloads W1–W3 of the benchmark plan, timed in one run
 //! with their baselines, error against the exact bake and peak memory.
 
-use crate::compress::layout::GdmRows;
 use crate::compress::accuracy::Accuracy;
+use crate::compress::layout::GdmRows;
 use crate::compress::quantize::Quantization;
-use crate::compress::svd::{
-    DenseRows, GramEigen, RankChoice, RowSource, Truncated, truncated_svd,
-};
-use crate::package::Package;
-use crate::package::manifest::InputInfo;
+use crate::compress::svd::{DenseRows, GramEigen, RankChoice, RowSource, Truncated, truncated_svd};
 use crate::error::Result;
 use crate::gdm::caster::Caster;
 use crate::gdm::compare::{GdmError, compare};
@@ -19,6 +15,8 @@ use crate::gdm::{EscapeConvention, Gdm, exact, fast};
 use crate::grid::{Dims, DirectionGrid};
 use crate::limits::Limits;
 use crate::mesh_tile::MeshTile;
+use crate::package::Package;
+use crate::package::manifest::InputInfo;
 use crate::samples::{self, SampleKind};
 use std::time::Instant;
 

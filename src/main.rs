@@ -8,6 +8,7 @@ use mesobake::compress::svd::RankChoice;
 use mesobake::gdm::{self, BakeObserver, Method};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::{Limits, parse_bytes};
+use mesobake::fsutil::write_atomic;
 use mesobake::package::Package;
 use mesobake::samples::{self, SampleKind};
 use mesobake::{Error, Result, bench, input, npy, report, volume_format};
@@ -285,7 +286,7 @@ fn run(cli: Cli) -> Result<()> {
                     kind.name(),
                     res.z as f64 / res.x as f64
                 );
-                mesobake::fsutil::write_atomic(&out, mesh.to_obj(&comment).as_bytes())
+                write_atomic(&out, mesh.to_obj(&comment).as_bytes())
             }
         },
         Command::Gdm {
@@ -367,7 +368,7 @@ fn run(cli: Cli) -> Result<()> {
             let baked = bake_package(&input, &params, &limits, &progress)?;
             progress.0.finish_and_clear();
             let start = Instant::now();
-            mesobake::fsutil::write_atomic(&out, &baked.bytes)?;
+            write_atomic(&out, &baked.bytes)?;
             let write_s = start.elapsed().as_secs_f64();
             let a = &baked.gdm.accuracy;
             eprintln!(
@@ -418,7 +419,7 @@ fn run(cli: Cli) -> Result<()> {
             volume_format::write(&volume, &out.join(format!("{name}.mbvol")))?;
             let mesh = samples::mesh(sample, res)?;
             let obj = out.join(format!("{name}.obj"));
-            mesobake::fsutil::write_atomic(&obj, mesh.to_obj(name).as_bytes())?;
+            write_atomic(&obj, mesh.to_obj(name).as_bytes())?;
             let progress = Progress::new("baking GDM (exact)");
             let start = Instant::now();
             let caster = mesobake::gdm::volume_caster::VolumeCaster::new(&volume);
@@ -433,7 +434,7 @@ fn run(cli: Cli) -> Result<()> {
             let rgb = mesobake::flat_preview::render(&volume, &g, &setup)?;
             let png = mesobake::flat_preview::encode_png(&rgb, setup.size, setup.size)?;
             let path = out.join(format!("{name}-preview.png"));
-            mesobake::fsutil::write_atomic(&path, &png)?;
+            write_atomic(&path, &png)?;
             eprintln!("wrote {}", path.display());
             Ok(())
         }
@@ -461,9 +462,15 @@ fn run(cli: Cli) -> Result<()> {
             let fsutil = mesobake::fsutil::write_atomic;
             fsutil(&out.join("accuracy.md"), table.as_bytes())?;
             fsutil(&out.join("accuracy.csv"), report::csv(&rows).as_bytes())?;
-            fsutil(&out.join("accuracy.svg"), report::svg_plot(&rows)?.as_bytes())?;
+            fsutil(
+                &out.join("accuracy.svg"),
+                report::svg_plot(&rows)?.as_bytes(),
+            )?;
             print!("{table}");
-            eprintln!("wrote accuracy.md, accuracy.csv and accuracy.svg in {}", out.display());
+            eprintln!(
+                "wrote accuracy.md, accuracy.csv and accuracy.svg in {}",
+                out.display()
+            );
             Ok(())
         }
         Command::Bench {

@@ -151,7 +151,11 @@ fn cells(r: &AccuracyRow) -> [String; 9] {
 
 /// The rows as a Markdown table.
 pub fn markdown(rows: &[AccuracyRow]) -> String {
-    let mut out = format!("| {} |\n|{}\n", COLUMNS.join(" | "), "---|".repeat(COLUMNS.len()));
+    let mut out = format!(
+        "| {} |\n|{}\n",
+        COLUMNS.join(" | "),
+        "---|".repeat(COLUMNS.len())
+    );
     for r in rows {
         out += &format!("| {} |\n", cells(r).join(" | "));
     }
@@ -180,6 +184,9 @@ pub fn csv(rows: &[AccuracyRow]) -> String {
     out
 }
 
+/// A quantity plotted for each row.
+type Metric = fn(&AccuracyRow) -> f64;
+
 /// An SVG plot: RMSE against bake + SVD time (left) and against package size (right), one
 /// line per direction resolution and quantization through the ranks, log–log.
 pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
@@ -193,26 +200,25 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
             None => series.push((name, vec![r])),
         }
     }
-    let range = |f: &dyn Fn(&AccuracyRow) -> f64| {
+    let range = |f: Metric| {
         let values = rows.iter().map(f).filter(|v| *v > 0.0);
-        let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        let (lo, hi) = values.fold((f64::INFINITY, 0.0f64), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
         if lo <= hi {
             (lo / 1.5)..(hi * 1.5)
         } else {
             1e-3..1.0
         }
     };
-    let time = |r: &AccuracyRow| r.bake_s + r.svd_s;
-    let mib = |r: &AccuracyRow| r.package_bytes as f64 / (1 << 20) as f64;
-    let rmse = |r: &AccuracyRow| r.rmse;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (1200, 520)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_error(e.to_string()))?;
         let panels = root.split_evenly((1, 2));
-        let axes: [(&str, &dyn Fn(&AccuracyRow) -> f64); 2] = [
-            ("bake + SVD time (s)", &time),
-            ("package size (MiB)", &mib),
+        let axes: [(&str, Metric); 2] = [
+            ("bake + SVD time (s)", |r| r.bake_s + r.svd_s),
+            ("package size (MiB)", |r| r.package_bytes as f64 / (1 << 20) as f64),
         ];
         for (panel, (label, x_of)) in panels.iter().zip(axes) {
             let mut chart = ChartBuilder::on(panel)
@@ -220,7 +226,7 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
                 .margin(12)
                 .x_label_area_size(40)
                 .y_label_area_size(56)
-                .build_cartesian_2d(range(x_of).log_scale(), range(&rmse).log_scale())
+                .build_cartesian_2d(range(x_of).log_scale(), range(|r| r.rmse).log_scale())
                 .map_err(|e| plot_error(e.to_string()))?;
             chart
                 .configure_mesh()
@@ -230,8 +236,10 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
                 .map_err(|e| plot_error(e.to_string()))?;
             for (i, (name, members)) in series.iter().enumerate() {
                 let color = Palette99::pick(i).to_rgba();
-                let points: Vec<(f64, f64)> =
-                    members.iter().map(|r| (x_of(r), r.rmse.max(1e-9))).collect();
+                let points: Vec<(f64, f64)> = members
+                    .iter()
+                    .map(|r| (x_of(r), r.rmse.max(1e-9)))
+                    .collect();
                 chart
                     .draw_series(LineSeries::new(points, color.stroke_width(2)).point_size(3))
                     .map_err(|e| plot_error(e.to_string()))?

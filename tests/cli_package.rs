@@ -24,7 +24,9 @@ fn ok(out: Output) -> Output {
 fn sample(dir: &Path) -> String {
     let vol = dir.join("weave.mbvol");
     let vol = vol.to_str().unwrap().to_string();
-    ok(mesobake(&["sample", "weave", "--res", "16x16x8", "--out", &vol]));
+    ok(mesobake(&[
+        "sample", "weave", "--res", "16x16x8", "--out", &vol,
+    ]));
     vol
 }
 
@@ -53,7 +55,10 @@ fn bake_then_unpack_gives_the_documented_npy_and_exr() {
     assert_eq!(summary["rank"], 5);
     assert_eq!(summary["quantization"], "u8");
     for stage in ["load", "bake", "svd", "quantize", "encode", "write"] {
-        assert!(summary["seconds"][stage].as_f64().unwrap() >= 0.0, "{stage}");
+        assert!(
+            summary["seconds"][stage].as_f64().unwrap() >= 0.0,
+            "{stage}"
+        );
     }
     let package = Package::parse(bytes).unwrap();
     assert_eq!(
@@ -164,7 +169,11 @@ fn report_accuracy_writes_table_csv_and_plot() {
     let table = String::from_utf8(out.stdout).unwrap();
     assert_eq!(table.lines().count(), 2 + 2 * 2 * 2, "{table}");
     let csv = std::fs::read_to_string(report.join("accuracy.csv")).unwrap();
-    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
     assert_eq!(rows.len(), 8);
     // More components never increase the error at the same resolution and format.
     for pair in rows.chunks(4) {
@@ -185,7 +194,9 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
     let vol = sample(dir.path());
     let pkg = dir.path().join("p.mbpkg");
     let p = pkg.to_str().unwrap();
-    ok(mesobake(&["bake", "--input", &vol, "--out", p, "--dirs", "2x4"]));
+    ok(mesobake(&[
+        "bake", "--input", &vol, "--out", p, "--dirs", "2x4",
+    ]));
     let good = std::fs::read(&pkg).unwrap();
     let mut corrupt = good.clone();
     corrupt[300] ^= 0x10;
@@ -194,7 +205,12 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
     let npy = dir.path().join("never.npy");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
-            vec!["unpack", bad.to_str().unwrap(), "--out", npy.to_str().unwrap()],
+            vec![
+                "unpack",
+                bad.to_str().unwrap(),
+                "--out",
+                npy.to_str().unwrap(),
+            ],
             "checksum mismatch",
         ),
         (
@@ -202,7 +218,17 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
             "bad magic",
         ),
         (
-            vec!["bake", "--input", &vol, "--out", p, "--rank", "2", "--max-rmse", "1"],
+            vec![
+                "bake",
+                "--input",
+                &vol,
+                "--out",
+                p,
+                "--rank",
+                "2",
+                "--max-rmse",
+                "1",
+            ],
             "cannot be used with",
         ),
         (
@@ -217,9 +243,16 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
     for (args, want) in cases {
         let out = mesobake(&args);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && err.contains(want), "{args:?}: {err}");
+        assert!(
+            !out.status.success() && err.contains(want),
+            "{args:?}: {err}"
+        );
         assert!(!err.contains("panicked"), "{err}");
     }
     assert!(!npy.exists(), "nothing is written on failure");
-    assert_eq!(std::fs::read(&pkg).unwrap(), good, "a failed bake keeps the old package");
+    assert_eq!(
+        std::fs::read(&pkg).unwrap(),
+        good,
+        "a failed bake keeps the old package"
+    );
 }

@@ -2,13 +2,15 @@
 //!
 //! Algorithm (deterministic; no random numbers):
 //! 1. **Gram matrix** G = AᵀA (n × n, n = columns). Rows are read in fixed blocks; each
-//!    block's product is formed in f32 (matrixmultiply via nalgebra) and accumulated in f64,
-//!    block by block in a fixed order, so the result does not depend on the thread count.
+//!    block's product is formed in f32 (matrixmultiply; only the 128-column panels on and
+//!    above the diagonal, G being symmetric) and accumulated in f64, block by block in a fixed
+//!    order, so the result does not depend on the thread count.
 //! 2. **Spectrum**: the symmetric eigendecomposition of G (f64) gives every σᵢ² = λᵢ, hence the
 //!    optimal error of every rank, sqrt(Σ_{i>k} σᵢ²) (Eckart–Young), which chooses the rank
 //!    for a target RMSE and is reported.
-//! 3. **Refinement**: with V the top k + 8 eigenvectors (oversampled), Q = qr(A·V) (f64
-//!    Householder) and the small SVD B = QᵀA = U_B Σ V_Bᵀ, whose top k components give
+//! 3. **Refinement**: with V the top k + 8 eigenvectors (oversampled), Q = qr(A·V) (A·V in
+//!    f32, since only its span matters; QR in f64 Householder) and the small SVD
+//!    B = QᵀA = U_B Σ V_Bᵀ (B in f64), whose top k components give
 //!    A ≈ (Q U_B Σ)·V_Bᵀ. Projecting A onto span(A·V) recovers the accuracy that squaring the
 //!    singular values in an f32 G loses, so small singular values and rank-deficient matrices
 //!    come out right to f32 rounding.
@@ -141,7 +143,18 @@ const RELATIVE_FLOOR: f64 = 1e-6;
 
 /// Computes the truncated SVD of `a` with the rank chosen by `choice`.
 pub fn truncated_svd(a: &dyn RowSource, choice: RankChoice, limits: &Limits) -> Result<Truncated> {
+    check_choice(choice)?;
     GramEigen::new(a, limits)?.truncate(a, choice, limits)
+}
+
+/// Refuses target errors that are negative, NaN or infinite.
+fn check_choice(choice: RankChoice) -> Result<()> {
+    match choice {
+        RankChoice::MaxRmse(e) if !(e >= 0.0 && e.is_finite()) => Err(Error::InvalidParameter(
+            format!("the target RMSE must be a finite number ≥ 0, got {e}"),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Steps 1 and 2 of the algorithm: the eigendecomposition of AᵀA, which fixes the spectrum
@@ -217,13 +230,7 @@ impl GramEigen {
                 a.cols()
             )));
         }
-        if let RankChoice::MaxRmse(e) = choice
-            && !(e >= 0.0 && e.is_finite())
-        {
-            return Err(Error::InvalidParameter(format!(
-                "the target RMSE must be a finite number ≥ 0, got {e}"
-            )));
-        }
+        check_choice(choice)?;
         let mut result = Truncated {
             shape: (m, n),
             rank: 0,
@@ -246,23 +253,20 @@ impl GramEigen {
         limits.check("the SVD's range basis", (m * k_basis) as u64, 8 * 3)?;
         let (k_out, k) = (k, k_basis);
         // V, n × k row-major.
-        let v_k: Vec<f64> = (0..n * k)
-            .map(|x| self.vectors[(x / k, self.order[x % k])])
+        let v_k: Vec<f32> = (0..n * k)
+            .map(|x| self.vectors[(x / k, self.order[x % k])] as f32)
             .collect();
-        // Y = A·V_k (m × k), then its orthonormal basis Q.
+        // Y = A·V_k (m × k) in f32: only its span matters, and the f64 QR below
+        // orthonormalizes it; then Q, its orthonormal basis.
         let mut y = vec![0.0f64; m * k];
         y.par_chunks_mut(block * k)
             .enumerate()
             .for_each(|(b, out)| {
-                let rows = read_block_f64(a, b * block, out.len() / k);
-                gemm(
-                    out.len() / k,
-                    n,
-                    k,
-                    (&rows, n, 1),
-                    (&v_k, k, 1),
-                    (out, k, 1),
-                );
+                let count = out.len() / k;
+                let rows = read_block(a, b * block, count);
+                let mut y_b = vec![0.0f32; count * k];
+                gemm(count, n, k, (&rows, n, 1), (&v_k, k, 1), (&mut y_b, k, 1));
+                out.iter_mut().zip(y_b).for_each(|(o, v)| *o = v as f64);
             });
         let q = DMatrix::from_row_slice(m, k, &y).qr().q();
         // B = QᵀA (k × n), block by block in order.
@@ -433,22 +437,42 @@ pub(crate) fn gemm<T: GemmScalar>(
     }
 }
 
+/// Column panel width of the Gram products: only panels on or above the diagonal are formed
+/// (AᵀA is symmetric), which saves up to half the work of the full product.
+const GRAM_PANEL: usize = 128;
+
 /// AᵀA: per block in f32, accumulated in f64 in block order.
 fn gram_matrix(a: &dyn RowSource, block: usize) -> DMatrix<f64> {
     let n = a.cols();
+    let panels: Vec<(usize, usize)> = (0..n.div_ceil(GRAM_PANEL))
+        .map(|p| (p * GRAM_PANEL, GRAM_PANEL.min(n - p * GRAM_PANEL)))
+        .collect();
     let partial: Vec<Vec<f32>> = blocks(a.rows(), block)
         .into_par_iter()
         .map(|(start, count)| {
             let rows = read_block(a, start, count);
             let mut g = vec![0.0f32; n * n];
-            // A_bᵀ (n × count) is A_b (row-major) read with swapped strides.
-            gemm(n, count, n, (&rows, 1, n), (&rows, n, 1), (&mut g, n, 1));
+            for (p, &(p0, pw)) in panels.iter().enumerate() {
+                for &(q0, qw) in &panels[p..] {
+                    // A_b[:, p]ᵀ (pw × count) is A_b read with swapped strides.
+                    let (at, b) = ((&rows[p0..], 1, n), (&rows[q0..], n, 1));
+                    gemm(pw, count, qw, at, b, (&mut g[p0 * n + q0..], n, 1));
+                }
+            }
             g
         })
         .collect();
     let mut sum = vec![0.0f64; n * n];
     for g in partial {
         sum.iter_mut().zip(g).for_each(|(s, v)| *s += v as f64);
+    }
+    // Mirror the panels above the diagonal to below it.
+    for i in 0..n {
+        for j in 0..i {
+            if i / GRAM_PANEL != j / GRAM_PANEL {
+                sum[i * n + j] = sum[j * n + i];
+            }
+        }
     }
     DMatrix::from_row_slice(n, n, &sum)
 }
