@@ -50,7 +50,7 @@ pub struct InputInfo {
 pub struct BakeInfo {
     /// Voxel grid [X, Y, Z].
     pub res: [u32; 3],
-    /// Direction grid [Nθ, Nφ] (θ_a = (a + ½)·π/Nθ, φ_b = b·2π/Nφ).
+    /// Direction grid [Nθ, Nφ] (θ_a = (a + ½)·π/Nθ, φ_b = (b + ½)·2π/Nφ).
     pub dirs: [u32; 2],
     /// The baking algorithm.
     pub method: Method,
