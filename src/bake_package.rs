@@ -85,15 +85,16 @@ pub fn load_input(
     Ok((info, meso))
 }
 
-/// The bake parameters as recorded in a manifest.
-pub fn bake_info(g: &Gdm, params: &PackageParams) -> BakeInfo {
+/// The parameters of the bake that made `g`, as recorded in a manifest (`fast` only
+/// matters for [`Method::Fast`]).
+pub fn bake_info(g: &Gdm, method: Method, fast: FastParams, allow_open: bool) -> BakeInfo {
     let (d, dirs) = (g.dims(), g.dirs());
     BakeInfo {
         res: [d.x, d.y, d.z],
         dirs: [dirs.n_theta, dirs.n_phi],
-        method: params.method,
-        fast: (params.method == Method::Fast).then_some(params.fast),
-        allow_open: params.allow_open,
+        method,
+        fast: (method == Method::Fast).then_some(fast),
+        allow_open,
     }
 }
 
@@ -129,7 +130,8 @@ pub fn bake_package(
     seconds.quantize = compressed.seconds.quantize;
 
     let start = Instant::now();
-    let bytes = Package::encode(input, bake_info(&g, params), &compressed);
+    let info = bake_info(&g, params.method, params.fast, params.allow_open);
+    let bytes = Package::encode(input, info, &compressed);
     seconds.encode = start.elapsed().as_secs_f64();
     Ok(BakedPackage {
         bytes,

@@ -374,16 +374,8 @@ pub fn run_package(limits: &Limits) -> Result<Vec<PackageRow>> {
     let row = |setting: String, svd: Truncated, q: Quantization| -> Result<PackageRow> {
         let choice = RankChoice::Rank(svd.rank);
         let c = crate::compress::gdm::quantize(&gdm, svd, choice, q)?;
-        let params = crate::bake_package::PackageParams {
-            res: None,
-            dirs: gdm.dirs(),
-            method: crate::gdm::Method::Exact,
-            fast: Default::default(),
-            rank: choice,
-            quantization: q,
-            allow_open: false,
-        };
-        let info = crate::bake_package::bake_info(&gdm, &params);
+        let method = crate::gdm::Method::Exact;
+        let info = crate::bake_package::bake_info(&gdm, method, Default::default(), false);
         Ok(PackageRow {
             setting,
             rank: c.svd.rank,

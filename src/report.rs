@@ -2,7 +2,7 @@
 //! costs in bake time, SVD time and package bytes, and what it buys in accuracy, all against
 //! the exact uncompressed GDM. Rendered as Markdown, CSV and an SVG plot.
 
-use crate::bake_package::{PackageParams, bake_info, load_input};
+use crate::bake_package::{bake_info, load_input};
 use crate::compress::gdm::quantize;
 use crate::compress::layout::GdmRows;
 use crate::compress::quantize::Quantization;
@@ -95,16 +95,8 @@ pub fn accuracy(
                     return Err(Error::Cancelled);
                 }
                 let c = quantize(&g, svd.clone(), RankChoice::Rank(rank), q)?;
-                let params = PackageParams {
-                    res,
-                    dirs,
-                    method: Method::Exact,
-                    fast: Default::default(),
-                    rank: RankChoice::Rank(rank),
-                    quantization: q,
-                    allow_open: false,
-                };
-                let bytes = Package::encode(input.clone(), bake_info(&g, &params), &c);
+                let info = bake_info(&g, Method::Exact, Default::default(), false);
+                let bytes = Package::encode(input.clone(), info, &c);
                 rows.push(AccuracyRow {
                     dirs: dirs.to_string(),
                     rank: c.svd.rank,
@@ -218,7 +210,9 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
         let panels = root.split_evenly((1, 2));
         let axes: [(&str, Metric); 2] = [
             ("bake + SVD time (s)", |r| r.bake_s + r.svd_s),
-            ("package size (MiB)", |r| r.package_bytes as f64 / (1 << 20) as f64),
+            ("package size (MiB)", |r| {
+                r.package_bytes as f64 / (1 << 20) as f64
+            }),
         ];
         for (panel, (label, x_of)) in panels.iter().zip(axes) {
             let mut chart = ChartBuilder::on(panel)

@@ -50,7 +50,7 @@ fn small_package() -> Vec<u8> {
     let (g, c) = compressed(Dims::new(8, 8, 4).unwrap(), 5, Quantization::F16);
     Package::encode(
         input_info(),
-        bake_info(&g, &params(5, Quantization::F16)),
+        bake_info(&g, Method::Exact, Default::default(), false),
         &c,
     )
 }
@@ -60,7 +60,11 @@ fn round_trip_gives_back_the_measured_reconstruction() {
     let limits = Limits::default();
     for q in Quantization::ALL {
         let (g, c) = compressed(Dims::new(16, 16, 8).unwrap(), 6, q);
-        let bytes = Package::encode(input_info(), bake_info(&g, &params(6, q)), &c);
+        let bytes = Package::encode(
+            input_info(),
+            bake_info(&g, Method::Exact, Default::default(), false),
+            &c,
+        );
         let pkg = Package::parse(bytes).unwrap();
         // The unpacked codes are the quantized factors, bit for bit.
         let (w, e) = pkg.factors();
@@ -244,7 +248,7 @@ fn a_huge_declared_grid_fails_on_the_memory_limit_not_on_allocation() {
     let (g, c) = compressed(Dims::new(8, 8, 4).unwrap(), 0, Quantization::F16);
     let bytes = Package::encode(
         input_info(),
-        bake_info(&g, &params(0, Quantization::F16)),
+        bake_info(&g, Method::Exact, Default::default(), false),
         &c,
     );
     let bytes = with_manifest(&bytes, |m| {
