@@ -39,7 +39,10 @@ impl RowSource for GdmRows<'_> {
         let (n, n_phi) = (self.cols(), dirs.n_phi as usize);
         let data = self.gdm.data();
         let count = out.len() / n;
-        // Runs of rows sharing one φ are contiguous in every column's source.
+        // Gather column by column (runs of rows sharing one φ are contiguous in every
+        // column's source), then transpose in tiles: scattering straight into row-major
+        // order would touch a new cache line per value.
+        let mut columns = vec![0.0f32; count * n];
         let mut r = start;
         while r < start + count {
             let (b, texel) = (r / layer, r % layer);
@@ -48,12 +51,20 @@ impl RowSource for GdmRows<'_> {
                 for k in 0..z {
                     let c = a * z + k;
                     let src = &data[((a * n_phi + b) * z + k) * layer + texel..][..run];
-                    for (t, &v) in src.iter().enumerate() {
-                        out[(r - start + t) * n + c] = v;
-                    }
+                    columns[c * count + r - start..][..run].copy_from_slice(src);
                 }
             }
             r += run;
+        }
+        const TILE: usize = 32;
+        for c0 in (0..n).step_by(TILE) {
+            for t0 in (0..count).step_by(TILE) {
+                for c in c0..(c0 + TILE).min(n) {
+                    for t in t0..(t0 + TILE).min(count) {
+                        out[t * n + c] = columns[c * count + t];
+                    }
+                }
+            }
         }
     }
 }
