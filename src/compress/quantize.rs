@@ -138,7 +138,7 @@ impl QuantizedFactor {
 }
 
 /// Decodes one stored value.
-pub fn decode(format: Quantization, code: &[u8], scale: f32, bias: f32) -> f32 {
+fn decode(format: Quantization, code: &[u8], scale: f32, bias: f32) -> f32 {
     match format {
         Quantization::F32 => f32::from_le_bytes([code[0], code[1], code[2], code[3]]),
         Quantization::F16 => f16::from_le_bytes([code[0], code[1]]).to_f32(),

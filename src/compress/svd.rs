@@ -209,11 +209,6 @@ impl GramEigen {
         })
     }
 
-    /// Singular values of A, descending.
-    pub fn spectrum(&self) -> &[f64] {
-        &self.spectrum
-    }
-
     /// The truncation of `a` (the matrix this was formed from) with the rank chosen by
     /// `choice`.
     pub fn truncate(

@@ -212,11 +212,6 @@ impl Package {
         &self.manifest
     }
 
-    /// The package's bytes, as written.
-    pub fn bytes(&self) -> &[u8] {
-        &self.bytes
-    }
-
     /// The voxel grid.
     pub fn dims(&self) -> Dims {
         self.dims
