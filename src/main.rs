@@ -1,6 +1,6 @@
 //! The `mesobake` command line.
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use mesobake::bake_package::{PackageParams, bake_package};
 use mesobake::compress::quantize::Quantization;
@@ -55,32 +55,12 @@ enum Command {
     /// Bake the GDM of a volume or OBJ tile and write it as .npy (float32, shape
     /// (X, Y, Z, Nθ, Nφ), voxel units, escapes +inf, inside 0).
     Gdm {
-        /// A .mbvol volume or an OBJ tile.
-        #[arg(long)]
-        input: PathBuf,
-        /// Grid X×Y×Z: required for OBJ tiles; for volumes it must match the volume.
-        #[arg(long)]
-        res: Option<Dims>,
-        /// Direction grid Nθ×Nφ.
-        #[arg(long, default_value = "16x32")]
-        dirs: DirectionGrid,
-        /// exact: one ray per sample and direction; fast: layer sweeps (see --stride).
-        #[arg(long, default_value = "exact")]
-        method: Method,
-        /// Fast method: layers crossed exactly before interpolating (higher = slower, closer).
-        #[arg(long, default_value_t = gdm::fast::FastParams::default().stride)]
-        stride: u32,
-        /// Fast method: largest spread (voxels) of neighbouring hit distances that is still
-        /// interpolated; rays with more disagreeing neighbours are traced exactly.
-        #[arg(long, default_value_t = gdm::fast::FastParams::default().max_spread)]
-        spread: f32,
+        #[command(flatten)]
+        bake: BakeOptions,
         /// Escape values in the file: inf (+inf), or boundary (distance to the top/bottom
         /// plane along the ray, the convention used for compression).
         #[arg(long, value_enum, default_value_t = EscapeArg::Inf)]
         escape: EscapeArg,
-        /// Treat an open OBJ tile as infinitely thin sheets instead of refusing it.
-        #[arg(long)]
-        allow_open: bool,
         /// Output .npy file.
         #[arg(long)]
         out: PathBuf,
@@ -91,27 +71,11 @@ enum Command {
     /// Bake a GDM package (.mbpkg) for CI builds: bake, SVD-compress, quantize, measure the
     /// error and write the package. Output is byte-identical for identical inputs and options.
     Bake {
-        /// A .mbvol volume or an OBJ tile.
-        #[arg(long)]
-        input: PathBuf,
+        #[command(flatten)]
+        bake: BakeOptions,
         /// Output package (.mbpkg).
         #[arg(long)]
         out: PathBuf,
-        /// Grid X×Y×Z: required for OBJ tiles; for volumes it must match the volume.
-        #[arg(long)]
-        res: Option<Dims>,
-        /// Direction grid Nθ×Nφ.
-        #[arg(long, default_value = "16x32")]
-        dirs: DirectionGrid,
-        /// Baking algorithm (see `mesobake gdm`).
-        #[arg(long, default_value = "exact")]
-        method: Method,
-        /// Fast method: layers crossed exactly before interpolating.
-        #[arg(long, default_value_t = gdm::fast::FastParams::default().stride)]
-        stride: u32,
-        /// Fast method: largest spread of neighbouring hit distances still interpolated.
-        #[arg(long, default_value_t = gdm::fast::FastParams::default().max_spread)]
-        spread: f32,
         /// SVD components to keep [default: 8].
         #[arg(long, conflicts_with = "max_rmse")]
         rank: Option<usize>,
@@ -121,9 +85,6 @@ enum Command {
         /// Number format of weight maps and eigenmaps: f32, f16, or u8 (per-map scale and bias).
         #[arg(long, default_value = "f16")]
         quant: Quantization,
-        /// Treat an open OBJ tile as infinitely thin sheets instead of refusing it.
-        #[arg(long)]
-        allow_open: bool,
         /// Print a JSON summary (sizes, rank, errors, seconds per stage) on stdout.
         #[arg(long)]
         json: bool,
@@ -163,6 +124,42 @@ enum Command {
         #[command(subcommand)]
         which: BenchCommand,
     },
+}
+
+/// What to bake and how: the options shared by `gdm` and `bake`.
+#[derive(Args)]
+struct BakeOptions {
+    /// A .mbvol volume or an OBJ tile.
+    #[arg(long)]
+    input: PathBuf,
+    /// Grid X×Y×Z: required for OBJ tiles; for volumes it must match the volume.
+    #[arg(long)]
+    res: Option<Dims>,
+    /// Direction grid Nθ×Nφ.
+    #[arg(long, default_value = "16x32")]
+    dirs: DirectionGrid,
+    /// exact: one ray per sample and direction; fast: layer sweeps (see --stride).
+    #[arg(long, default_value = "exact")]
+    method: Method,
+    /// Fast method: layers crossed exactly before interpolating (higher = slower, closer).
+    #[arg(long, default_value_t = gdm::fast::FastParams::default().stride)]
+    stride: u32,
+    /// Fast method: largest spread (voxels) of neighbouring hit distances that is still
+    /// interpolated; rays with more disagreeing neighbours are traced exactly.
+    #[arg(long, default_value_t = gdm::fast::FastParams::default().max_spread)]
+    spread: f32,
+    /// Treat an open OBJ tile as infinitely thin sheets instead of refusing it.
+    #[arg(long)]
+    allow_open: bool,
+}
+
+impl BakeOptions {
+    fn fast(&self) -> gdm::fast::FastParams {
+        gdm::fast::FastParams {
+            stride: self.stride,
+            max_spread: self.spread,
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -290,27 +287,18 @@ fn run(cli: Cli) -> Result<()> {
             }
         },
         Command::Gdm {
-            input,
-            res,
-            dirs,
-            method,
-            stride,
-            spread,
+            bake,
             escape,
-            allow_open,
             out,
             json,
         } => {
             let start = Instant::now();
-            let meso = input::load(&input, res, allow_open, &limits)?;
+            let meso = input::load(&bake.input, bake.res, bake.allow_open, &limits)?;
             let load_s = start.elapsed().as_secs_f64();
             let progress = Progress::new("baking GDM");
             let start = Instant::now();
-            let fast = gdm::fast::FastParams {
-                stride,
-                max_spread: spread,
-            };
-            let mut g = gdm::bake(meso.caster(), dirs, method, fast, &limits, &progress)?;
+            let (method, fast) = (bake.method, bake.fast());
+            let mut g = gdm::bake(meso.caster(), bake.dirs, method, fast, &limits, &progress)?;
             let bake_s = start.elapsed().as_secs_f64();
             progress.0.finish_and_clear();
             if let EscapeArg::Boundary = escape {
@@ -321,7 +309,7 @@ fn run(cli: Cli) -> Result<()> {
             let write_s = start.elapsed().as_secs_f64();
             if json {
                 let summary = serde_json::json!({
-                    "input": input,
+                    "input": bake.input,
                     "output": out,
                     "res": g.dims().to_string(),
                     "dirs": g.dirs().to_string(),
@@ -336,36 +324,27 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Bake {
-            input,
+            bake,
             out,
-            res,
-            dirs,
-            method,
-            stride,
-            spread,
             rank,
             max_rmse,
             quant,
-            allow_open,
             json,
         } => {
             let params = PackageParams {
-                res,
-                dirs,
-                method,
-                fast: gdm::fast::FastParams {
-                    stride,
-                    max_spread: spread,
-                },
+                res: bake.res,
+                dirs: bake.dirs,
+                method: bake.method,
+                fast: bake.fast(),
                 rank: match max_rmse {
                     Some(e) => RankChoice::MaxRmse(e),
                     None => RankChoice::Rank(rank.unwrap_or(8)),
                 },
                 quantization: quant,
-                allow_open,
+                allow_open: bake.allow_open,
             };
             let progress = Progress::new("baking GDM");
-            let baked = bake_package(&input, &params, &limits, &progress)?;
+            let baked = bake_package(&bake.input, &params, &limits, &progress)?;
             progress.0.finish_and_clear();
             let start = Instant::now();
             write_atomic(&out, &baked.bytes)?;
@@ -383,7 +362,7 @@ fn run(cli: Cli) -> Result<()> {
             );
             if json {
                 let summary = serde_json::json!({
-                    "input": input,
+                    "input": bake.input,
                     "output": out,
                     "bytes": baked.bytes.len(),
                     "rank": baked.gdm.svd.rank,

@@ -1,14 +1,9 @@
 //! The command line, end to end: sample → gdm → .npy, checked with an independent reader.
 
 use std::path::Path;
-use std::process::Command;
 
-fn mesobake(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_mesobake"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::{each_fails_with, succeeds};
 
 fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
     let bytes = std::fs::read(path).unwrap();
@@ -21,7 +16,7 @@ fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
 fn sample_then_gdm_writes_the_documented_npy() {
     let dir = tempfile::tempdir().unwrap();
     let vol = dir.path().join("grid.mbvol");
-    let out = mesobake(&[
+    succeeds(&[
         "sample",
         "grid",
         "--res",
@@ -29,14 +24,9 @@ fn sample_then_gdm_writes_the_documented_npy() {
         "--out",
         vol.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     for method in ["exact", "fast"] {
         let npy = dir.path().join(format!("{method}.npy"));
-        let out = mesobake(&[
+        let out = succeeds(&[
             "gdm",
             "--input",
             vol.to_str().unwrap(),
@@ -48,11 +38,6 @@ fn sample_then_gdm_writes_the_documented_npy() {
             npy.to_str().unwrap(),
             "--json",
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
         let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         assert_eq!(summary["samples"], 16 * 16 * 8 * 32);
         let (shape, data) = read_npy(&npy);
@@ -75,7 +60,7 @@ fn sample_then_gdm_writes_the_documented_npy() {
 fn obj_tile_through_the_cli() {
     let dir = tempfile::tempdir().unwrap();
     let obj = dir.path().join("weave.obj");
-    let out = mesobake(&[
+    succeeds(&[
         "sample",
         "weave",
         "--res",
@@ -85,9 +70,8 @@ fn obj_tile_through_the_cli() {
         "--out",
         obj.to_str().unwrap(),
     ]);
-    assert!(out.status.success());
     let npy = dir.path().join("w.npy");
-    let out = mesobake(&[
+    succeeds(&[
         "gdm",
         "--input",
         obj.to_str().unwrap(),
@@ -98,11 +82,6 @@ fn obj_tile_through_the_cli() {
         "--out",
         npy.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let (shape, data) = read_npy(&npy);
     assert_eq!(shape, vec![16, 16, 8, 4, 8]);
     assert!(data.contains(&0.0) && data.iter().any(|v| v.is_infinite()));
@@ -174,14 +153,6 @@ fn bad_input_exits_non_zero_with_a_message() {
             "memory limit",
         ),
     ];
-    for (args, want) in cases {
-        let out = mesobake(&args);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success() && err.contains(want),
-            "{args:?}: {err}"
-        );
-        assert!(!err.contains("panicked"), "{err}");
-    }
+    each_fails_with(&cases);
     assert!(!out_path.exists(), "nothing is written on failure");
 }

@@ -3,30 +3,28 @@
 use mesobake::limits::Limits;
 use mesobake::package::Package;
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn mesobake(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mesobake"))
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::{each_fails_with, succeeds};
 
-fn ok(out: Output) -> Output {
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
+/// `mesobake bake --input VOL --out PKG` with `options`, returning its JSON summary.
+fn bake(vol: &str, pkg: &Path, options: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "bake",
+        "--input",
+        vol,
+        "--out",
+        pkg.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend_from_slice(options);
+    serde_json::from_slice(&succeeds(&args).stdout).unwrap()
 }
 
 fn sample(dir: &Path) -> String {
     let vol = dir.join("weave.mbvol");
     let vol = vol.to_str().unwrap().to_string();
-    ok(mesobake(&[
-        "sample", "weave", "--res", "16x16x8", "--out", &vol,
-    ]));
+    succeeds(&["sample", "weave", "--res", "16x16x8", "--out", &vol]);
     vol
 }
 
@@ -35,21 +33,11 @@ fn bake_then_unpack_gives_the_documented_npy_and_exr() {
     let dir = tempfile::tempdir().unwrap();
     let vol = sample(dir.path());
     let pkg = dir.path().join("weave.mbpkg");
-    let out = ok(mesobake(&[
-        "bake",
-        "--input",
+    let summary = bake(
         &vol,
-        "--out",
-        pkg.to_str().unwrap(),
-        "--dirs",
-        "4x8",
-        "--rank",
-        "5",
-        "--quant",
-        "u8",
-        "--json",
-    ]));
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        &pkg,
+        &["--dirs", "4x8", "--rank", "5", "--quant", "u8"],
+    );
     let bytes = std::fs::read(&pkg).unwrap();
     assert_eq!(summary["bytes"], bytes.len());
     assert_eq!(summary["rank"], 5);
@@ -68,14 +56,14 @@ fn bake_then_unpack_gives_the_documented_npy_and_exr() {
 
     let npy = dir.path().join("recon.npy");
     let exr = dir.path().join("maps.exr");
-    ok(mesobake(&[
+    succeeds(&[
         "unpack",
         pkg.to_str().unwrap(),
         "--out",
         npy.to_str().unwrap(),
         "--exr",
         exr.to_str().unwrap(),
-    ]));
+    ]);
     // The .npy holds exactly the package's reconstruction, in `mesobake gdm`'s layout.
     let file = std::fs::read(&npy).unwrap();
     let array = npyz::NpyFile::new(&file[..]).unwrap();
@@ -119,21 +107,11 @@ fn bake_chooses_the_rank_from_a_target_rmse() {
     let dir = tempfile::tempdir().unwrap();
     let vol = sample(dir.path());
     let pkg = dir.path().join("weave.mbpkg");
-    let out = ok(mesobake(&[
-        "bake",
-        "--input",
+    let summary = bake(
         &vol,
-        "--out",
-        pkg.to_str().unwrap(),
-        "--dirs",
-        "4x8",
-        "--max-rmse",
-        "0.5",
-        "--quant",
-        "f32",
-        "--json",
-    ]));
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        &pkg,
+        &["--dirs", "4x8", "--max-rmse", "0.5", "--quant", "f32"],
+    );
     let package = Package::read(&pkg, &Limits::default()).unwrap();
     let g = &package.manifest().gdm;
     let rank = g.rank as usize;
@@ -152,7 +130,7 @@ fn report_accuracy_writes_table_csv_and_plot() {
     let dir = tempfile::tempdir().unwrap();
     let vol = sample(dir.path());
     let report = dir.path().join("report");
-    let out = ok(mesobake(&[
+    let out = succeeds(&[
         "report",
         "accuracy",
         "--input",
@@ -165,7 +143,7 @@ fn report_accuracy_writes_table_csv_and_plot() {
         "f32,f16",
         "--out",
         report.to_str().unwrap(),
-    ]));
+    ]);
     let table = String::from_utf8(out.stdout).unwrap();
     assert_eq!(table.lines().count(), 2 + 2 * 2 * 2, "{table}");
     let csv = std::fs::read_to_string(report.join("accuracy.csv")).unwrap();
@@ -194,9 +172,7 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
     let vol = sample(dir.path());
     let pkg = dir.path().join("p.mbpkg");
     let p = pkg.to_str().unwrap();
-    ok(mesobake(&[
-        "bake", "--input", &vol, "--out", p, "--dirs", "2x4",
-    ]));
+    bake(&vol, &pkg, &["--dirs", "2x4"]);
     let good = std::fs::read(&pkg).unwrap();
     let mut corrupt = good.clone();
     corrupt[300] ^= 0x10;
@@ -240,15 +216,7 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
             "quantization",
         ),
     ];
-    for (args, want) in cases {
-        let out = mesobake(&args);
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success() && err.contains(want),
-            "{args:?}: {err}"
-        );
-        assert!(!err.contains("panicked"), "{err}");
-    }
+    each_fails_with(&cases);
     assert!(!npy.exists(), "nothing is written on failure");
     assert_eq!(
         std::fs::read(&pkg).unwrap(),
