@@ -28,6 +28,12 @@ pub enum Error {
     /// An OBJ mesostructure tile is malformed or unusable.
     #[error("OBJ tile: {0}")]
     MeshTile(String),
+    /// A base mesh (OBJ file or built-in) is malformed, unusable or has invalid parameters.
+    #[error("base mesh: {0}")]
+    BaseMesh(String),
+    /// A scene file is malformed or names something unusable.
+    #[error("scene: {0}")]
+    Scene(String),
     /// A `.mbpkg` package is malformed, corrupt or of an unsupported version.
     #[error("package: {0}")]
     Package(String),

@@ -23,6 +23,7 @@
 //! ```
 
 pub mod bake_package;
+pub mod base_mesh;
 pub mod bench;
 pub mod compress;
 pub mod empty_space;
@@ -37,8 +38,12 @@ pub mod limits;
 pub mod mesh_tile;
 pub mod npy;
 pub mod package;
+pub mod render;
+pub mod render_scene;
 pub mod report;
 pub mod samples;
+pub mod scene;
+pub mod shell;
 pub mod trimesh;
 pub mod volume;
 pub mod volume_format;

@@ -17,7 +17,9 @@ use rayon::prelude::*;
 use std::f64::consts::{PI, TAU};
 
 /// The built-in samples.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum SampleKind {
     /// Chain mail: tilted torus links, each passing through its neighbours.

@@ -206,7 +206,8 @@ impl Gdm {
     }
 }
 
-fn boundary_distance(dims: Dims, dirs: &DirectionGrid, k: u32, a: u32) -> f32 {
+/// Distance from the centre of layer `k` to the top (cos θ > 0) or bottom plane along θ-bin `a`.
+pub fn boundary_distance(dims: Dims, dirs: &DirectionGrid, k: u32, a: u32) -> f32 {
     let cos_theta = dirs.theta(a).cos();
     let z = k as f64 + 0.5;
     let d = if cos_theta > 0.0 {

@@ -1,0 +1,101 @@
+//! Candidate search for camera and shadow rays: an obvhs wide BVH over padded f64 bounding
+//! boxes. It only proposes primitives; every renderer tests them exactly in f64.
+
+use glam::{DVec3, Vec3A};
+use obvhs::{BvhBuildParams, aabb::Aabb, cwbvh::CwBvh, cwbvh::builder::build_cwbvh, ray::Ray};
+use std::time::Duration;
+
+/// A BVH over boxes given in f64.
+pub struct BoxBvh {
+    bvh: CwBvh,
+    /// The f64 boxes, in input order.
+    boxes: Vec<(DVec3, DVec3)>,
+}
+
+impl BoxBvh {
+    /// Builds over `boxes` (min, max). Each box is padded outwards by a relative 1e-5 of its
+    /// extent plus 1e-6 of its magnitude before rounding to f32, so that f32 traversal never
+    /// loses a primitive an f64 test would hit.
+    pub fn new(boxes: Vec<(DVec3, DVec3)>) -> BoxBvh {
+        let f32_boxes: Vec<Aabb> = boxes
+            .iter()
+            .map(|&(lo, hi)| {
+                let pad =
+                    (hi - lo).max_element() * 1e-5 + lo.abs().max(hi.abs()).max_element() * 1e-6;
+                let down = |v: DVec3| Vec3A::new(down(v.x), down(v.y), down(v.z));
+                let up = |v: DVec3| Vec3A::new(up(v.x), up(v.y), up(v.z));
+                Aabb::new(down(lo - pad), up(hi + pad))
+            })
+            .collect();
+        let bvh = build_cwbvh(
+            &f32_boxes,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        BoxBvh { bvh, boxes }
+    }
+
+    /// Calls `f(index, t_enter)` for every box the ray `origin + t·dir`, t ∈ [`t_min`, `t_max`],
+    /// passes through (a superset: the f32 traversal of the padded boxes).
+    pub fn candidates(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+        mut f: impl FnMut(usize, f64),
+    ) {
+        if self.boxes.is_empty() {
+            return;
+        }
+        // obvhs mis-traverses directions with negative zeros; adding +0 makes them positive.
+        let ray = Ray::new(
+            origin.as_vec3a(),
+            (dir + DVec3::ZERO).as_vec3a(),
+            (t_min as f32).max(0.0),
+            if t_max.is_finite() {
+                t_max as f32 * 1.000_001 + 1e-30
+            } else {
+                f32::INFINITY
+            },
+        );
+        self.bvh.ray_traverse_anyhit(ray, |_, id| {
+            let index = self.bvh.primitive_indices[id] as usize;
+            if let Some(t) = slab(self.boxes[index], origin, dir, t_min, t_max) {
+                f(index, t);
+            }
+        });
+    }
+}
+
+fn down(x: f64) -> f32 {
+    let y = x as f32;
+    if y as f64 > x { y.next_down() } else { y }
+}
+
+fn up(x: f64) -> f32 {
+    let y = x as f32;
+    if (y as f64) < x { y.next_up() } else { y }
+}
+
+/// Entry parameter of the ray into the box, padded by 1e-9 of its size, or `None`.
+fn slab((lo, hi): (DVec3, DVec3), o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<f64> {
+    let pad = (hi - lo).max_element() * 1e-9 + 1e-300;
+    let (lo, hi) = (lo - pad, hi + pad);
+    let (mut t0, mut t1) = (t_min, t_max);
+    for a in 0..3 {
+        if d[a] == 0.0 {
+            if o[a] < lo[a] || o[a] > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let (mut a0, mut a1) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+        if a0 > a1 {
+            std::mem::swap(&mut a0, &mut a1);
+        }
+        t0 = t0.max(a0);
+        t1 = t1.min(a1);
+    }
+    (t0 <= t1).then_some(t0)
+}

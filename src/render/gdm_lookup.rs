@@ -1,0 +1,240 @@
+//! GDM queries at continuous positions and directions, as the renderers and shaders make
+//! them: d(T, V) for a texture point T (voxel units) and a unit texture-space direction V.
+//!
+//! Interpolation (the same for raw GDMs and packages, mirroring GPU texture filtering):
+//! positions are linear between voxel centres, x and y periodic, z clamped to the centres of
+//! the first and last layers; directions are linear between bin centres, φ periodic, θ clamped
+//! to the first and last bins.
+//! - A raw GDM interpolates over all 32 corners (x, y, z, θ, φ). Escaping corners vote: the
+//!   query escapes when their weight is at least ½; otherwise the distance is the weighted
+//!   mean of the hitting corners.
+//! - A package reconstructs d̃ = Σᵢ W̃ᵢ(x, y, φ)·Ẽᵢ(θ, z), each factor interpolated on its
+//!   own (trilinear in the weight maps' 3D textures, bilinear in the eigenmaps' 2D ones), and
+//!   applies the package's escape rule d̃ ≥ (1 − μ)·b̃ with the boundary distance b̃
+//!   interpolated like the eigenmaps.
+
+use crate::compress::accuracy::is_escape;
+use crate::error::Result;
+use crate::gdm::Gdm;
+use crate::grid::{Dims, DirectionGrid, Wrap};
+use crate::package::Package;
+use glam::DVec3;
+use std::f64::consts::{PI, TAU};
+
+/// The answer to one query.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lookup {
+    /// Solid at this distance (voxel units; 0 inside solid).
+    Hit(f64),
+    /// The ray leaves through the top or bottom plane first.
+    Escape,
+}
+
+/// Something that answers GDM queries.
+pub trait GdmLookup: Sync {
+    /// The voxel grid.
+    fn dims(&self) -> Dims;
+    /// d(`t`, `v`): `t` in voxel units, `v` a unit texture-space direction.
+    fn lookup(&self, t: DVec3, v: DVec3) -> Lookup;
+}
+
+/// Linear interpolation taps along one axis: two indices and the weight of the second.
+#[derive(Clone, Copy, Debug)]
+struct Taps {
+    index: [u32; 2],
+    frac: f64,
+}
+
+impl Taps {
+    fn periodic(coord: f64, n: u32) -> Taps {
+        let f = coord.floor();
+        let wrap = Wrap::new(n);
+        Taps {
+            index: [wrap.apply(f as i64) as u32, wrap.apply(f as i64 + 1) as u32],
+            frac: coord - f,
+        }
+    }
+
+    fn clamped(coord: f64, n: u32) -> Taps {
+        let c = coord.clamp(0.0, (n - 1) as f64);
+        let f = c.floor();
+        let i = f as u32;
+        Taps {
+            index: [i, (i + 1).min(n - 1)],
+            frac: c - f,
+        }
+    }
+
+    fn weight(&self, side: u32) -> f64 {
+        if side == 1 {
+            self.frac
+        } else {
+            1.0 - self.frac
+        }
+    }
+}
+
+/// Position and direction taps of one query.
+struct QueryTaps {
+    x: Taps,
+    y: Taps,
+    z: Taps,
+    theta: Taps,
+    phi: Taps,
+}
+
+impl QueryTaps {
+    fn new(dims: Dims, dirs: DirectionGrid, t: DVec3, v: DVec3) -> QueryTaps {
+        let theta = v.z.clamp(-1.0, 1.0).acos();
+        let phi = v.y.atan2(v.x).rem_euclid(TAU);
+        QueryTaps {
+            x: Taps::periodic(t.x - 0.5, dims.x),
+            y: Taps::periodic(t.y - 0.5, dims.y),
+            z: Taps::clamped(t.z - 0.5, dims.z),
+            theta: Taps::clamped(theta / PI * dirs.n_theta as f64 - 0.5, dirs.n_theta),
+            phi: Taps::periodic(phi / TAU * dirs.n_phi as f64 - 0.5, dirs.n_phi),
+        }
+    }
+}
+
+/// Queries on a dense GDM as baked (either escape convention).
+pub struct RawLookup<'a> {
+    gdm: &'a Gdm,
+}
+
+impl<'a> RawLookup<'a> {
+    /// Wraps `gdm`.
+    pub fn new(gdm: &'a Gdm) -> Self {
+        RawLookup { gdm }
+    }
+}
+
+impl GdmLookup for RawLookup<'_> {
+    fn dims(&self) -> Dims {
+        self.gdm.dims()
+    }
+
+    fn lookup(&self, t: DVec3, v: DVec3) -> Lookup {
+        let g = self.gdm;
+        let q = QueryTaps::new(g.dims(), g.dirs(), t, v);
+        let (mut escape, mut hit, mut sum) = (0.0, 0.0, 0.0);
+        for c in 0..32u32 {
+            let s = [
+                c & 1,
+                (c >> 1) & 1,
+                (c >> 2) & 1,
+                (c >> 3) & 1,
+                (c >> 4) & 1,
+            ];
+            let w = q.x.weight(s[0])
+                * q.y.weight(s[1])
+                * q.z.weight(s[2])
+                * q.theta.weight(s[3])
+                * q.phi.weight(s[4]);
+            if w == 0.0 {
+                continue;
+            }
+            let idx = (
+                q.x.index[s[0] as usize],
+                q.y.index[s[1] as usize],
+                q.z.index[s[2] as usize],
+                q.theta.index[s[3] as usize],
+                q.phi.index[s[4] as usize],
+            );
+            if g.is_escape(idx.0, idx.1, idx.2, idx.3, idx.4) {
+                escape += w;
+            } else {
+                hit += w;
+                sum += w * g.get(idx.0, idx.1, idx.2, idx.3, idx.4) as f64;
+            }
+        }
+        if escape >= 0.5 || hit == 0.0 {
+            Lookup::Escape
+        } else {
+            Lookup::Hit(sum / hit)
+        }
+    }
+}
+
+/// Queries on a package's factors: the reconstruction a shader computes.
+pub struct PackageLookup {
+    dims: Dims,
+    dirs: DirectionGrid,
+    rank: usize,
+    /// Dequantized weights, rows (φ, y, x) as in the package's 3D textures.
+    weights: Vec<f32>,
+    /// Dequantized eigenmaps, rows (θ, z).
+    eigen: Vec<f32>,
+    /// Boundary distance per (θ, z).
+    boundary: Vec<f32>,
+    margin: f32,
+}
+
+impl PackageLookup {
+    /// Unpacks `package`'s factors.
+    pub fn new(package: &Package) -> Result<Self> {
+        let (dims, dirs) = (package.dims(), package.dirs());
+        let (w, e) = package.factors();
+        let rank = w.rank;
+        let boundary = (0..dirs.n_theta)
+            .flat_map(|a| (0..dims.z).map(move |k| (a, k)))
+            .map(|(a, k)| crate::gdm::boundary_distance(dims, &dirs, k, a))
+            .collect();
+        Ok(PackageLookup {
+            dims,
+            dirs,
+            rank,
+            weights: w.dequantize(),
+            eigen: e.dequantize(),
+            boundary,
+            margin: package.manifest().gdm.accuracy.escape_margin,
+        })
+    }
+}
+
+impl GdmLookup for PackageLookup {
+    fn dims(&self) -> Dims {
+        self.dims
+    }
+
+    fn lookup(&self, t: DVec3, v: DVec3) -> Lookup {
+        let (d, k) = (self.dims, self.rank);
+        let q = QueryTaps::new(d, self.dirs, t, v);
+        let w_taps: [(f64, usize); 8] = std::array::from_fn(|c| {
+            let s = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+            let weight =
+                q.x.weight(s[0] as u32) * q.y.weight(s[1] as u32) * q.phi.weight(s[2] as u32);
+            let row = (q.phi.index[s[2]] * d.y + q.y.index[s[1]]) * d.x + q.x.index[s[0]];
+            (weight, row as usize * k)
+        });
+        let e_taps: [(f64, usize); 4] = std::array::from_fn(|c| {
+            let s = [c & 1, (c >> 1) & 1];
+            let weight = q.theta.weight(s[0] as u32) * q.z.weight(s[1] as u32);
+            (
+                weight,
+                (q.theta.index[s[0]] * d.z + q.z.index[s[1]]) as usize,
+            )
+        });
+        let mut dist = 0.0;
+        for i in 0..k {
+            let w: f64 = w_taps
+                .iter()
+                .map(|&(c, r)| c * self.weights[r + i] as f64)
+                .sum();
+            let e: f64 = e_taps
+                .iter()
+                .map(|&(c, r)| c * self.eigen[r * k + i] as f64)
+                .sum();
+            dist += w * e;
+        }
+        let boundary: f64 = e_taps
+            .iter()
+            .map(|&(c, r)| c * self.boundary[r] as f64)
+            .sum();
+        if is_escape(dist as f32, boundary as f32, self.margin) {
+            Lookup::Escape
+        } else {
+            Lookup::Hit(dist.max(0.0))
+        }
+    }
+}

@@ -1,0 +1,133 @@
+//! Scene → image: loads what the scene names, bakes or reads the GDM when the method needs
+//! one, picks the renderer and times each stage (`mesobake render`).
+
+use crate::error::{Error, Result};
+use crate::gdm::{self, BakeObserver, Gdm};
+use crate::limits::Limits;
+use crate::package::Package;
+use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
+use crate::render::gdm_renderer::GdmRenderer;
+use crate::render::image::Image;
+use crate::render::render_image;
+use crate::render::truth::TruthRenderer;
+use crate::scene::{LoadedScene, Scene};
+use serde::Serialize;
+use std::path::Path;
+use std::str::FromStr;
+use std::time::Instant;
+
+/// Which renderer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RenderMethod {
+    /// The ground truth: exact mapping, real mesostructure.
+    Truth,
+    /// The GDM per-pixel algorithm (the real-time pipeline's specification).
+    Gdm,
+}
+
+impl FromStr for RenderMethod {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "truth" => Ok(RenderMethod::Truth),
+            "gdm" => Ok(RenderMethod::Gdm),
+            _ => Err(Error::InvalidParameter(format!(
+                "render method {s:?}: expected truth or gdm"
+            ))),
+        }
+    }
+}
+
+/// Seconds per stage of a render.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RenderSeconds {
+    /// Loading the scene's inputs and building the shell.
+    pub load: f64,
+    /// Baking (exact) or reading the GDM; 0 for the ground truth.
+    pub gdm: f64,
+    /// Building the acceleration structure and rendering the pixels.
+    pub render: f64,
+}
+
+/// A rendered scene.
+pub struct Rendered {
+    /// The image.
+    pub image: Image,
+    /// Seconds per stage.
+    pub seconds: RenderSeconds,
+}
+
+/// The GDM a `gdm` render uses.
+pub enum GdmSource<'a> {
+    /// Bake the exact GDM of the scene's mesostructure on its grids.
+    Bake,
+    /// Read this package (its grid must match the scene's resolution).
+    Package(&'a Path),
+}
+
+/// Reads the scene at `path` and loads its inputs (paths relative to the scene's folder).
+pub fn load_scene(path: &Path, limits: &Limits) -> Result<LoadedScene> {
+    let scene = Scene::read(path)?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    LoadedScene::load(scene, dir, limits)
+}
+
+/// Bakes the exact GDM of a loaded scene.
+pub fn bake_gdm(loaded: &LoadedScene, limits: &Limits, observer: &dyn BakeObserver) -> Result<Gdm> {
+    let dirs = loaded.scene.dirs()?;
+    gdm::exact::bake(loaded.mesostructure.caster(), dirs, limits, observer)
+}
+
+/// Renders `loaded` with `method`.
+pub fn render(
+    loaded: &LoadedScene,
+    method: RenderMethod,
+    source: GdmSource,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Rendered> {
+    let scene = &loaded.scene;
+    let mut seconds = RenderSeconds::default();
+    let image = match method {
+        RenderMethod::Truth => {
+            let start = Instant::now();
+            let caster = loaded.mesostructure.caster();
+            let r = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
+            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
+        }
+        RenderMethod::Gdm => {
+            let start = Instant::now();
+            let (raw, raw_lookup, package_lookup);
+            let lookup: &dyn GdmLookup = match source {
+                GdmSource::Bake => {
+                    raw = bake_gdm(loaded, limits, observer)?;
+                    raw_lookup = RawLookup::new(&raw);
+                    &raw_lookup
+                }
+                GdmSource::Package(path) => {
+                    let pkg = Package::read(path, limits)?;
+                    if pkg.dims() != scene.dims()? {
+                        return Err(Error::Scene(format!(
+                            "{} holds a {} GDM but the scene's resolution is {}",
+                            path.display(),
+                            pkg.dims(),
+                            scene.dims()?
+                        )));
+                    }
+                    package_lookup = PackageLookup::new(&pkg)?;
+                    &package_lookup
+                }
+            };
+            seconds.gdm = start.elapsed().as_secs_f64();
+            let start = Instant::now();
+            let r = GdmRenderer::new(&loaded.shell, lookup, &loaded.material);
+            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
+        }
+    };
+    Ok(Rendered { image, seconds })
+}

@@ -1,0 +1,432 @@
+//! The CPU renderers on hard cases with analytic answers: a flat slab seen through prism
+//! vertices, along fin planes, at grazing angles, over sliver triangles and across an open
+//! border; the ground truth against a direct cast of the tiled geometry; scale invariance;
+//! a nearly inverted shell. Tolerances are stated with each assertion.
+
+use glam::{DVec2, DVec3};
+use mesobake::base_mesh::BaseMesh;
+use mesobake::gdm::caster::{Caster, Trace};
+use mesobake::gdm::volume_caster::VolumeCaster;
+use mesobake::gdm::{self, Gdm};
+use mesobake::grid::{Dims, DirectionGrid};
+use mesobake::input::Mesostructure;
+use mesobake::limits::Limits;
+use mesobake::render::gdm_lookup::RawLookup;
+use mesobake::render::gdm_renderer::GdmRenderer;
+use mesobake::render::image::compare;
+use mesobake::render::material::MaterialVolume;
+use mesobake::render::truth::TruthRenderer;
+use mesobake::render_scene::{GdmSource, RenderMethod, render};
+use mesobake::samples::{self, SampleKind};
+use mesobake::scene::{LoadedScene, Scene};
+use mesobake::shell::{Shell, ShellParams};
+use mesobake::volume::Volume;
+
+const SLAB_SCENE: &str = r#"{
+  "base_mesh": { "builtin": { "plane": {} } },
+  "mesostructure": { "sample": "grid" },
+  "resolution": [16, 16, 8],
+  "directions": [16, 32],
+  "shell": { "thickness": 0.5 },
+  "camera": { "eye": [0.5, 2.0, 1.0], "target": [0.5, 0.0, -0.5], "fov_y_degrees": 40,
+              "width": 48, "height": 48 },
+  "lights": [ { "directional": { "direction": [0.3, -1.0, 0.2], "irradiance": [3, 3, 3] } },
+              { "ambient": { "radiance": [0.1, 0.1, 0.1] } } ],
+  "effects": ["shadows"]
+}"#;
+
+/// An n×n grid over [0, size] × [−size, 0] in the x–z plane (y = 0), normals +y, u = x/size,
+/// v = −z/size.
+fn flat_grid(n: u32, size: f64) -> BaseMesh {
+    let mut mesh = BaseMesh {
+        positions: vec![],
+        normals: vec![],
+        uvs: vec![],
+        triangles: vec![],
+    };
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f64 / n as f64, j as f64 / n as f64);
+            mesh.positions.push(DVec3::new(u * size, 0.0, -v * size));
+            mesh.normals.push(DVec3::Y);
+            mesh.uvs.push(DVec2::new(u, v));
+        }
+    }
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            mesh.triangles
+                .push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            mesh.triangles
+                .push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    mesh
+}
+
+/// Solid below layer `top` (z < top voxels), 16×16×8.
+fn slab(top: u32) -> Volume {
+    let dims = Dims::new(16, 16, 8).unwrap();
+    Volume::from_fn(dims, &Limits::default(), |_, _, k| k < top).unwrap()
+}
+
+fn loaded(base: BaseMesh, volume: &Volume, shell: ShellParams, scene: &str) -> LoadedScene {
+    let (base, base_report) = base.validated().unwrap();
+    LoadedScene {
+        scene: Scene::from_json(scene).unwrap(),
+        shell: Shell::new(&base, shell).unwrap(),
+        base,
+        base_report,
+        mesostructure: Mesostructure::Volume(VolumeCaster::new(volume)),
+        material: MaterialVolume::from_volume(volume, DVec3::splat(0.7)),
+    }
+}
+
+fn bake(caster: &dyn Caster) -> Gdm {
+    gdm::exact::bake(caster, DirectionGrid::PAPER, &Limits::default(), &()).unwrap()
+}
+
+fn shell(thickness: f64) -> ShellParams {
+    ShellParams {
+        thickness,
+        tiles_per_uv: [1.0, 1.0],
+        smoothing: 0,
+    }
+}
+
+/// The slab top lies at y = 0.25 (4 of 8 voxels of a 0.5 shell); one voxel is 1/16.
+const VOXEL: f64 = 1.0 / 16.0;
+
+#[test]
+fn slab_hits_through_vertices_edges_and_fin_planes() {
+    let volume = slab(4);
+    let scene = loaded(flat_grid(4, 1.0), &volume, shell(0.5), SLAB_SCENE);
+    let caster = scene.mesostructure.caster();
+    let g = bake(caster);
+    let lookup = RawLookup::new(&g);
+    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
+    let gdm = GdmRenderer::new(&scene.shell, &lookup, &scene.material);
+    // Targets on the shell top: a vertex shared by six prisms, a point on a shared edge, a
+    // point on a diagonal, an interior point; directions in a fin's plane (x = const) and
+    // off it, from near the normal to 60° away.
+    let targets = [
+        DVec3::new(0.5, 0.5, -0.5),
+        DVec3::new(0.5, 0.5, -0.4),
+        DVec3::new(0.6, 0.5, -0.6),
+        DVec3::new(0.37, 0.5, -0.61),
+    ];
+    let dirs = [
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(0.0, -1.0, -0.4),
+        DVec3::new(0.0, -1.0, 0.9),
+        DVec3::new(0.5, -1.0, 0.3),
+        DVec3::new(-1.2, -1.0, 1.0),
+    ];
+    for target in targets {
+        for d in dirs {
+            let d = d.normalize();
+            let origin = target - d * 3.0;
+            let exact = (origin.y - 0.25) / -d.y;
+            let t = truth
+                .trace(origin, d, 0.0, f64::INFINITY)
+                .expect("truth hit");
+            // The mapping is affine here, so the chords are exact: round-off only.
+            assert!(
+                (t.t - exact).abs() < 1e-9,
+                "truth {} vs {exact} for {target} {d}",
+                t.t
+            );
+            let h = gdm.trace(origin, d).expect("gdm hit");
+            // The GDM's error is its direction interpolation (of 1/cos θ between bins 11.25°
+            // apart): within 0.3 voxel of the slab top, measured vertically, up to 60° from
+            // the normal.
+            let height = (origin + d * h.t).y;
+            assert!(
+                (height - 0.25).abs() < 0.3 * VOXEL,
+                "gdm hit height {height} for {target} {d}"
+            );
+        }
+    }
+}
+
+#[test]
+fn grazing_rays_cross_many_prisms_to_the_analytic_hit() {
+    let volume = slab(4);
+    let scene = loaded(flat_grid(8, 1.0), &volume, shell(0.5), SLAB_SCENE);
+    let caster = scene.mesostructure.caster();
+    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
+    // From inside the shell at y = 0.3, descending 1 in 8 (about 83° from the normal), or
+    // straight down: the ray crosses several prisms (or runs along fins) to the slab top.
+    for (start, d) in [
+        (DVec3::new(0.01, 0.3, -0.013), DVec3::new(1.0, -0.125, -0.3)),
+        (DVec3::new(0.9, 0.3, -0.5), DVec3::new(-1.0, -0.125, 0.0)),
+        (DVec3::new(0.25, 0.3, -0.5), DVec3::new(-0.0, -1.0, -0.0)),
+    ] {
+        let d = d.normalize();
+        let exact = (start.y - 0.25) / -d.y;
+        let t = truth.trace(start, d, 0.0, f64::INFINITY).expect("hit");
+        assert!((t.t - exact).abs() < 1e-9, "{} vs {exact}", t.t);
+    }
+}
+
+#[test]
+fn open_border_rays_leave_without_wrapping_around() {
+    let volume = slab(4);
+    let scene = loaded(flat_grid(4, 1.0), &volume, shell(0.5), SLAB_SCENE);
+    let caster = scene.mesostructure.caster();
+    let g = bake(caster);
+    let lookup = RawLookup::new(&g);
+    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
+    let gdm = GdmRenderer::new(&scene.shell, &lookup, &scene.material);
+    // Enters the top at x = 0.98 heading out over the border at x = 1 with slope 1 in 5:
+    // it would reach the slab at x = 1.23, beyond the surface, so both renderers must miss.
+    let d = DVec3::new(1.0, -0.2, 0.0).normalize();
+    let origin = DVec3::new(0.98, 0.5, -0.5) - d * 0.5;
+    assert!(truth.trace(origin, d, 0.0, f64::INFINITY).is_none());
+    assert!(gdm.trace(origin, d).is_none());
+    // Coming in through the border fin from outside, descending: both hit the slab top.
+    let d = DVec3::new(-1.0, -0.5, 0.0).normalize();
+    let origin = DVec3::new(1.2, 0.45, -0.5);
+    let exact = (origin.y - 0.25) / -d.y;
+    let t = truth
+        .trace(origin, d, 0.0, f64::INFINITY)
+        .expect("truth hit");
+    assert!((t.t - exact).abs() < 1e-9);
+    let h = gdm.trace(origin, d).expect("gdm hit");
+    assert!(((origin + d * h.t).y - 0.25).abs() < 0.3 * VOXEL);
+}
+
+#[test]
+fn sliver_and_zero_area_triangles_leave_no_holes() {
+    // Squeeze one grid vertex to 1e-9 of a neighbour's column (slivers) and add a
+    // zero-area triangle: validation drops the zero-area one, the slivers render.
+    let mut base = flat_grid(4, 1.0);
+    base.positions[6].x = base.positions[5].x + 1e-9;
+    base.triangles.push([0, 1, 2]);
+    let volume = slab(4);
+    let scene = loaded(base, &volume, shell(0.5), SLAB_SCENE);
+    assert_eq!(scene.base_report.zero_area_triangles, 1);
+    let caster = scene.mesostructure.caster();
+    let g = bake(caster);
+    let lookup = RawLookup::new(&g);
+    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
+    let gdm = GdmRenderer::new(&scene.shell, &lookup, &scene.material);
+    // Nearly straight down onto a 101×101 lattice of slab points over the whole surface,
+    // slivers included: every ray must hit. (The GDM is spared the last 0.03 before the open
+    // border, where a ray leaves through the border fin a fraction of a voxel below the slab
+    // top and its 0.3-voxel interpolation error decides.)
+    let d = DVec3::new(0.05, -1.0, 0.02).normalize();
+    for j in 0..=100 {
+        for i in 0..=100 {
+            let (x, z) = (
+                0.001 + 0.998 * i as f64 / 100.0,
+                -0.001 - 0.998 * j as f64 / 100.0,
+            );
+            let target = DVec3::new(x, 0.25, z);
+            let p = target - d * 3.0;
+            assert!(
+                truth.trace(p, d, 0.0, f64::INFINITY).is_some(),
+                "truth hole at {target}"
+            );
+            if x < 0.97 && z > -0.97 {
+                assert!(gdm.trace(p, d).is_some(), "gdm hole at {target}");
+            }
+        }
+    }
+}
+
+#[test]
+fn truth_on_a_flat_plane_matches_a_direct_cast_of_the_tiled_volume() {
+    // On a flat plane with straight extrusions the mapping is affine, so a camera ray is a
+    // straight ray in texture space: cast it once through the whole tiled volume and compare
+    // with the prism-by-prism ground truth, pixel by pixel.
+    let dims = Dims::new(32, 32, 16).unwrap();
+    let volume = samples::volume(SampleKind::Chain, dims, &Limits::default()).unwrap();
+    let (size, tiles, h) = (1.0, 3.0, 0.5 / 3.0 * 1.0);
+    let mut params = shell(h);
+    params.tiles_per_uv = [tiles, tiles];
+    let scene = loaded(flat_grid(6, size), &volume, params, SLAB_SCENE);
+    let caster = scene.mesostructure.caster();
+    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
+    let to_texture = |p: DVec3| {
+        DVec3::new(
+            p.x / size * tiles * 32.0,
+            -p.z / size * tiles * 32.0,
+            p.y / h * 16.0,
+        )
+    };
+    let (mut compared, mut agree) = (0, 0);
+    let eye = DVec3::new(0.2, 0.6, 0.3);
+    for j in 0..40 {
+        for i in 0..40 {
+            let target = DVec3::new(
+                0.1 + 0.8 * i as f64 / 39.0,
+                0.0,
+                -0.1 - 0.8 * j as f64 / 39.0,
+            );
+            let d = (target - eye).normalize();
+            // Enter the shell at y = h.
+            let t_top = (eye.y - h) / -d.y;
+            let mut o = to_texture(eye + d * t_top);
+            o.z = o.z.min(16.0); // the caster wants 0 ≤ z ≤ Z; round-off may put it above
+            let v = to_texture(eye + d * (t_top + 1.0)) - o;
+            let (len, v) = (v.length(), v.normalize());
+            let direct = match caster.trace(o.to_array(), v.to_array(), 1e9) {
+                Trace::Hit(s) => Some(t_top + s / len),
+                Trace::Inside => Some(t_top),
+                _ => None,
+            };
+            let got = truth.trace(eye, d, 0.0, f64::INFINITY).map(|hit| hit.t);
+            compared += 1;
+            match (direct, got) {
+                (Some(a), Some(b)) => {
+                    // Same hit to round-off (1e-9 of the distance).
+                    assert!((a - b).abs() < 1e-9 * a, "pixel ({i}, {j}): {a} vs {b}");
+                    agree += 1;
+                }
+                (None, None) => agree += 1,
+                other => panic!("pixel ({i}, {j}): direct vs truth {other:?}"),
+            }
+        }
+    }
+    assert_eq!(agree, compared);
+}
+
+fn torus_scene(minor: f64, thickness: f64, smoothing: u32, scale: f64) -> String {
+    format!(
+        r#"{{
+  "base_mesh": {{ "builtin": {{ "torus": {{ "major_radius": 1.0, "minor_radius": {minor}, "segments": [48, 24] }} }} }},
+  "mesh_scale": {scale},
+  "mesostructure": {{ "sample": "chain" }},
+  "resolution": [32, 32, 16],
+  "directions": [8, 16],
+  "shell": {{ "thickness": {t}, "tiles_per_uv": [24, 10], "smoothing": {smoothing} }},
+  "camera": {{ "eye": [0.0, {ey}, {ez}], "target": [0.0, {ty}, 0.0], "fov_y_degrees": 42, "width": 64, "height": 64 }},
+  "lights": [ {{ "point": {{ "position": [{lx}, {ly}, {lz}], "intensity": [{i}, {i}, {i}] }} }},
+              {{ "ambient": {{ "radiance": [0.06, 0.06, 0.06] }} }} ],
+  "effects": ["shadows"]
+}}"#,
+        t = thickness * scale,
+        ey = 2.3 * scale,
+        ez = 2.9 * scale,
+        ty = -0.1 * scale,
+        lx = 2.5 * scale,
+        ly = 4.0 * scale,
+        lz = 3.0 * scale,
+        i = 110.0 * scale * scale,
+    )
+}
+
+fn render_json(json: &str, method: RenderMethod) -> mesobake::render::image::Image {
+    let scene = Scene::from_json(json).unwrap();
+    let limits = Limits::default();
+    let loaded = LoadedScene::load(scene, std::path::Path::new("."), &limits).unwrap();
+    render(&loaded, method, GdmSource::Bake, &limits, &())
+        .unwrap()
+        .image
+}
+
+#[test]
+fn scaled_scenes_render_the_same_image() {
+    // The same scene at 1e-3 and 1e3 times the size: every tolerance in the renderers is
+    // relative, so the hit masks agree (at most 0.25 % of pixels differ) and at most 2 % of
+    // the pixels change colour by more than 0.01 (shadow rays that graze geometry flip with
+    // round-off: 49 of 4096 at 1e-3 when this was written), 30 dB or better.
+    for method in [RenderMethod::Truth, RenderMethod::Gdm] {
+        let reference = render_json(&torus_scene(0.4, 0.13, 0, 1.0), method);
+        assert!(reference.hits() > 500, "the torus covers the view");
+        for scale in [1e3, 1e-3] {
+            let image = render_json(&torus_scene(0.4, 0.13, 0, scale), method);
+            let c = compare(&reference, &image).unwrap();
+            let differing = (reference.rgb.iter().zip(&image.rgb))
+                .filter(|(a, b)| (0..3).any(|k| (a[k] - b[k]).abs() > 0.01))
+                .count();
+            // The GDM path is looser (0.5 % of mask pixels, 5.5 % of colours, 25.6 dB at both
+            // 1e-3 and 1e3 when written): the cause is not yet pinned down (see the closing
+            // note of the renderer issue).
+            let (mask, differ, psnr) = match method {
+                RenderMethod::Truth => (0.0025, 4096 / 50, 30.0),
+                RenderMethod::Gdm => (0.01, 4096 / 12, 24.0),
+            };
+            assert!(
+                c.psnr_db >= psnr && c.mask_disagreement <= mask && differing <= differ,
+                "{method:?} at scale {scale}: {c:?}, {differing} pixels differ"
+            );
+        }
+    }
+}
+
+#[test]
+fn high_curvature_shells_are_reported_and_render_finite_images() {
+    let limits = Limits::default();
+    let load = |json: String| {
+        LoadedScene::load(
+            Scene::from_json(&json).unwrap(),
+            std::path::Path::new("."),
+            &limits,
+        )
+        .unwrap()
+    };
+    // A tube barely thicker than the shell (prisms flare to twice their base), and a shell
+    // nearly as thick as the hole's radius R − r = 0.6 (the extrusions nearly meet at the
+    // axis): nothing inverts, and both renderers give finite images.
+    for (minor, thickness) in [(0.14, 0.13), (0.4, 0.55)] {
+        let loaded = load(torus_scene(minor, thickness, 0, 1.0));
+        let report = &loaded.shell.report;
+        assert_eq!(
+            (report.prisms, report.inverted, report.folded),
+            (48 * 24 * 2, 0, 0),
+            "{report:?}"
+        );
+        for method in [RenderMethod::Truth, RenderMethod::Gdm] {
+            let image = render(&loaded, method, GdmSource::Bake, &limits, &())
+                .unwrap()
+                .image;
+            assert!(
+                image
+                    .rgb
+                    .iter()
+                    .flatten()
+                    .all(|c| c.is_finite() && *c >= 0.0)
+            );
+            assert!(image.hits() > 200, "{method:?}: {} hits", image.hits());
+        }
+    }
+    // Thicker than R − r, the inner prisms turn inside out: reported, and still rendered.
+    let loaded = load(torus_scene(0.4, 0.65, 0, 1.0));
+    let report = &loaded.shell.report;
+    assert!(
+        report.inverted > 0 && report.inverted < report.prisms / 4,
+        "{report:?}"
+    );
+    let image = render(&loaded, RenderMethod::Gdm, GdmSource::Bake, &limits, &())
+        .unwrap()
+        .image;
+    assert!(image.rgb.iter().flatten().all(|c| c.is_finite()));
+}
+
+#[test]
+fn gdm_error_against_truth_falls_with_direction_resolution() {
+    // The GDM renderer against the ground truth on a small torus + chain render (64×64,
+    // 32×32×16 voxels): refining the direction grid from 8×16 to 16×32 must cut the hit/miss
+    // disagreement and the mean error (4.7 % → 3.2 % and 0.090 → 0.080 when written), and the
+    // 16×32 figures must stay under 4 % and 0.09. (At this size, 32×64 is no better: the
+    // voxel grid limits it. The benchmark measures the full-size scene.)
+    let truth = render_json(&torus_scene(0.4, 0.13, 0, 1.0), RenderMethod::Truth);
+    let coarse = compare(
+        &truth,
+        &render_json(&torus_scene(0.4, 0.13, 0, 1.0), RenderMethod::Gdm),
+    )
+    .unwrap();
+    let json = torus_scene(0.4, 0.13, 0, 1.0).replace("[8, 16]", "[16, 32]");
+    let fine = compare(&truth, &render_json(&json, RenderMethod::Gdm)).unwrap();
+    assert!(
+        fine.mask_disagreement < coarse.mask_disagreement
+            && fine.mean_abs_error < coarse.mean_abs_error,
+        "16×32 {fine:?} against 8×16 {coarse:?}"
+    );
+    assert!(
+        fine.mask_disagreement < 0.04 && fine.mean_abs_error < 0.09,
+        "{fine:?}"
+    );
+}
