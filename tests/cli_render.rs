@@ -1,0 +1,154 @@
+//! `mesobake render` and `mesobake compare` end to end, and bad scenes.
+
+mod common;
+
+use common::{each_fails_with, mesobake, succeeds};
+
+const SCENE: &str = r#"{
+  "base_mesh": { "builtin": { "torus": { "segments": [24, 12] } } },
+  "mesostructure": { "sample": "grid" },
+  "resolution": [16, 16, 8],
+  "directions": [8, 16],
+  "shell": { "thickness": 0.2, "tiles_per_uv": [8, 3] },
+  "camera": { "eye": [0, 2.3, 2.9], "target": [0, 0, 0], "fov_y_degrees": 45,
+              "width": 40, "height": 32 },
+  "lights": [ { "point": { "position": [2, 4, 3], "intensity": [90, 90, 90] } },
+              { "ambient": { "radiance": [0.05, 0.05, 0.05] } } ],
+  "effects": ["shadows"]
+}"#;
+
+#[test]
+fn render_both_methods_and_compare() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&scene, SCENE).unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let scene = scene.to_str().unwrap();
+    for (method, out) in [("truth", "truth.png"), ("gdm", "gdm.exr")] {
+        let o = succeeds(&[
+            "render",
+            "--scene",
+            scene,
+            "--method",
+            method,
+            "--out",
+            &path(out),
+            "--json",
+        ]);
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let hits = json["hit_pixels"].as_u64().unwrap();
+        assert!(hits > 100 && hits < 40 * 32, "{method}: {hits} hits");
+        assert_eq!(json["shell"]["prisms"], 24 * 12 * 2);
+    }
+    // An image against itself: identical (PSNR +inf is printed as null in JSON).
+    let o = succeeds(&["compare", &path("truth.png"), &path("truth.png"), "--json"]);
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(c["mean_abs_error"], 0.0);
+    assert_eq!(c["mask_disagreement"], 0.0);
+    // PNG against EXR: same size, so comparable; the difference picture is written.
+    let o = succeeds(&[
+        "compare",
+        &path("truth.png"),
+        &path("gdm.exr"),
+        "--json",
+        "--diff",
+        &path("diff.png"),
+    ]);
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let psnr = c["psnr_db"].as_f64().unwrap();
+    assert!(psnr > 5.0 && psnr < 100.0, "{c}");
+    assert!(std::fs::metadata(path("diff.png")).unwrap().len() > 0);
+}
+
+#[test]
+fn bad_scenes_and_images_fail_with_clear_messages() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let out = dir.path().join("x.png").to_str().unwrap().to_string();
+    let count = std::cell::Cell::new(0);
+    let bad = |from: &str, to: &str| {
+        count.set(count.get() + 1);
+        assert!(SCENE.contains(from), "{from}");
+        write(
+            &format!("bad{}.json", count.get()),
+            &SCENE.replace(from, to),
+        )
+    };
+    let cases = [
+        (write("garbage.json", "{ not json"), "scene"),
+        (
+            bad(
+                r#""effects": ["shadows"]"#,
+                r#""effects": ["shadows", "subsurface"]"#,
+            ),
+            "unknown variant",
+        ),
+        (
+            bad(r#""fov_y_degrees": 45"#, r#""fov_y_degrees": 0"#),
+            "fov_y_degrees",
+        ),
+        (bad(r#""width": 40"#, r#""width": 100000"#), "width"),
+        (
+            bad(r#""thickness": 0.2"#, r#""thickness": -1"#),
+            "thickness",
+        ),
+        (
+            bad(r#""target": [0, 0, 0]"#, r#""target": [0, 2.3, 2.9]"#),
+            "coincide",
+        ),
+        (
+            bad(
+                r#""resolution": [16, 16, 8]"#,
+                r#""resolution": [16, 16, 0]"#,
+            ),
+            "resolution",
+        ),
+        (
+            bad(r#""segments": [24, 12]"#, r#""segments": [2, 12]"#),
+            "segments",
+        ),
+        (
+            bad(r#""sample": "grid""#, r#""volume": "missing.mbvol""#),
+            "missing.mbvol",
+        ),
+        (
+            bad(r#""shell": {"#, r#""shell": { "colour": 1,"#),
+            "unknown field",
+        ),
+    ];
+    let owned: Vec<(Vec<String>, &str)> = cases
+        .iter()
+        .map(|(scene, want)| {
+            (
+                vec![
+                    "render".into(),
+                    "--scene".into(),
+                    scene.clone(),
+                    "--out".into(),
+                    out.clone(),
+                ],
+                *want,
+            )
+        })
+        .collect();
+    let args: Vec<(Vec<&str>, &str)> = owned
+        .iter()
+        .map(|(a, w)| (a.iter().map(String::as_str).collect(), *w))
+        .collect();
+    each_fails_with(&args);
+    // Images: wrong extension, not an image, different sizes.
+    let not_png = write("fake.png", "hello");
+    each_fails_with(&[
+        (vec!["compare", &not_png, &not_png], "not a readable PNG"),
+        (vec!["compare", "a.bmp", "b.bmp"], "unknown image extension"),
+    ]);
+    assert!(
+        !mesobake(&["render", "--scene", "/nonexistent.json", "--out", &out])
+            .status
+            .success()
+    );
+}
