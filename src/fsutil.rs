@@ -5,6 +5,22 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
+/// Reads a file of `what` (e.g. "OBJ file"), refusing one larger than `max_bytes` before
+/// reading it.
+pub fn read_bounded(path: &Path, what: &str, max_bytes: u64) -> Result<Vec<u8>> {
+    let len = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    if len > max_bytes {
+        return Err(Error::MemoryLimit {
+            what: format!("{what} {}", path.display()),
+            needed: len,
+            limit: max_bytes,
+        });
+    }
+    std::fs::read(path).map_err(|e| Error::io(path, e))
+}
+
 /// Writes `bytes` to `path` atomically (see [`write_atomic_with`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes))

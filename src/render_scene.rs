@@ -117,7 +117,7 @@ pub fn render(
                             scene.dims()?
                         )));
                     }
-                    package_lookup = PackageLookup::new(&pkg)?;
+                    package_lookup = PackageLookup::new(&pkg);
                     &package_lookup
                 }
             };

@@ -106,17 +106,7 @@ impl TriMesh {
 
     /// Reads and parses an OBJ file, refusing files larger than `max_bytes`.
     pub fn read_obj(path: &Path, max_bytes: u64) -> Result<Self> {
-        let len = std::fs::metadata(path)
-            .map_err(|e| Error::io(path, e))?
-            .len();
-        if len > max_bytes {
-            return Err(Error::MemoryLimit {
-                what: format!("OBJ file {}", path.display()),
-                needed: len,
-                limit: max_bytes,
-            });
-        }
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::fsutil::read_bounded(path, "OBJ file", max_bytes)?;
         let text = std::str::from_utf8(&bytes)
             .map_err(|e| Error::MeshTile(format!("not UTF-8 text: {e}")))?;
         Self::from_obj(text)

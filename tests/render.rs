@@ -94,59 +94,70 @@ fn shell(thickness: f64) -> ShellParams {
     }
 }
 
-/// The slab top lies at y = 0.25 (4 of 8 voxels of a 0.5 shell); one voxel is 1/16.
-const VOXEL: f64 = 1.0 / 16.0;
-
-#[test]
-fn slab_hits_through_vertices_edges_and_fin_planes() {
+/// Both renderers over a 0.5-thick shell on `base` filled with [`slab`]`(4)`, handed to
+/// `check` with the loaded scene.
+fn with_slab_renderers(
+    base: BaseMesh,
+    check: impl FnOnce(&LoadedScene, &TruthRenderer, &GdmRenderer),
+) {
     let volume = slab(4);
-    let scene = loaded(flat_grid(4, 1.0), &volume, shell(0.5), SLAB_SCENE);
+    let scene = loaded(base, &volume, shell(0.5), SLAB_SCENE);
     let caster = scene.mesostructure.caster();
     let g = bake(caster);
     let lookup = RawLookup::new(&g);
     let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
     let gdm = GdmRenderer::new(&scene.shell, &lookup, &scene.material);
-    // Targets on the shell top: a vertex shared by six prisms, a point on a shared edge, a
-    // point on a diagonal, an interior point; directions in a fin's plane (x = const) and
-    // off it, from near the normal to 60° away.
-    let targets = [
-        DVec3::new(0.5, 0.5, -0.5),
-        DVec3::new(0.5, 0.5, -0.4),
-        DVec3::new(0.6, 0.5, -0.6),
-        DVec3::new(0.37, 0.5, -0.61),
-    ];
-    let dirs = [
-        DVec3::new(0.0, -1.0, 0.0),
-        DVec3::new(0.0, -1.0, -0.4),
-        DVec3::new(0.0, -1.0, 0.9),
-        DVec3::new(0.5, -1.0, 0.3),
-        DVec3::new(-1.2, -1.0, 1.0),
-    ];
-    for target in targets {
-        for d in dirs {
-            let d = d.normalize();
-            let origin = target - d * 3.0;
-            let exact = (origin.y - 0.25) / -d.y;
-            let t = truth
-                .trace(origin, d, 0.0, f64::INFINITY)
-                .expect("truth hit");
-            // The mapping is affine here, so the chords are exact: round-off only.
-            assert!(
-                (t.t - exact).abs() < 1e-9,
-                "truth {} vs {exact} for {target} {d}",
-                t.t
-            );
-            let h = gdm.trace(origin, d).expect("gdm hit");
-            // The GDM's error is its direction interpolation (of 1/cos θ between bins 11.25°
-            // apart): within 0.3 voxel of the slab top, measured vertically, up to 60° from
-            // the normal.
-            let height = (origin + d * h.t).y;
-            assert!(
-                (height - 0.25).abs() < 0.3 * VOXEL,
-                "gdm hit height {height} for {target} {d}"
-            );
+    check(&scene, &truth, &gdm);
+}
+
+/// The slab top lies at y = 0.25 (4 of 8 voxels of a 0.5 shell); one voxel is 1/16.
+const VOXEL: f64 = 1.0 / 16.0;
+
+#[test]
+fn slab_hits_through_vertices_edges_and_fin_planes() {
+    with_slab_renderers(flat_grid(4, 1.0), |_, truth, gdm| {
+        // Targets on the shell top: a vertex shared by six prisms, a point on a shared edge, a
+        // point on a diagonal, an interior point; directions in a fin's plane (x = const) and
+        // off it, from near the normal to 60° away.
+        let targets = [
+            DVec3::new(0.5, 0.5, -0.5),
+            DVec3::new(0.5, 0.5, -0.4),
+            DVec3::new(0.6, 0.5, -0.6),
+            DVec3::new(0.37, 0.5, -0.61),
+        ];
+        let dirs = [
+            DVec3::new(0.0, -1.0, 0.0),
+            DVec3::new(0.0, -1.0, -0.4),
+            DVec3::new(0.0, -1.0, 0.9),
+            DVec3::new(0.5, -1.0, 0.3),
+            DVec3::new(-1.2, -1.0, 1.0),
+        ];
+        for target in targets {
+            for d in dirs {
+                let d = d.normalize();
+                let origin = target - d * 3.0;
+                let exact = (origin.y - 0.25) / -d.y;
+                let t = truth
+                    .trace(origin, d, 0.0, f64::INFINITY)
+                    .expect("truth hit");
+                // The mapping is affine here, so the chords are exact: round-off only.
+                assert!(
+                    (t.t - exact).abs() < 1e-9,
+                    "truth {} vs {exact} for {target} {d}",
+                    t.t
+                );
+                let h = gdm.trace(origin, d).expect("gdm hit");
+                // The GDM's error is its direction interpolation (of 1/cos θ between bins 11.25°
+                // apart): within 0.3 voxel of the slab top, measured vertically, up to 60° from
+                // the normal.
+                let height = (origin + d * h.t).y;
+                assert!(
+                    (height - 0.25).abs() < 0.3 * VOXEL,
+                    "gdm hit height {height} for {target} {d}"
+                );
+            }
         }
-    }
+    });
 }
 
 #[test]
@@ -171,29 +182,24 @@ fn grazing_rays_cross_many_prisms_to_the_analytic_hit() {
 
 #[test]
 fn open_border_rays_leave_without_wrapping_around() {
-    let volume = slab(4);
-    let scene = loaded(flat_grid(4, 1.0), &volume, shell(0.5), SLAB_SCENE);
-    let caster = scene.mesostructure.caster();
-    let g = bake(caster);
-    let lookup = RawLookup::new(&g);
-    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
-    let gdm = GdmRenderer::new(&scene.shell, &lookup, &scene.material);
-    // Enters the top at x = 0.98 heading out over the border at x = 1 with slope 1 in 5:
-    // it would reach the slab at x = 1.23, beyond the surface, so both renderers must miss.
-    let d = DVec3::new(1.0, -0.2, 0.0).normalize();
-    let origin = DVec3::new(0.98, 0.5, -0.5) - d * 0.5;
-    assert!(truth.trace(origin, d, 0.0, f64::INFINITY).is_none());
-    assert!(gdm.trace(origin, d).is_none());
-    // Coming in through the border fin from outside, descending: both hit the slab top.
-    let d = DVec3::new(-1.0, -0.5, 0.0).normalize();
-    let origin = DVec3::new(1.2, 0.45, -0.5);
-    let exact = (origin.y - 0.25) / -d.y;
-    let t = truth
-        .trace(origin, d, 0.0, f64::INFINITY)
-        .expect("truth hit");
-    assert!((t.t - exact).abs() < 1e-9);
-    let h = gdm.trace(origin, d).expect("gdm hit");
-    assert!(((origin + d * h.t).y - 0.25).abs() < 0.3 * VOXEL);
+    with_slab_renderers(flat_grid(4, 1.0), |_, truth, gdm| {
+        // Enters the top at x = 0.98 heading out over the border at x = 1 with slope 1 in 5:
+        // it would reach the slab at x = 1.23, beyond the surface, so both renderers must miss.
+        let d = DVec3::new(1.0, -0.2, 0.0).normalize();
+        let origin = DVec3::new(0.98, 0.5, -0.5) - d * 0.5;
+        assert!(truth.trace(origin, d, 0.0, f64::INFINITY).is_none());
+        assert!(gdm.trace(origin, d).is_none());
+        // Coming in through the border fin from outside, descending: both hit the slab top.
+        let d = DVec3::new(-1.0, -0.5, 0.0).normalize();
+        let origin = DVec3::new(1.2, 0.45, -0.5);
+        let exact = (origin.y - 0.25) / -d.y;
+        let t = truth
+            .trace(origin, d, 0.0, f64::INFINITY)
+            .expect("truth hit");
+        assert!((t.t - exact).abs() < 1e-9);
+        let h = gdm.trace(origin, d).expect("gdm hit");
+        assert!(((origin + d * h.t).y - 0.25).abs() < 0.3 * VOXEL);
+    });
 }
 
 #[test]
@@ -203,36 +209,31 @@ fn sliver_and_zero_area_triangles_leave_no_holes() {
     let mut base = flat_grid(4, 1.0);
     base.positions[6].x = base.positions[5].x + 1e-9;
     base.triangles.push([0, 1, 2]);
-    let volume = slab(4);
-    let scene = loaded(base, &volume, shell(0.5), SLAB_SCENE);
-    assert_eq!(scene.base_report.zero_area_triangles, 1);
-    let caster = scene.mesostructure.caster();
-    let g = bake(caster);
-    let lookup = RawLookup::new(&g);
-    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
-    let gdm = GdmRenderer::new(&scene.shell, &lookup, &scene.material);
-    // Nearly straight down onto a 101×101 lattice of slab points over the whole surface,
-    // slivers included: every ray must hit. (The GDM is spared the last 0.03 before the open
-    // border, where a ray leaves through the border fin a fraction of a voxel below the slab
-    // top and its 0.3-voxel interpolation error decides.)
-    let d = DVec3::new(0.05, -1.0, 0.02).normalize();
-    for j in 0..=100 {
-        for i in 0..=100 {
-            let (x, z) = (
-                0.001 + 0.998 * i as f64 / 100.0,
-                -0.001 - 0.998 * j as f64 / 100.0,
-            );
-            let target = DVec3::new(x, 0.25, z);
-            let p = target - d * 3.0;
-            assert!(
-                truth.trace(p, d, 0.0, f64::INFINITY).is_some(),
-                "truth hole at {target}"
-            );
-            if x < 0.97 && z > -0.97 {
-                assert!(gdm.trace(p, d).is_some(), "gdm hole at {target}");
+    with_slab_renderers(base, |scene, truth, gdm| {
+        assert_eq!(scene.base_report.zero_area_triangles, 1);
+        // Nearly straight down onto a 101×101 lattice of slab points over the whole surface,
+        // slivers included: every ray must hit. (The GDM is spared the last 0.03 before the open
+        // border, where a ray leaves through the border fin a fraction of a voxel below the slab
+        // top and its 0.3-voxel interpolation error decides.)
+        let d = DVec3::new(0.05, -1.0, 0.02).normalize();
+        for j in 0..=100 {
+            for i in 0..=100 {
+                let (x, z) = (
+                    0.001 + 0.998 * i as f64 / 100.0,
+                    -0.001 - 0.998 * j as f64 / 100.0,
+                );
+                let target = DVec3::new(x, 0.25, z);
+                let p = target - d * 3.0;
+                assert!(
+                    truth.trace(p, d, 0.0, f64::INFINITY).is_some(),
+                    "truth hole at {target}"
+                );
+                if x < 0.97 && z > -0.97 {
+                    assert!(gdm.trace(p, d).is_some(), "gdm hole at {target}");
+                }
             }
         }
-    }
+    });
 }
 
 #[test]

@@ -160,18 +160,7 @@ impl BaseMesh {
     /// Reads and parses an OBJ file (see [`from_obj`](Self::from_obj)), refusing files larger
     /// than `limits.memory_bytes / 8` before reading them.
     pub fn read_obj(path: &Path, limits: &Limits) -> Result<(BaseMesh, MeshReport)> {
-        let max_bytes = limits.memory_bytes / 8;
-        let len = std::fs::metadata(path)
-            .map_err(|e| Error::io(path, e))?
-            .len();
-        if len > max_bytes {
-            return Err(Error::MemoryLimit {
-                what: format!("OBJ file {}", path.display()),
-                needed: len,
-                limit: max_bytes,
-            });
-        }
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = crate::fsutil::read_bounded(path, "OBJ file", limits.memory_bytes / 8)?;
         let in_file = |message: String| Error::BaseMesh(format!("{}: {message}", path.display()));
         let text =
             std::str::from_utf8(&bytes).map_err(|e| in_file(format!("not UTF-8 text: {e}")))?;

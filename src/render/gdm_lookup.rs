@@ -14,7 +14,6 @@
 //!   interpolated like the eigenmaps.
 
 use crate::compress::accuracy::is_escape;
-use crate::error::Result;
 use crate::gdm::Gdm;
 use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::package::Package;
@@ -172,7 +171,7 @@ pub struct PackageLookup {
 
 impl PackageLookup {
     /// Unpacks `package`'s factors.
-    pub fn new(package: &Package) -> Result<Self> {
+    pub fn new(package: &Package) -> Self {
         let (dims, dirs) = (package.dims(), package.dirs());
         let (w, e) = package.factors();
         let rank = w.rank;
@@ -180,7 +179,7 @@ impl PackageLookup {
             .flat_map(|a| (0..dims.z).map(move |k| (a, k)))
             .map(|(a, k)| crate::gdm::boundary_distance(dims, &dirs, k, a))
             .collect();
-        Ok(PackageLookup {
+        PackageLookup {
             dims,
             dirs,
             rank,
@@ -188,7 +187,7 @@ impl PackageLookup {
             eigen: e.dequantize(),
             boundary,
             margin: package.manifest().gdm.accuracy.escape_margin,
-        })
+        }
     }
 }
 

@@ -71,15 +71,20 @@ impl Image {
         match extension(path).as_str() {
             "png" => write_atomic(path, &self.to_png()?),
             "exr" => {
-                let tmp = path.with_extension("exr.tmp");
+                use exr::prelude::{Image as ExrImage, SpecificChannels, Vec2, WritableImage};
                 let w = self.width as usize;
-                exr::prelude::write_rgba_file(&tmp, w, self.height as usize, |x, y| {
-                    let i = y * w + x;
+                let channels = SpecificChannels::rgba(|p: Vec2<usize>| {
+                    let i = p.y() * w + p.x();
                     let c = self.rgb[i];
                     (c[0], c[1], c[2], if self.mask[i] { 1.0f32 } else { 0.0 })
-                })
-                .map_err(|e| Error::InvalidParameter(format!("EXR encoding failed: {e}")))?;
-                std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+                });
+                let image = ExrImage::from_channels((w, self.height as usize), channels);
+                let mut bytes = std::io::Cursor::new(Vec::new());
+                image
+                    .write()
+                    .to_buffered(&mut bytes)
+                    .map_err(|e| Error::InvalidParameter(format!("EXR encoding failed: {e}")))?;
+                write_atomic(path, bytes.get_ref())
             }
             other => Err(Error::InvalidParameter(format!(
                 "{}: unknown image extension {other:?} (use .png or .exr)",
