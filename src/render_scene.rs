@@ -123,7 +123,12 @@ pub fn render(
             };
             seconds.gdm = start.elapsed().as_secs_f64();
             let start = Instant::now();
-            let r = GdmRenderer::new(&loaded.shell, lookup, &loaded.material);
+            let r = GdmRenderer::new(
+                &loaded.shell,
+                lookup,
+                &loaded.material,
+                scene.gdm_refinements,
+            );
             let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();
             image

@@ -143,13 +143,18 @@ fn cells(r: &AccuracyRow) -> [String; 9] {
 
 /// The rows as a Markdown table.
 pub fn markdown(rows: &[AccuracyRow]) -> String {
+    table(&COLUMNS, rows.iter().map(|r| cells(r).to_vec()))
+}
+
+/// A Markdown table with a header of `columns` and one line per row of cells.
+pub fn table(columns: &[&str], rows: impl IntoIterator<Item = Vec<String>>) -> String {
     let mut out = format!(
         "| {} |\n|{}\n",
-        COLUMNS.join(" | "),
-        "---|".repeat(COLUMNS.len())
+        columns.join(" | "),
+        "---|".repeat(columns.len())
     );
     for r in rows {
-        out += &format!("| {} |\n", cells(r).join(" | "));
+        out += &format!("| {} |\n", r.join(" | "));
     }
     out
 }

@@ -43,6 +43,10 @@ pub struct Scene {
     /// Direction grid Nθ×Nφ of the GDM.
     #[serde(default = "default_directions")]
     pub directions: [u32; 2],
+    /// Extra GDM queries per hit in the GDM renderers, each from one voxel short of the
+    /// previous answer (0 = the paper's single query; at most [`MAX_GDM_REFINEMENTS`]).
+    #[serde(default = "default_gdm_refinements")]
+    pub gdm_refinements: u32,
     /// How the base mesh is extruded into the shell.
     pub shell: ShellParams,
     /// Reflectance.
@@ -69,6 +73,13 @@ fn default_resolution() -> [u32; 3] {
 fn default_directions() -> [u32; 2] {
     [16, 32]
 }
+
+fn default_gdm_refinements() -> u32 {
+    0
+}
+
+/// Largest accepted `gdm_refinements`.
+pub const MAX_GDM_REFINEMENTS: u32 = 8;
 
 /// Where the base mesh comes from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -293,6 +304,12 @@ impl Scene {
             return Err(Error::Scene(format!(
                 "mesh_scale must be finite and positive, got {}",
                 self.mesh_scale
+            )));
+        }
+        if self.gdm_refinements > MAX_GDM_REFINEMENTS {
+            return Err(Error::Scene(format!(
+                "gdm_refinements must be at most {MAX_GDM_REFINEMENTS}, got {}",
+                self.gdm_refinements
             )));
         }
         self.camera.validate()?;

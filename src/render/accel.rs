@@ -2,7 +2,13 @@
 //! boxes. It only proposes primitives; every renderer tests them exactly in f64.
 
 use glam::{DVec3, Vec3A};
-use obvhs::{BvhBuildParams, aabb::Aabb, cwbvh::CwBvh, cwbvh::builder::build_cwbvh, ray::Ray};
+use obvhs::{
+    BvhBuildParams,
+    aabb::Aabb,
+    cwbvh::CwBvh,
+    cwbvh::builder::build_cwbvh,
+    ray::{Ray, RayHit},
+};
 use std::time::Duration;
 
 /// A BVH over boxes given in f64.
@@ -48,8 +54,50 @@ impl BoxBvh {
         if self.boxes.is_empty() {
             return;
         }
+        let ray = self.ray(origin, dir, t_min, t_max);
+        self.bvh.ray_traverse_anyhit(ray, |_, id| {
+            let index = self.bvh.primitive_indices[id] as usize;
+            if let Some(t) = slab(self.boxes[index], origin, dir, t_min, t_max) {
+                f(index, t);
+            }
+        });
+    }
+
+    /// Nearest-hit search: calls `f(index)` for candidate boxes along `origin + t·dir`, t > 0
+    /// (the f32 traversal's superset, without an f64 box test), where `f` answers with the ray parameter of its primitive's nearest hit (or `None`);
+    /// boxes entered beyond the nearest answer so far are skipped. Returns that answer and its
+    /// box.
+    pub fn nearest(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        mut f: impl FnMut(usize) -> Option<f64>,
+    ) -> Option<(f64, usize)> {
+        let mut best: Option<(f64, usize)> = None;
+        if self.boxes.is_empty() {
+            return None;
+        }
+        let ray = self.ray(origin, dir, 0.0, f64::INFINITY);
+        let mut hit = RayHit::none();
+        self.bvh.ray_traverse(ray, &mut hit, |_, id| {
+            let index = self.bvh.primitive_indices[id] as usize;
+            match f(index) {
+                Some(t) if best.is_none_or(|b| t < b.0) => {
+                    best = Some((t, index));
+                    // The traversal culls boxes entered beyond this (rounded up: never culls a
+                    // box an f64 test would enter first).
+                    up(t) * 1.000_001
+                }
+                _ => f32::INFINITY,
+            }
+        });
+        best
+    }
+
+    /// The f32 traversal ray for `[t_min, t_max]`.
+    fn ray(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Ray {
         // obvhs mis-traverses directions with negative zeros; adding +0 makes them positive.
-        let ray = Ray::new(
+        Ray::new(
             origin.as_vec3a(),
             (dir + DVec3::ZERO).as_vec3a(),
             (t_min as f32).max(0.0),
@@ -58,13 +106,7 @@ impl BoxBvh {
             } else {
                 f32::INFINITY
             },
-        );
-        self.bvh.ray_traverse_anyhit(ray, |_, id| {
-            let index = self.bvh.primitive_indices[id] as usize;
-            if let Some(t) = slab(self.boxes[index], origin, dir, t_min, t_max) {
-                f(index, t);
-            }
-        });
+        )
     }
 }
 

@@ -14,7 +14,8 @@
 //!   interpolated like the eigenmaps.
 
 use crate::compress::accuracy::is_escape;
-use crate::gdm::Gdm;
+use crate::compress::quantize::QuantizedFactor;
+use crate::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::package::Package;
 use glam::DVec3;
@@ -99,12 +100,23 @@ impl QueryTaps {
 /// Queries on a dense GDM as baked (either escape convention).
 pub struct RawLookup<'a> {
     gdm: &'a Gdm,
+    /// Per direction bin θ and layer k (index θ·Z + k): stored values at or above this are
+    /// escapes (`+∞` in the infinite convention).
+    escape_from: Vec<f32>,
 }
 
 impl<'a> RawLookup<'a> {
     /// Wraps `gdm`.
     pub fn new(gdm: &'a Gdm) -> Self {
-        RawLookup { gdm }
+        let (dims, dirs) = (gdm.dims(), gdm.dirs());
+        let escape_from = (0..dirs.n_theta)
+            .flat_map(|a| (0..dims.z).map(move |k| (a, k)))
+            .map(|(a, k)| match gdm.escape_convention() {
+                EscapeConvention::Infinite => f32::INFINITY,
+                EscapeConvention::Boundary => ESCAPE_TOLERANCE * gdm.boundary_distance(k, a),
+            })
+            .collect();
+        RawLookup { gdm, escape_from }
     }
 }
 
@@ -115,36 +127,34 @@ impl GdmLookup for RawLookup<'_> {
 
     fn lookup(&self, t: DVec3, v: DVec3) -> Lookup {
         let g = self.gdm;
-        let q = QueryTaps::new(g.dims(), g.dirs(), t, v);
+        let (dims, data) = (g.dims(), g.data());
+        let q = QueryTaps::new(dims, g.dirs(), t, v);
+        // The 8 spatial taps: weight, flat index within one direction's volume, layer.
+        let spatial: [(f64, usize, u32); 8] = std::array::from_fn(|c| {
+            let s = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+            let (i, j, k) = (q.x.index[s[0]], q.y.index[s[1]], q.z.index[s[2]]);
+            let w = q.x.weight(s[0] as u32) * q.y.weight(s[1] as u32) * q.z.weight(s[2] as u32);
+            (w, dims.index(i, j, k), k)
+        });
         let (mut escape, mut hit, mut sum) = (0.0, 0.0, 0.0);
-        for c in 0..32u32 {
-            let s = [
-                c & 1,
-                (c >> 1) & 1,
-                (c >> 2) & 1,
-                (c >> 3) & 1,
-                (c >> 4) & 1,
-            ];
-            let w = q.x.weight(s[0])
-                * q.y.weight(s[1])
-                * q.z.weight(s[2])
-                * q.theta.weight(s[3])
-                * q.phi.weight(s[4]);
-            if w == 0.0 {
-                continue;
-            }
-            let idx = (
-                q.x.index[s[0] as usize],
-                q.y.index[s[1] as usize],
-                q.z.index[s[2] as usize],
-                q.theta.index[s[3] as usize],
-                q.phi.index[s[4] as usize],
-            );
-            if g.is_escape(idx.0, idx.1, idx.2, idx.3, idx.4) {
-                escape += w;
-            } else {
-                hit += w;
-                sum += w * g.get(idx.0, idx.1, idx.2, idx.3, idx.4) as f64;
+        for (sa, &a) in q.theta.index.iter().enumerate() {
+            let escape_from = &self.escape_from[(a * dims.z) as usize..];
+            for (sb, &b) in q.phi.index.iter().enumerate() {
+                let w_dir = q.theta.weight(sa as u32) * q.phi.weight(sb as u32);
+                if w_dir == 0.0 {
+                    continue;
+                }
+                let base = g.index(0, 0, 0, a, b);
+                for &(w, index, k) in &spatial {
+                    let w = w * w_dir;
+                    let value = data[base + index];
+                    if value >= escape_from[k as usize] {
+                        escape += w;
+                    } else {
+                        hit += w;
+                        sum += w * value as f64;
+                    }
+                }
             }
         }
         if escape >= 0.5 || hit == 0.0 {
@@ -172,9 +182,20 @@ pub struct PackageLookup {
 impl PackageLookup {
     /// Unpacks `package`'s factors.
     pub fn new(package: &Package) -> Self {
-        let (dims, dirs) = (package.dims(), package.dirs());
         let (w, e) = package.factors();
-        let rank = w.rank;
+        let margin = package.manifest().gdm.accuracy.escape_margin;
+        Self::from_factors(package.dims(), package.dirs(), &w, &e, margin)
+    }
+
+    /// From quantized factors as a package holds them (weight maps rows (φ, y, x), eigenmaps
+    /// rows (θ, z)) and the escape margin μ.
+    pub fn from_factors(
+        dims: Dims,
+        dirs: DirectionGrid,
+        weights: &QuantizedFactor,
+        eigen: &QuantizedFactor,
+        margin: f32,
+    ) -> Self {
         let boundary = (0..dirs.n_theta)
             .flat_map(|a| (0..dims.z).map(move |k| (a, k)))
             .map(|(a, k)| crate::gdm::boundary_distance(dims, &dirs, k, a))
@@ -182,11 +203,11 @@ impl PackageLookup {
         PackageLookup {
             dims,
             dirs,
-            rank,
-            weights: w.dequantize(),
-            eigen: e.dequantize(),
+            rank: weights.rank,
+            weights: weights.dequantize(),
+            eigen: eigen.dequantize(),
             boundary,
-            margin: package.manifest().gdm.accuracy.escape_margin,
+            margin,
         }
     }
 }

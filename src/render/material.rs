@@ -27,7 +27,14 @@ pub struct MaterialVolume {
 impl MaterialVolume {
     /// From a volume: its occupancy and its sRGB albedo (converted to linear).
     pub fn from_volume(volume: &Volume, default_albedo: DVec3) -> Self {
-        Self::from_occupancy(&volume.occupancy(), volume.albedo(), default_albedo)
+        let dims = volume.dims();
+        let density = volume.density();
+        Self::from_field(
+            dims,
+            |i, j, k| density[dims.index(i, j, k)].clamp(0.0, 1.0),
+            volume.albedo(),
+            default_albedo,
+        )
     }
 
     /// From an occupancy grid and optional per-voxel sRGB albedo.
@@ -36,11 +43,26 @@ impl MaterialVolume {
         albedo: Option<&[[u8; 3]]>,
         default_albedo: DVec3,
     ) -> Self {
-        let dims = occ.dims();
+        Self::from_field(
+            occ.dims(),
+            |i, j, k| occ.get(i, j, k) as u8 as f32,
+            albedo,
+            default_albedo,
+        )
+    }
+
+    /// From a solid fraction per voxel (`field(i, j, k)` in [0, 1]) and optional per-voxel
+    /// sRGB albedo.
+    fn from_field(
+        dims: Dims,
+        field: impl Fn(u32, u32, u32) -> f32,
+        albedo: Option<&[[u8; 3]]>,
+        default_albedo: DVec3,
+    ) -> Self {
         let (wx, wy) = (Wrap::new(dims.x), Wrap::new(dims.y));
         let at = |i: i64, j: i64, k: i64| -> f32 {
             let k = k.clamp(0, dims.z as i64 - 1) as u32;
-            occ.get(wx.apply(i) as u32, wy.apply(j) as u32, k) as u8 as f32
+            field(wx.apply(i) as u32, wy.apply(j) as u32, k)
         };
         let weight = [1.0f32, 2.0, 1.0];
         let mut normal = vec![Vec3::ZERO; dims.voxel_count() as usize];
