@@ -1,8 +1,10 @@
 //! The material volume: per-voxel albedo and surface normals of the mesostructure, sampled
 //! the same way by every renderer (and, later, uploaded as a 3D texture by the preview).
 //!
-//! Normals are the negated gradient of the occupancy, by a 3×3×3 Sobel filter over voxel
-//! centres (periodic in x and y, clamped in z), trilinearly interpolated and normalized.
+//! Normals are the negated gradient of the solid fraction, by a 3×3×3 Sobel filter over voxel
+//! centres (periodic in x and y, clamped in z), trilinearly interpolated and normalized. The
+//! fraction is a volume's density clamped to [0, 1] (the samples' 27-point coverage, which
+//! gives smooth normals where binary occupancy gives facets), or 0/1 occupancy.
 //! Albedo is looked up in the voxel a quarter voxel past the hit along the ray (inside the
 //! solid that was hit), falling back to the scene's material albedo where the volume has none.
 
@@ -20,7 +22,7 @@ pub struct MaterialVolume {
     /// Linear albedo per voxel, or `None` for the uniform default.
     albedo: Option<Vec<Vec3>>,
     default_albedo: DVec3,
-    /// Unnormalized outward normal (−∇occupancy) per voxel centre.
+    /// Unnormalized outward normal (−∇ solid fraction) per voxel centre.
     normal: Vec<Vec3>,
 }
 
