@@ -13,7 +13,7 @@ use mesobake::package::Package;
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render_scene::{self, GdmSource, RenderMethod};
 use mesobake::samples::{self, SampleKind};
-use mesobake::{Error, Result, bench, input, npy, report, volume_format};
+use mesobake::{Error, Result, bench, input, npy, render_report, report, volume_format};
 use peak_alloc::PeakAlloc;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -150,6 +150,41 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Map a mesh tile's triangles through the shell into object space and write them as an
+    /// OBJ: explicit geometry, subdivided so that every edge follows the curved mapping within
+    /// --tolerance, welded (a closed tile on a closed base gives a closed mesh).
+    Explicit {
+        /// Base mesh OBJ (with UVs).
+        #[arg(long, required_unless_present = "scene", conflicts_with = "scene")]
+        mesh: Option<PathBuf>,
+        /// Tile OBJ in tile units: x, y over the unit tile (repeating), z in [0, --tile-height].
+        #[arg(long, required_unless_present = "scene", conflicts_with = "scene")]
+        tile: Option<PathBuf>,
+        /// A scene file instead: its base mesh, shell, and OBJ tile or built-in sample (on the
+        /// scene's resolution, tile height Z/X).
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// Shell thickness in object units [default: the tile's edge length in object units
+        /// × tile height, which keeps the tile's proportions].
+        #[arg(long, conflicts_with = "scene")]
+        thickness: Option<f64>,
+        /// Tiles per UV unit along u and v, e.g. 24x10 [default: 1x1].
+        #[arg(long, value_parser = mesobake::explicit::parse_pair, conflicts_with = "scene")]
+        tiles: Option<[f64; 2]>,
+        /// The tile's height H in tile units (Z/X of its grid) [default: 0.5].
+        #[arg(long, conflicts_with = "scene")]
+        tile_height: Option<f64>,
+        /// Largest distance (object units) between an output edge's midpoint and the exact
+        /// mapping of its texture midpoint [default: 1e-3 × thickness].
+        #[arg(long)]
+        tolerance: Option<f64>,
+        /// Output OBJ.
+        #[arg(long)]
+        out: PathBuf,
+        /// Print the statistics as JSON on stdout.
+        #[arg(long)]
+        json: bool,
+    },
     /// Reports on what accuracy costs.
     Report {
         #[command(subcommand)]
@@ -233,6 +268,29 @@ enum ReportCommand {
         /// Quantizations, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "f32,f16")]
         quants: Vec<Quantization>,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
+    /// The GDM renderer's image error against the ground truth on a scene, over direction
+    /// resolutions × (exact GDM, SVD ranks) × refinement counts, with render times: Markdown
+    /// on stdout; render-accuracy.md and render-accuracy.json in --out.
+    Render {
+        /// Scene file.
+        #[arg(long)]
+        scene: PathBuf,
+        /// Direction grids, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "8x16,16x32,32x64")]
+        dirs: Vec<DirectionGrid>,
+        /// SVD ranks, comma-separated (the exact GDM is always rendered too).
+        #[arg(long, value_delimiter = ',', default_value = "2,4,8,16")]
+        ranks: Vec<usize>,
+        /// Quantization of the compressed factors.
+        #[arg(long, default_value = "f16")]
+        quant: Quantization,
+        /// GDM refinement counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0,2")]
+        refinements: Vec<u32>,
         /// Output directory.
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
@@ -502,6 +560,76 @@ fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
+        Command::Explicit {
+            mesh,
+            tile,
+            scene,
+            thickness,
+            tiles,
+            tile_height,
+            tolerance,
+            out,
+            json,
+        } => {
+            use mesobake::explicit::ExplicitInput;
+            let input = match (&scene, &mesh, &tile) {
+                (Some(scene), _, _) => ExplicitInput::from_scene(scene, &limits)?,
+                (None, Some(mesh), Some(tile)) => ExplicitInput::from_files(
+                    mesh,
+                    tile,
+                    thickness,
+                    tiles.unwrap_or([1.0, 1.0]),
+                    tile_height.unwrap_or(0.5),
+                    &limits,
+                )?,
+                _ => {
+                    return Err(Error::InvalidParameter(
+                        "explicit needs --scene, or --mesh and --tile".into(),
+                    ));
+                }
+            };
+            eprintln!(
+                "mapping {} tile triangles through the shell of {} base triangles",
+                input.tile.triangles.len(),
+                input.base.triangles.len()
+            );
+            let (shell, explicit) = input.export(tolerance, false, &limits)?;
+            let s = &explicit.stats;
+            let start = Instant::now();
+            let comment = format!(
+                "mesobake explicit: {} triangles, {} vertices; tolerance {:e} (object units), \
+                 largest measured edge deviation {:e}",
+                s.triangles_out, s.vertices_out, s.tolerance, s.max_deviation
+            );
+            write_atomic(&out, explicit.mesh.to_obj(&comment).as_bytes())?;
+            let write_s = start.elapsed().as_secs_f64();
+            eprintln!(
+                "wrote {}: {} triangles, {} vertices from {} tile triangles over {} prisms \
+                 ({} clipped) in {:.2} s; largest edge deviation {:.3e} (tolerance {:.3e})",
+                out.display(),
+                s.triangles_out,
+                s.vertices_out,
+                s.triangles_in,
+                s.prisms,
+                s.triangles_clipped,
+                s.seconds,
+                s.max_deviation,
+                s.tolerance
+            );
+            if json {
+                let summary = serde_json::json!({
+                    "output": out,
+                    "thickness": input.shell.thickness,
+                    "tiles_per_uv": input.shell.tiles_per_uv,
+                    "tile_height": input.tile_height,
+                    "stats": s,
+                    "shell": shell.report,
+                    "seconds": {"export": s.seconds, "write": write_s},
+                });
+                println!("{summary}");
+            }
+            Ok(())
+        }
         Command::Compare { a, b, diff, json } => {
             let (a, b) = (Image::read(&a)?, Image::read(&b)?);
             let c = compare(&a, &b)?;
@@ -552,6 +680,39 @@ fn run(cli: Cli) -> Result<()> {
             print!("{table}");
             eprintln!(
                 "wrote accuracy.md, accuracy.csv and accuracy.svg in {}",
+                out.display()
+            );
+            Ok(())
+        }
+        Command::Report {
+            which:
+                ReportCommand::Render {
+                    scene,
+                    dirs,
+                    ranks,
+                    quant,
+                    refinements,
+                    out,
+                },
+        } => {
+            let loaded = render_scene::load_scene(&scene, &limits)?;
+            let sweep = render_report::RenderSweep {
+                dirs,
+                ranks,
+                quantization: quant,
+                refinements,
+            };
+            let progress = Progress::new("render accuracy report");
+            let report = render_report::render_accuracy(&loaded, &sweep, &limits, &progress)?;
+            progress.0.finish_and_clear();
+            let table = render_report::markdown(&report);
+            std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+            let json = serde_json::to_string_pretty(&report).expect("report serializes");
+            write_atomic(&out.join("render-accuracy.md"), table.as_bytes())?;
+            write_atomic(&out.join("render-accuracy.json"), json.as_bytes())?;
+            print!("{table}");
+            eprintln!(
+                "wrote render-accuracy.md and render-accuracy.json in {}",
                 out.display()
             );
             Ok(())

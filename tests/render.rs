@@ -491,13 +491,20 @@ fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
     let mut boundary = raw.clone();
     boundary.set_escape_convention(EscapeConvention::Boundary);
     let gram = GramEigen::new(&GdmRows::new(&boundary).unwrap(), &limits).unwrap();
-    let c = compress(&boundary, &gram, RankChoice::Rank(rank), Quantization::F32, &limits);
+    let c = compress(
+        &boundary,
+        &gram,
+        RankChoice::Rank(rank),
+        Quantization::F32,
+        &limits,
+    );
     let input = InputInfo {
         kind: "volume".into(),
         bytes: 0,
         blake3: String::new(),
     };
-    let info = mesobake::bake_package::bake_info(&raw, gdm::Method::Exact, Default::default(), false);
+    let info =
+        mesobake::bake_package::bake_info(&raw, gdm::Method::Exact, Default::default(), false);
     let package = Package::parse(Package::encode(input, info, &c.unwrap())).unwrap();
     (raw, package)
 }
@@ -547,7 +554,10 @@ fn package_lookups_decide_escapes_like_raw_lookups() {
             other => panic!("{t} {v}: raw vs package {other:?}"),
         }
     }
-    assert!(hits > 3000 && escapes > 3000, "{hits} hits, {escapes} escapes");
+    assert!(
+        hits > 3000 && escapes > 3000,
+        "{hits} hits, {escapes} escapes"
+    );
 }
 
 #[test]
@@ -579,5 +589,8 @@ fn package_lookups_interpolate_like_raw_lookups_at_full_rank() {
         checked += 1;
     }
     eprintln!("{checked} queries, worst difference {worst:.2e} voxel");
-    assert!(checked > 1000 && worst < 1e-4, "{checked} queries, worst {worst}");
+    assert!(
+        checked > 1000 && worst < 1e-4,
+        "{checked} queries, worst {worst}"
+    );
 }
