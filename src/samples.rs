@@ -278,7 +278,16 @@ impl Primitive {
                 continue;
             }
             let centroid: [f64; 3] = std::array::from_fn(|i| (a[i] + b[i] + c[i]) / 3.0);
-            let step: [f64; 3] = normal.map(|x| x / len * 1e-4);
+            // Probe a quarter of the longest edge off the facet: farther than the chord's sag
+            // below a curved surface (L²/8R < L/4 while L < 2R), so the probes straddle it.
+            let longest = [(a, b), (b, c), (c, a)]
+                .map(|(p, q)| {
+                    let e = crate::trimesh::sub(q, p);
+                    crate::trimesh::dot(e, e).sqrt()
+                })
+                .into_iter()
+                .fold(0.0, f64::max);
+            let step: [f64; 3] = normal.map(|x| x / len * 0.25 * longest);
             let behind = self.inside(std::array::from_fn(|i| centroid[i] - step[i]));
             let front = self.inside(std::array::from_fn(|i| centroid[i] + step[i]));
             votes += match (behind, front) {

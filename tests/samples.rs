@@ -31,6 +31,24 @@ fn every_sample_is_closed_deterministic_and_consistent() {
         );
         let mesh = samples::mesh(kind, d).unwrap();
         assert_eq!(mesh.to_obj(""), samples::mesh(kind, d).unwrap().to_obj(""));
+        // Every part faces outward: the signed volume of the mesh (parts may overlap, so it
+        // can exceed the union's) is at least 0.9 of the voxelized solid's volume and at most
+        // 1.5 of it. A part turned inside out subtracts its volume twice. Threads and bars
+        // close only modulo the tiling, so the volume is the flux of the field (0, 0, z),
+        // periodic in x and y: ∑ (N_z / 2)·z̄ per triangle, N the edge cross product.
+        let signed: f64 = (0..mesh.triangles.len())
+            .map(|t| {
+                let [a, b, c] = mesh.corners(t);
+                let n = mesobake::trimesh::cross(
+                    mesobake::trimesh::sub(b, a),
+                    mesobake::trimesh::sub(c, a),
+                );
+                n[2] / 2.0 * (a[2] + b[2] + c[2]) / 3.0
+            })
+            .sum();
+        let voxelized = solid as f64 / d.voxel_count() as f64 * d.z as f64 / d.x as f64;
+        let ratio = signed / voxelized;
+        assert!((0.9..1.5).contains(&ratio), "{kind:?}: mesh/voxel volume {ratio:.3}");
         let tile = MeshTile::new(mesh, false).unwrap_or_else(|e| panic!("{kind:?}: {e}"));
         assert!(tile.report.is_closed(), "{kind:?}: {:?}", tile.report);
         let caster = MeshCaster::new(&tile, d, &limits).unwrap();
