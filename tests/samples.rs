@@ -48,7 +48,10 @@ fn every_sample_is_closed_deterministic_and_consistent() {
             .sum();
         let voxelized = solid as f64 / d.voxel_count() as f64 * d.z as f64 / d.x as f64;
         let ratio = signed / voxelized;
-        assert!((0.9..1.5).contains(&ratio), "{kind:?}: mesh/voxel volume {ratio:.3}");
+        assert!(
+            (0.9..1.5).contains(&ratio),
+            "{kind:?}: mesh/voxel volume {ratio:.3}"
+        );
         let tile = MeshTile::new(mesh, false).unwrap_or_else(|e| panic!("{kind:?}: {e}"));
         assert!(tile.report.is_closed(), "{kind:?}: {:?}", tile.report);
         let caster = MeshCaster::new(&tile, d, &limits).unwrap();
