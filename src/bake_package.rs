@@ -122,20 +122,34 @@ pub fn bake_package(
     g.set_escape_convention(EscapeConvention::Boundary);
     seconds.bake = start.elapsed().as_secs_f64();
 
+    let info = bake_info(&g, params.method, params.fast, params.allow_open);
+    let (bytes, gdm) = compress_and_encode(&g, input, info, params, limits, &mut seconds)?;
+    Ok(BakedPackage {
+        bytes,
+        gdm,
+        seconds,
+    })
+}
+
+/// The stages after the bake: SVD, quantization and encoding of `g` (boundary escape
+/// convention) with `params`' rank and quantization, timed into `seconds`.
+pub fn compress_and_encode(
+    g: &Gdm,
+    input: InputInfo,
+    bake: BakeInfo,
+    params: &PackageParams,
+    limits: &Limits,
+    seconds: &mut StageSeconds,
+) -> Result<(Vec<u8>, CompressedGdm)> {
     let start = Instant::now();
-    let gram = GramEigen::new(&GdmRows::new(&g)?, limits)?;
+    let gram = GramEigen::new(&GdmRows::new(g)?, limits)?;
     let gram_s = start.elapsed().as_secs_f64();
-    let compressed = compress(&g, &gram, params.rank, params.quantization, limits)?;
+    let compressed = compress(g, &gram, params.rank, params.quantization, limits)?;
     seconds.svd = gram_s + compressed.seconds.svd;
     seconds.quantize = compressed.seconds.quantize;
 
     let start = Instant::now();
-    let info = bake_info(&g, params.method, params.fast, params.allow_open);
-    let bytes = Package::encode(input, info, &compressed);
+    let bytes = Package::encode(input, bake, &compressed);
     seconds.encode = start.elapsed().as_secs_f64();
-    Ok(BakedPackage {
-        bytes,
-        gdm: compressed,
-        seconds,
-    })
+    Ok((bytes, compressed))
 }

@@ -45,6 +45,9 @@ pub enum Error {
         /// The operating system's error.
         source: std::io::Error,
     },
+    /// No GPU adapter, or the GPU refused a resource or a pipeline.
+    #[error("GPU: {0}")]
+    Gpu(String),
     /// The caller asked the operation to stop.
     #[error("cancelled")]
     Cancelled,

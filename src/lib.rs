@@ -39,6 +39,8 @@ pub mod limits;
 pub mod mesh_tile;
 pub mod npy;
 pub mod package;
+pub mod preview_scene;
+pub mod realtime;
 pub mod render;
 pub mod render_report;
 pub mod render_scene;

@@ -10,13 +10,14 @@ use mesobake::gdm::{self, BakeObserver, Method};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::{Limits, parse_bytes};
 use mesobake::package::Package;
+use mesobake::preview_scene::{ScenePackageParams, preview, scene_package};
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render_scene::{self, GdmSource, RenderMethod};
 use mesobake::samples::{self, SampleKind};
 use mesobake::{Error, Result, bench, input, npy, render_report, report, volume_format};
 use peak_alloc::PeakAlloc;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -132,6 +133,36 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
         /// Print a JSON summary (seconds per stage, hit pixels, shell report) on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Render a scene with the real-time pipeline (WGSL shaders on wgpu, headless, on any
+    /// adapter including Mesa's software Vulkan driver) from a package, or from one baked for
+    /// the scene (exact GDM, then --rank and --quant): .png or .exr as for `render`.
+    Preview {
+        /// The scene (JSON; see docs/scene-format.md).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Output image (.png or .exr).
+        #[arg(long)]
+        out: PathBuf,
+        /// Render from this package (its grid must be the scene's) instead of baking one.
+        #[arg(long)]
+        package: Option<PathBuf>,
+        /// SVD components of the baked package.
+        #[arg(long, default_value_t = 8, conflicts_with = "package")]
+        rank: usize,
+        /// Number format of the baked package: f32, f16 or u8.
+        #[arg(long, default_value = "f16", conflicts_with = "package")]
+        quant: Quantization,
+        /// Also render this many frames and report the mean frame time.
+        #[arg(long, default_value_t = 0)]
+        frames: u32,
+        /// Use the adapter whose name contains this (case-insensitive; default: the
+        /// MESOBAKE_ADAPTER environment variable, else wgpu's choice).
+        #[arg(long)]
+        adapter: Option<String>,
+        /// Print a JSON summary (adapter, shader variant, GPU memory, seconds) on stdout.
         #[arg(long)]
         json: bool,
     },
@@ -555,6 +586,63 @@ fn run(cli: Cli) -> Result<()> {
                     "base_mesh": loaded.base_report,
                     "shell": loaded.shell.report,
                     "seconds": rendered.seconds,
+                });
+                println!("{summary}");
+            }
+            Ok(())
+        }
+        Command::Preview {
+            scene,
+            out,
+            package,
+            rank,
+            quant,
+            frames,
+            adapter,
+            json,
+        } => {
+            let start = Instant::now();
+            let loaded = render_scene::load_scene(&scene, &limits)?;
+            let load_s = start.elapsed().as_secs_f64();
+            let start = Instant::now();
+            let package = match &package {
+                Some(path) => Package::read(path, &limits)?,
+                None => {
+                    let progress = Progress::new("baking GDM (exact)");
+                    let params = ScenePackageParams {
+                        rank: RankChoice::Rank(rank),
+                        quantization: quant,
+                    };
+                    let dir = scene.parent().unwrap_or(Path::new("."));
+                    let p = scene_package(&loaded, dir, params, &limits, &progress)?;
+                    progress.0.finish_and_clear();
+                    p
+                }
+            };
+            let package_s = start.elapsed().as_secs_f64();
+            let (image, report) = preview(&loaded, &package, adapter.as_deref(), frames)?;
+            image.write(&out)?;
+            eprintln!(
+                "wrote {} ({}×{}, {} hit pixels) on {} ({})",
+                out.display(),
+                image.width,
+                image.height,
+                image.hits(),
+                report.adapter.name,
+                report.variant.name()
+            );
+            if let Some(t) = report.mean_frame_seconds {
+                eprintln!("mean frame time over {frames} frames: {:.3} ms", t * 1e3);
+            }
+            if json {
+                let summary = serde_json::json!({
+                    "scene": scene,
+                    "output": out,
+                    "width": image.width,
+                    "height": image.height,
+                    "hit_pixels": image.hits(),
+                    "seconds": { "load": load_s, "package": package_s },
+                    "preview": report,
                 });
                 println!("{summary}");
             }

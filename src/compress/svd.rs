@@ -45,7 +45,7 @@ pub struct DenseRows<'a> {
 impl<'a> DenseRows<'a> {
     /// Wraps `data` (row-major, `cols` columns; its length must be a multiple of `cols`).
     pub fn new(data: &'a [f32], cols: usize) -> Result<Self> {
-        if cols == 0 || data.len() % cols != 0 {
+        if cols == 0 || !data.len().is_multiple_of(cols) {
             return Err(Error::InvalidParameter(format!(
                 "a dense matrix of {} values cannot have {cols} columns",
                 data.len()

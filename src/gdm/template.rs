@@ -31,7 +31,7 @@ pub(crate) struct Step {
 
 /// Whether rows of width `x` can be rotated word-wise.
 pub fn supports(dims: Dims) -> bool {
-    dims.x <= 64 || dims.x % 64 == 0
+    dims.x <= 64 || dims.x.is_multiple_of(64)
 }
 
 /// The voxels the ray from (½, ½, ½) along `v` touches, in order, until it has left `z`

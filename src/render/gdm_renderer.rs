@@ -9,7 +9,9 @@
 //!    gives the nearer of its two plane hits when convex, the farther when concave (and none
 //!    when one of its planes faces the ray); top and bottom give their plane hit; P_out is the
 //!    nearest of these, T_out the texture coordinate of P_out extrapolated over the face
-//!    triangle whose plane it lies on;
+//!    triangle whose plane it lies on — for a fin, over whichever of its two triangles holds
+//!    P_out (its smallest barycentric coordinate is the larger), since the plane rule's
+//!    choice between nearly coplanar triangles is decided by round-off;
 //! 3. d_t = |T_out − T_in|, V_t = (T_out − T_in)/d_t, query d = GDM(T_in, V_t) — where T_in
 //!    lies in the half voxel above the top sample layer (below the bottom one) and V_t points
 //!    into the volume, the query is made on the ray at that layer's centre plane and the
@@ -34,6 +36,7 @@ use super::accel::BoxBvh;
 use super::gdm_lookup::{GdmLookup, Lookup};
 use super::lighting::shade;
 use super::material::{ALBEDO_DEPTH, MaterialVolume};
+use crate::grid::Dims;
 use crate::scene::{Effect, Scene};
 use crate::shell::{FaceTriangle, Shell};
 use glam::{DMat3, DVec3};
@@ -49,25 +52,51 @@ pub const SHADOW_OFFSET: f64 = 1.0;
 /// worse).
 pub const REFINEMENT_BACKOFF: f64 = 1.0;
 
-/// A face triangle in texture voxel units with its plane.
+/// A face triangle with its texture coordinates in voxel units and its plane.
 #[derive(Clone, Copy, Debug)]
-struct Face {
-    triangle: FaceTriangle,
+pub struct PreparedFace {
+    /// Object-space corners and texture coordinates (voxel units).
+    pub triangle: FaceTriangle,
     /// Unit outward normal.
-    normal: DVec3,
+    pub normal: DVec3,
     /// n·x on the plane.
-    offset: f64,
+    pub offset: f64,
 }
 
-/// A prism prepared for the per-pixel algorithm.
+/// A prism prepared for the per-pixel algorithm (what the shaders receive per prism).
 #[derive(Clone, Debug)]
-struct PreparedPrism {
+pub struct PreparedPrism {
     /// Top, bottom, then the two triangles of fins 0, 1, 2.
-    faces: [Face; 8],
+    pub faces: [PreparedFace; 8],
     /// Whether each fin is convex.
-    convex: [bool; 3],
+    pub convex: [bool; 3],
     /// Object → texture (voxel units).
-    frame: DMat3,
+    pub frame: DMat3,
+}
+
+/// The prisms of `shell` prepared for a GDM on the voxel grid `dims`.
+pub fn prepare_prisms(shell: &Shell, dims: Dims) -> Vec<PreparedPrism> {
+    let scale = DVec3::new(dims.x as f64, dims.y as f64, dims.z as f64);
+    shell
+        .prisms
+        .iter()
+        .map(|p| PreparedPrism {
+            faces: p.faces().map(|f| {
+                let triangle = FaceTriangle {
+                    corners: f.corners,
+                    texture: f.texture.map(|t| t * scale),
+                };
+                let normal = triangle.normal().normalize_or_zero();
+                PreparedFace {
+                    triangle,
+                    normal,
+                    offset: normal.dot(f.corners[0]),
+                }
+            }),
+            convex: p.fins.map(|f| f.convex),
+            frame: DMat3::from_diagonal(scale) * p.to_texture,
+        })
+        .collect()
 }
 
 /// A ray's nearest mesostructure hit by the GDM algorithm.
@@ -101,38 +130,18 @@ impl<'a> GdmRenderer<'a> {
         material: &'a MaterialVolume,
         refinements: u32,
     ) -> Self {
-        let d = lookup.dims();
-        let scale = DVec3::new(d.x as f64, d.y as f64, d.z as f64);
-        let mut boxes = Vec::with_capacity(shell.prisms.len() * 8);
-        let prisms = shell
-            .prisms
+        let prisms = prepare_prisms(shell, lookup.dims());
+        let boxes = prisms
             .iter()
             .map(|p| {
-                let faces = p.faces().map(|f| {
-                    let triangle = FaceTriangle {
-                        corners: f.corners,
-                        texture: f.texture.map(|t| t * scale),
-                    };
-                    let normal = triangle.normal().normalize_or_zero();
-                    Face {
-                        triangle,
-                        normal,
-                        offset: normal.dot(f.corners[0]),
-                    }
-                });
-                let corners = faces[0]
+                let corners = p.faces[0]
                     .triangle
                     .corners
                     .iter()
-                    .chain(&faces[1].triangle.corners);
+                    .chain(&p.faces[1].triangle.corners);
                 let lo = corners.clone().fold(DVec3::INFINITY, |a, &c| a.min(c));
                 let hi = corners.fold(DVec3::NEG_INFINITY, |a, &c| a.max(c));
-                boxes.push((lo, hi));
-                PreparedPrism {
-                    faces,
-                    convex: p.fins.map(|f| f.convex),
-                    frame: DMat3::from_diagonal(scale) * p.to_texture,
-                }
+                (lo, hi)
             })
             .collect();
         GdmRenderer {
@@ -186,7 +195,7 @@ impl<'a> GdmRenderer<'a> {
     ) -> Option<GdmHit> {
         let prism = &self.prisms[p];
         let t_in_tex = prism.faces[f].triangle.texture_at(bary);
-        let plane_hit = |face: &Face| -> Option<f64> {
+        let plane_hit = |face: &PreparedFace| -> Option<f64> {
             let cos = face.normal.dot(dir);
             (cos > 0.0).then(|| (face.offset - face.normal.dot(o)) / cos)
         };
@@ -222,8 +231,25 @@ impl<'a> GdmRenderer<'a> {
             return None;
         }
         let t_out = t_out.max(t_in);
-        let exit_tri = &prism.faces[exit_face].triangle;
-        let t_out_tex = exit_tri.texture_at(exit_tri.barycentric(o + dir * t_out)?);
+        let p_out = o + dir * t_out;
+        let t_out_tex = if exit_face < 2 {
+            let tri = &prism.faces[exit_face].triangle;
+            tri.texture_at(tri.barycentric(p_out)?)
+        } else {
+            // A fin: the triangle that holds P_out. Where its two planes nearly coincide
+            // (planar fins, e.g. along a torus's meridians) the other triangle's texture map
+            // would be wrong, and the plane rule's choice is decided by round-off: 0.09 % of
+            // the torus + chain pixels flipped under a 1-ulp change of their rays.
+            let a = 2 + (exit_face - 2) / 2 * 2;
+            let [ta, tb] = [a, a + 1].map(|f| &prism.faces[f].triangle);
+            let (ba, bb) = (ta.barycentric(p_out)?, tb.barycentric(p_out)?);
+            let inside = |b: [f64; 3]| b[0].min(b[1]).min(b[2]);
+            if inside(ba) >= inside(bb) {
+                ta.texture_at(ba)
+            } else {
+                tb.texture_at(bb)
+            }
+        };
         let segment = t_out_tex - t_in_tex;
         let d_t = segment.length();
         if d_t.is_nan() || d_t <= 0.0 {

@@ -102,6 +102,21 @@ impl MaterialVolume {
         self.dims
     }
 
+    /// Unnormalized outward normals per voxel centre, x fastest (what the preview uploads).
+    pub fn normal_voxels(&self) -> &[Vec3] {
+        &self.normal
+    }
+
+    /// Linear albedo per voxel, x fastest, or `None` where the material is uniform.
+    pub fn albedo_voxels(&self) -> Option<&[Vec3]> {
+        self.albedo.as_deref()
+    }
+
+    /// The uniform albedo used where the volume has none.
+    pub fn default_albedo(&self) -> DVec3 {
+        self.default_albedo
+    }
+
     /// Linear albedo of the voxel containing `t` (texture point in voxel units, x and y
     /// periodic, z clamped into the grid).
     pub fn albedo_at(&self, t: DVec3) -> DVec3 {

@@ -1,0 +1,475 @@
+// The GDM real-time pipeline: the per-pixel algorithm of `src/render/gdm_renderer.rs`, step
+// for step (that file's module documentation is the specification; the tests hold the two
+// to PSNR ≥ 35 dB). This file is completed by one shadow file (`shadows_on.wgsl` or
+// `shadows_off.wgsl`) and by the constant REFINEMENTS, chosen from the scene's effects and
+// knobs (`src/preview/variant.rs`).
+
+const PI: f32 = 3.141592653589793;
+const TAU: f32 = 6.283185307179586;
+// Where the shadow query starts, in voxels from the hit along the texture normal.
+const SHADOW_OFFSET: f32 = 1.0;
+// How far short of the previous estimate a refinement query is made, in voxels.
+const REFINEMENT_BACKOFF: f32 = 1.0;
+// How far past a hit, in voxels along the ray, the albedo is read.
+const ALBEDO_DEPTH: f32 = 0.25;
+// No exit face found.
+const NO_FACE: u32 = 8u;
+
+// ---- Bindings -------------------------------------------------------------------------
+
+struct View {
+    view_proj: mat4x4<f32>,
+    // xyz: eye position.
+    eye: vec4<f32>,
+    // rgb: Blinn–Phong specular colour, a: shininess.
+    specular: vec4<f32>,
+    light_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+struct Light {
+    // 0 point, 1 directional, 2 ambient.
+    kind: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    // Point: position; directional: the direction the light travels.
+    vector: vec4<f32>,
+    // Point: intensity; directional: irradiance; ambient: radiance.
+    colour: vec4<f32>,
+}
+
+// One face triangle of a prism: object-space corners (counter-clockwise from outside),
+// texture coordinates in voxel units, and the outward unit plane (xyz normal, w = n·x).
+struct Face {
+    corners: array<vec4<f32>, 3>,
+    texture: array<vec4<f32>, 3>,
+    plane: vec4<f32>,
+}
+
+// Faces: top, bottom, then the two triangles of fins 0, 1, 2.
+struct Prism {
+    faces: array<Face, 8>,
+    // Rows of the object → texture (voxel units) matrix.
+    frame: array<vec4<f32>, 3>,
+    // Whether fins 0, 1, 2 are convex (w unused).
+    convex: vec4<u32>,
+}
+
+struct GdmParams {
+    // X, Y, Z voxels and Nθ.
+    dims: vec4<u32>,
+    n_phi: u32,
+    // Component groups of four in the *_full textures, stacked along φ (weights) and θ (eigen).
+    full_groups: u32,
+    // 1 when the last group (fewer than four components) sits in the *_tail textures.
+    has_tail: u32,
+    // The package's relative escape margin μ.
+    margin: f32,
+}
+
+// Per component group: decoded = bias + scale · stored.
+struct Dequant {
+    weight_scale: vec4<f32>,
+    weight_bias: vec4<f32>,
+    eigen_scale: vec4<f32>,
+    eigen_bias: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> lights: array<Light>;
+@group(0) @binding(2) var<storage, read> prisms: array<Prism>;
+
+@group(1) @binding(0) var<uniform> gdm: GdmParams;
+@group(1) @binding(1) var weights_full: texture_3d<f32>;
+@group(1) @binding(2) var weights_tail: texture_3d<f32>;
+@group(1) @binding(3) var eigen_full: texture_2d<f32>;
+@group(1) @binding(4) var eigen_tail: texture_2d<f32>;
+@group(1) @binding(5) var<storage, read> dequant: array<Dequant>;
+
+// xyz: unnormalized outward normal (−∇ solid fraction) per voxel centre.
+@group(2) @binding(0) var normals: texture_3d<f32>;
+// rgb: linear albedo per voxel (1×1×1 for a uniform albedo).
+@group(2) @binding(1) var albedo: texture_3d<f32>;
+
+// ---- GDM queries (src/render/gdm_lookup.rs, PackageLookup) -----------------------------
+
+// Linear interpolation taps along one axis: two indices and the weight of the second.
+struct Taps {
+    i0: u32,
+    i1: u32,
+    frac: f32,
+}
+
+fn wrap(i: i32, n: u32) -> u32 {
+    let m = i32(n);
+    return u32(((i % m) + m) % m);
+}
+
+fn periodic_taps(coord: f32, n: u32) -> Taps {
+    let f = floor(coord);
+    let i = i32(f);
+    return Taps(wrap(i, n), wrap(i + 1, n), coord - f);
+}
+
+fn clamped_taps(coord: f32, n: u32) -> Taps {
+    let c = clamp(coord, 0.0, f32(n - 1u));
+    let f = floor(c);
+    let i = u32(f);
+    return Taps(i, min(i + 1u, n - 1u), c - f);
+}
+
+// Trilinear weight-map value of one component group (stacked at depth `base`).
+fn weight_group(tex: texture_3d<f32>, base: u32, x: Taps, y: Taps, phi: Taps) -> vec4<f32> {
+    var sum = vec4<f32>(0.0);
+    for (var c = 0u; c < 8u; c++) {
+        let sx = c & 1u;
+        let sy = (c >> 1u) & 1u;
+        let sp = (c >> 2u) & 1u;
+        let w = select(1.0 - x.frac, x.frac, sx == 1u) * select(1.0 - y.frac, y.frac, sy == 1u)
+            * select(1.0 - phi.frac, phi.frac, sp == 1u);
+        let i = select(x.i0, x.i1, sx == 1u);
+        let j = select(y.i0, y.i1, sy == 1u);
+        let b = select(phi.i0, phi.i1, sp == 1u);
+        sum += w * textureLoad(tex, vec3<i32>(i32(i), i32(j), i32(base + b)), 0);
+    }
+    return sum;
+}
+
+// Bilinear eigenmap value of one component group (stacked at row `base`).
+fn eigen_group(tex: texture_2d<f32>, base: u32, theta: Taps, z: Taps) -> vec4<f32> {
+    var sum = vec4<f32>(0.0);
+    for (var c = 0u; c < 4u; c++) {
+        let st = c & 1u;
+        let sz = (c >> 1u) & 1u;
+        let w = select(1.0 - theta.frac, theta.frac, st == 1u) * select(1.0 - z.frac, z.frac, sz == 1u);
+        let a = select(theta.i0, theta.i1, st == 1u);
+        let k = select(z.i0, z.i1, sz == 1u);
+        sum += w * textureLoad(tex, vec2<i32>(i32(k), i32(base + a)), 0);
+    }
+    return sum;
+}
+
+// Distance from sample layer k to the top or bottom plane along direction bin a.
+fn boundary_distance(k: u32, a: u32) -> f32 {
+    let cos_theta = cos((f32(a) + 0.5) * PI / f32(gdm.dims.w));
+    let z = f32(k) + 0.5;
+    return select(-z / cos_theta, (f32(gdm.dims.z) - z) / cos_theta, cos_theta > 0.0);
+}
+
+// d(t, v): t in voxel units, v a unit texture-space direction. Hits give the distance
+// (≥ 0), escapes −1.
+fn gdm_lookup(t: vec3<f32>, v: vec3<f32>) -> f32 {
+    let n_theta = gdm.dims.w;
+    let theta = acos(clamp(v.z, -1.0, 1.0));
+    var phi = atan2(v.y, v.x);
+    if phi < 0.0 {
+        phi += TAU;
+    }
+    let x = periodic_taps(t.x - 0.5, gdm.dims.x);
+    let y = periodic_taps(t.y - 0.5, gdm.dims.y);
+    let z = clamped_taps(t.z - 0.5, gdm.dims.z);
+    let th = clamped_taps(theta / PI * f32(n_theta) - 0.5, n_theta);
+    let ph = periodic_taps(phi / TAU * f32(gdm.n_phi) - 0.5, gdm.n_phi);
+    var dist = 0.0;
+    for (var g = 0u; g < gdm.full_groups; g++) {
+        let q = dequant[g];
+        let w = q.weight_bias + q.weight_scale * weight_group(weights_full, g * gdm.n_phi, x, y, ph);
+        let e = q.eigen_bias + q.eigen_scale * eigen_group(eigen_full, g * n_theta, th, z);
+        dist += dot(w, e);
+    }
+    if gdm.has_tail == 1u {
+        let q = dequant[gdm.full_groups];
+        let w = q.weight_bias + q.weight_scale * weight_group(weights_tail, 0u, x, y, ph);
+        let e = q.eigen_bias + q.eigen_scale * eigen_group(eigen_tail, 0u, th, z);
+        dist += dot(w, e);
+    }
+    let boundary = (1.0 - th.frac) * (1.0 - z.frac) * boundary_distance(z.i0, th.i0)
+        + th.frac * (1.0 - z.frac) * boundary_distance(z.i0, th.i1)
+        + (1.0 - th.frac) * z.frac * boundary_distance(z.i1, th.i0)
+        + th.frac * z.frac * boundary_distance(z.i1, th.i1);
+    if dist >= (1.0 - gdm.margin) * boundary {
+        return -1.0;
+    }
+    return max(dist, 0.0);
+}
+
+// How far along `view` the query point moves from `t` to reach the centre plane of the top
+// layer when it enters from the half voxel above it, or of the bottom layer from below.
+fn advance_to_samples(t: vec3<f32>, view_dir: vec3<f32>, z: f32, d_t: f32) -> f32 {
+    var s = 0.0;
+    if view_dir.z < 0.0 && t.z > z - 0.5 {
+        s = (t.z - (z - 0.5)) / -view_dir.z;
+    } else if view_dir.z > 0.0 && t.z < 0.5 {
+        s = (0.5 - t.z) / view_dir.z;
+    }
+    return select(0.0, s, s < d_t);
+}
+
+// The hit distance along the texture-space segment, or −1 when the ray leaves it first.
+fn segment_hit(start: vec3<f32>, view_dir: vec3<f32>, d_t: f32) -> f32 {
+    var travelled = advance_to_samples(start, view_dir, f32(gdm.dims.z), d_t);
+    var answer = gdm_lookup(start + view_dir * travelled, view_dir);
+    for (var r = 0u; r < REFINEMENTS; r++) {
+        if answer < 0.0 {
+            break;
+        }
+        let step = answer - REFINEMENT_BACKOFF;
+        if step <= 0.0 || travelled + answer >= d_t {
+            break;
+        }
+        let next = gdm_lookup(start + view_dir * (travelled + step), view_dir);
+        if next < 0.0 {
+            break;
+        }
+        travelled += step;
+        answer = next;
+    }
+    if answer >= 0.0 && travelled + answer < d_t {
+        return travelled + answer;
+    }
+    return -1.0;
+}
+
+// ---- Material and lighting (src/render/material.rs, src/render/lighting.rs) ------------
+
+// Trilinear texture-space normal (unnormalized; zero where the gradient vanishes).
+fn normal_at(t: vec3<f32>) -> vec3<f32> {
+    let z_max = f32(gdm.dims.z - 1u);
+    let f = vec3<f32>(t.x - 0.5, t.y - 0.5, clamp(t.z - 0.5, 0.0, z_max));
+    let f0 = floor(f);
+    let a = f - f0;
+    var n = vec3<f32>(0.0);
+    for (var c = 0u; c < 8u; c++) {
+        let d = vec3<u32>(c & 1u, (c >> 1u) & 1u, (c >> 2u) & 1u);
+        let w = select(1.0 - a.x, a.x, d.x == 1u) * select(1.0 - a.y, a.y, d.y == 1u)
+            * select(1.0 - a.z, a.z, d.z == 1u);
+        let i = wrap(i32(f0.x) + i32(d.x), gdm.dims.x);
+        let j = wrap(i32(f0.y) + i32(d.y), gdm.dims.y);
+        let k = min(u32(f0.z) + d.z, gdm.dims.z - 1u);
+        n += w * textureLoad(normals, vec3<i32>(i32(i), i32(j), i32(k)), 0).xyz;
+    }
+    return n;
+}
+
+// Linear albedo of the voxel containing t.
+fn albedo_at(t: vec3<f32>) -> vec3<f32> {
+    let dims = textureDimensions(albedo);
+    let i = wrap(i32(floor(t.x)), dims.x);
+    let j = wrap(i32(floor(t.y)), dims.y);
+    let k = min(u32(max(floor(t.z), 0.0)), dims.z - 1u);
+    return textureLoad(albedo, vec3<i32>(i32(i), i32(j), i32(k)), 0).rgb;
+}
+
+// Normalizes v, or returns `fallback` for a zero or non-finite vector.
+fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let len2 = dot(v, v);
+    if len2 > 0.0 && len2 < 3.0e38 {
+        return v * inverseSqrt(len2);
+    }
+    return fallback;
+}
+
+// Lambert + normalized Blinn–Phong from every light, with the variant's shadow test.
+fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, frame: array<vec4<f32>, 3>, shadow_origin: vec3<f32>) -> vec3<f32> {
+    var out = vec3<f32>(0.0);
+    let s = view.specular.w;
+    for (var l = 0u; l < view.light_count; l++) {
+        let light = lights[l];
+        if light.kind == 2u {
+            out += base * light.colour.rgb;
+            continue;
+        }
+        var dir: vec3<f32>;
+        var irradiance: vec3<f32>;
+        if light.kind == 0u {
+            let to = light.vector.xyz - p;
+            let r2 = dot(to, to);
+            if r2 <= 0.0 {
+                continue;
+            }
+            dir = to / sqrt(r2);
+            irradiance = light.colour.rgb / r2;
+        } else {
+            dir = -normalize(light.vector.xyz);
+            irradiance = light.colour.rgb;
+        }
+        let cos_l = dot(n, dir);
+        if cos_l <= 0.0 {
+            continue;
+        }
+        let l_tex = vec3<f32>(dot(frame[0].xyz, dir), dot(frame[1].xyz, dir), dot(frame[2].xyz, dir));
+        if !light_visible(shadow_origin, l_tex) {
+            continue;
+        }
+        let h = normalize_or(dir + to_eye, vec3<f32>(0.0));
+        let lobe = view.specular.rgb * ((s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s));
+        out += (base / PI + lobe) * irradiance * cos_l;
+    }
+    return out;
+}
+
+// ---- The pipeline ---------------------------------------------------------------------
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) texture: vec3<f32>,
+    @location(2) prism: u32,
+    @location(3) face: u32,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) texture: vec3<f32>,
+    @location(2) @interpolate(flat) prism: u32,
+    @location(3) @interpolate(flat) face: u32,
+}
+
+struct FragmentOut {
+    @location(0) radiance: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = view.view_proj * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.texture = v.texture;
+    out.prism = v.prism;
+    out.face = v.face;
+    return out;
+}
+
+// Ray parameter (from the entry point) where the ray meets face f's plane from inside, or
+// −1 when the plane faces away from the ray.
+fn plane_exit(face: Face, p_in: vec3<f32>, dir: vec3<f32>) -> vec2<f32> {
+    let c = dot(face.plane.xyz, dir);
+    return vec2<f32>((face.plane.w - dot(face.plane.xyz, p_in)) / c, select(0.0, 1.0, c > 0.0));
+}
+
+// Barycentric coordinates (xyz) of p projected onto the face's plane, extrapolated outside
+// the triangle; w = 0 for a zero-area face.
+fn barycentric(face: Face, p: vec3<f32>) -> vec4<f32> {
+    let c0 = face.corners[0].xyz;
+    let c1 = face.corners[1].xyz;
+    let c2 = face.corners[2].xyz;
+    let n = cross(c1 - c0, c2 - c0);
+    let nn = dot(n, n);
+    if nn == 0.0 {
+        return vec4<f32>(0.0);
+    }
+    let l1 = dot(cross(c2 - c1, p - c1), n) / nn;
+    let l2 = dot(cross(c0 - c2, p - c2), n) / nn;
+    return vec4<f32>(l1, l2, 1.0 - l1 - l2, 1.0);
+}
+
+fn texture_at(face: Face, l: vec3<f32>) -> vec3<f32> {
+    return face.texture[0].xyz * l.x + face.texture[1].xyz * l.y + face.texture[2].xyz * l.z;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> FragmentOut {
+    let prism = prisms[in.prism];
+    let p_in = in.world;
+    let dir = normalize(p_in - view.eye.xyz);
+    let t_in_tex = in.texture;
+
+    // Step 2: the exit point by ray–plane intersections with the concave/convex fin rule.
+    var t_out = 3.0e38;
+    var exit_face = NO_FACE;
+    for (var f = 0u; f < 2u; f++) {
+        let h = plane_exit(prism.faces[f], p_in, dir);
+        if h.y > 0.0 && h.x < t_out {
+            t_out = h.x;
+            exit_face = f;
+        }
+    }
+    for (var k = 0u; k < 3u; k++) {
+        let a = 2u + 2u * k;
+        let b = a + 1u;
+        let convex = prism.convex[k] == 1u;
+        let ha = plane_exit(prism.faces[a], p_in, dir);
+        let hb = plane_exit(prism.faces[b], p_in, dir);
+        var pick = vec2<f32>(0.0, 0.0);
+        var face = NO_FACE;
+        if ha.y > 0.0 && hb.y > 0.0 {
+            if (ha.x <= hb.x) == convex {
+                pick = ha;
+                face = a;
+            } else {
+                pick = hb;
+                face = b;
+            }
+        } else if ha.y > 0.0 && convex {
+            pick = ha;
+            face = a;
+        } else if hb.y > 0.0 && convex {
+            pick = hb;
+            face = b;
+        }
+        if face != NO_FACE && pick.x < t_out {
+            t_out = pick.x;
+            exit_face = face;
+        }
+    }
+    if exit_face == NO_FACE {
+        discard;
+    }
+    t_out = max(t_out, 0.0);
+    let p_out = p_in + dir * t_out;
+
+    // T_out: the exit point's texture coordinate, extrapolated over the exit face triangle
+    // (for a fin, over whichever of its two triangles holds P_out).
+    var t_out_tex: vec3<f32>;
+    if exit_face < 2u {
+        let b = barycentric(prism.faces[exit_face], p_out);
+        if b.w == 0.0 {
+            discard;
+        }
+        t_out_tex = texture_at(prism.faces[exit_face], b.xyz);
+    } else {
+        let a = 2u + (exit_face - 2u) / 2u * 2u;
+        let ba = barycentric(prism.faces[a], p_out);
+        let bb = barycentric(prism.faces[a + 1u], p_out);
+        if ba.w == 0.0 || bb.w == 0.0 {
+            discard;
+        }
+        if min(ba.x, min(ba.y, ba.z)) >= min(bb.x, min(bb.y, bb.z)) {
+            t_out_tex = texture_at(prism.faces[a], ba.xyz);
+        } else {
+            t_out_tex = texture_at(prism.faces[a + 1u], bb.xyz);
+        }
+    }
+
+    // Steps 3–5: the GDM query on the texture-space segment.
+    let segment = t_out_tex - t_in_tex;
+    let d_t = length(segment);
+    if !(d_t > 0.0) {
+        discard;
+    }
+    let view_tex = segment / d_t;
+    let d = segment_hit(t_in_tex, view_tex, d_t);
+    if d < 0.0 {
+        discard;
+    }
+    let p_hit = p_in + (d / d_t) * (p_out - p_in);
+    let t_hit = t_in_tex + view_tex * d;
+
+    // Step 6: shading with the prism's mean frame.
+    let frame = prism.frame;
+    let n_raw = normal_at(t_hit);
+    let n_tex = normalize_or(n_raw, -view_tex);
+    let n_obj = normalize_or(frame[0].xyz * n_tex.x + frame[1].xyz * n_tex.y + frame[2].xyz * n_tex.z, -dir);
+    let base = albedo_at(t_hit + view_tex * ALBEDO_DEPTH);
+    let radiance = shade(p_hit, n_obj, base, -dir, frame, t_hit + n_tex * SHADOW_OFFSET);
+
+    var out: FragmentOut;
+    out.radiance = vec4<f32>(radiance, 1.0);
+    let clip = view.view_proj * vec4<f32>(p_hit, 1.0);
+    out.depth = clip.z / clip.w;
+    return out;
+}

@@ -1,0 +1,14 @@
+//! The real-time preview: the GDM pipeline of the paper in WGSL (`shaders/`), run headless
+//! on wgpu (any adapter, including Mesa's software Vulkan driver). It renders the same image
+//! as [`crate::render::gdm_renderer`], its executable specification, from a package's
+//! textures uploaded as they are laid out.
+//!
+//! - [`gpu`]: adapter choice and device;
+//! - [`variant`]: the shader variants, chosen from the scene's effects;
+//! - [`resources`]: package, material and shell uploads, with the GPU memory they take;
+//! - [`pipeline`]: the render pipeline, frames, read-back and timing.
+
+pub mod gpu;
+pub mod pipeline;
+pub mod resources;
+pub mod variant;

@@ -1,0 +1,558 @@
+//! What the preview uploads: a package's GDM factors (its binary sections, as they are laid
+//! out), the material volume and the shell's prisms, with the GPU memory each takes.
+//!
+//! Factor textures: the component groups of four that fill an `rgba` texel are stacked in
+//! one texture per factor (weight maps along depth, one Nφ slab per group; eigenmaps along
+//! height, one Nθ band per group); the last group of a rank that is not a multiple of four
+//! has its own, narrower texture. Each section is copied byte for byte into its slab.
+
+use super::gpu::Gpu;
+use crate::error::{Error, Result};
+use crate::package::Package;
+use crate::package::manifest::TexelFormat;
+use crate::render::gdm_renderer::PreparedPrism;
+use crate::render::material::MaterialVolume;
+use bytemuck::{Pod, Zeroable};
+use serde::Serialize;
+use wgpu::util::DeviceExt;
+
+/// Bytes of GPU memory per kind of resource.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct GpuMemory {
+    /// The package: factor textures, decode table and parameters.
+    pub package: u64,
+    /// Material volume: normal and albedo textures.
+    pub material: u64,
+    /// Shell: vertex buffer and per-prism data.
+    pub geometry: u64,
+    /// Colour, depth and read-back targets.
+    pub targets: u64,
+}
+
+impl GpuMemory {
+    /// The sum.
+    pub fn total(&self) -> u64 {
+        self.package + self.material + self.geometry + self.targets
+    }
+}
+
+/// The GDM parameters the shader reads (`GdmParams` in `shaders/gdm_preview.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GdmParams {
+    dims: [u32; 4],
+    n_phi: u32,
+    full_groups: u32,
+    has_tail: u32,
+    margin: f32,
+}
+
+/// A package on the GPU.
+pub struct GpuPackage {
+    /// Group 1 of the pipeline.
+    pub bind_group: wgpu::BindGroup,
+    /// Bytes uploaded.
+    pub bytes: u64,
+}
+
+/// The material volume on the GPU.
+pub struct GpuMaterial {
+    /// Group 2 of the pipeline.
+    pub bind_group: wgpu::BindGroup,
+    /// Bytes uploaded.
+    pub bytes: u64,
+}
+
+/// The shell on the GPU: 24 vertices (8 face triangles) per prism, and the prisms.
+pub struct GpuShell {
+    /// Position, texture coordinate (voxels), prism and face index per vertex.
+    pub vertices: wgpu::Buffer,
+    /// Vertices to draw.
+    pub vertex_count: u32,
+    /// `Prism` records of the shader.
+    pub prisms: wgpu::Buffer,
+    /// Bytes uploaded.
+    pub bytes: u64,
+}
+
+/// One vertex of a face triangle.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct Vertex {
+    position: [f32; 3],
+    texture: [f32; 3],
+    prism: u32,
+    face: u32,
+}
+
+impl Vertex {
+    /// The vertex buffer layout (locations 0–3 of `vs_main`).
+    pub const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<Vertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Uint32, 3 => Uint32],
+    };
+}
+
+/// The shader's `Face`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FaceRecord {
+    corners: [[f32; 4]; 3],
+    texture: [[f32; 4]; 3],
+    plane: [f32; 4],
+}
+
+/// The shader's `Prism`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct PrismRecord {
+    faces: [FaceRecord; 8],
+    frame: [[f32; 4]; 3],
+    convex: [u32; 4],
+}
+
+fn vec4(v: glam::DVec3, w: f64) -> [f32; 4] {
+    [v.x as f32, v.y as f32, v.z as f32, w as f32]
+}
+
+fn wgpu_format(f: TexelFormat) -> wgpu::TextureFormat {
+    use wgpu::TextureFormat as W;
+    match f {
+        TexelFormat::R32float => W::R32Float,
+        TexelFormat::Rg32float => W::Rg32Float,
+        TexelFormat::Rgba32float => W::Rgba32Float,
+        TexelFormat::R16float => W::R16Float,
+        TexelFormat::Rg16float => W::Rg16Float,
+        TexelFormat::Rgba16float => W::Rgba16Float,
+        TexelFormat::R8unorm => W::R8Unorm,
+        TexelFormat::Rg8unorm => W::Rg8Unorm,
+        TexelFormat::Rgba8unorm => W::Rgba8Unorm,
+    }
+}
+
+/// A texture being filled slab by slab.
+struct Slabs {
+    texture: wgpu::Texture,
+    texel_bytes: u32,
+    size: wgpu::Extent3d,
+}
+
+impl Slabs {
+    fn new(
+        gpu: &Gpu,
+        label: &str,
+        dimension: wgpu::TextureDimension,
+        format: TexelFormat,
+        size: wgpu::Extent3d,
+    ) -> Result<Slabs> {
+        let limits = gpu.device.limits();
+        let max = match dimension {
+            wgpu::TextureDimension::D3 => limits.max_texture_dimension_3d,
+            _ => limits.max_texture_dimension_2d,
+        };
+        let largest = size.width.max(size.height).max(size.depth_or_array_layers);
+        if largest > max {
+            return Err(Error::Gpu(format!(
+                "{label}: a {}×{}×{} texture exceeds this adapter's limit of {max} texels per side",
+                size.width, size.height, size.depth_or_array_layers
+            )));
+        }
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension,
+            format: wgpu_format(format),
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        Ok(Slabs {
+            texture,
+            texel_bytes: format.texel_bytes(),
+            size,
+        })
+    }
+
+    /// Copies `bytes` (a width × `rows` × `images` block, x fastest) to `origin`.
+    fn write(&self, gpu: &Gpu, bytes: &[u8], origin: wgpu::Origin3d, rows: u32, images: u32) {
+        gpu.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(self.size.width * self.texel_bytes),
+                rows_per_image: Some(rows),
+            },
+            wgpu::Extent3d {
+                width: self.size.width,
+                height: rows,
+                depth_or_array_layers: images,
+            },
+        );
+    }
+
+    fn bytes(&self) -> u64 {
+        self.size.width as u64
+            * self.size.height as u64
+            * self.size.depth_or_array_layers as u64
+            * self.texel_bytes as u64
+    }
+
+    fn view(&self) -> wgpu::TextureView {
+        self.texture
+            .create_view(&wgpu::TextureViewDescriptor::default())
+    }
+}
+
+fn extent(width: u32, height: u32, depth: u32) -> wgpu::Extent3d {
+    wgpu::Extent3d {
+        width,
+        height,
+        depth_or_array_layers: depth,
+    }
+}
+
+/// Uploads `package`'s factors for the pipeline's group 1 (`layout`).
+pub fn upload_package(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    package: &Package,
+) -> Result<GpuPackage> {
+    let (dims, dirs) = (package.dims(), package.dirs());
+    let g = &package.manifest().gdm;
+    let rank = g.rank as usize;
+    let (full_groups, has_tail) = ((rank / 4) as u32, !rank.is_multiple_of(4));
+    let section_of = |name: &str| -> (&[u8], TexelFormat) {
+        let info = package
+            .manifest()
+            .sections
+            .iter()
+            .find(|s| s.name == name)
+            .expect("validated package");
+        (
+            package.section(name).expect("validated package"),
+            info.texture.format,
+        )
+    };
+    let full = TexelFormat::of(g.quantization, 4);
+    let one = extent(1, 1, 1);
+    let d3 = wgpu::TextureDimension::D3;
+    let d2 = wgpu::TextureDimension::D2;
+    let stacked = |n: u32, per: u32| if n == 0 { 1 } else { n * per };
+    let (wx, wy) = if full_groups == 0 {
+        (1, 1)
+    } else {
+        (dims.x, dims.y)
+    };
+    let weights_full = Slabs::new(
+        gpu,
+        "weight maps",
+        d3,
+        full,
+        extent(wx, wy, stacked(full_groups, dirs.n_phi)),
+    )?;
+    let ez = if full_groups == 0 { 1 } else { dims.z };
+    let eigen_full = Slabs::new(
+        gpu,
+        "eigenmaps",
+        d2,
+        full,
+        extent(ez, stacked(full_groups, dirs.n_theta), 1),
+    )?;
+    for group in 0..full_groups as usize {
+        let (w, _) = section_of(&g.weights.sections[group]);
+        weights_full.write(
+            gpu,
+            w,
+            wgpu::Origin3d {
+                x: 0,
+                y: 0,
+                z: group as u32 * dirs.n_phi,
+            },
+            dims.y,
+            dirs.n_phi,
+        );
+        let (e, _) = section_of(&g.eigen.sections[group]);
+        eigen_full.write(
+            gpu,
+            e,
+            wgpu::Origin3d {
+                x: 0,
+                y: group as u32 * dirs.n_theta,
+                z: 0,
+            },
+            dirs.n_theta,
+            1,
+        );
+    }
+    let (weights_tail, eigen_tail) = if has_tail {
+        let (w, wf) = section_of(&g.weights.sections[full_groups as usize]);
+        let (e, ef) = section_of(&g.eigen.sections[full_groups as usize]);
+        let wt = Slabs::new(
+            gpu,
+            "weight maps (last group)",
+            d3,
+            wf,
+            extent(dims.x, dims.y, dirs.n_phi),
+        )?;
+        wt.write(gpu, w, wgpu::Origin3d::ZERO, dims.y, dirs.n_phi);
+        let et = Slabs::new(
+            gpu,
+            "eigenmaps (last group)",
+            d2,
+            ef,
+            extent(dims.z, dirs.n_theta, 1),
+        )?;
+        et.write(gpu, e, wgpu::Origin3d::ZERO, dirs.n_theta, 1);
+        (wt, et)
+    } else {
+        (
+            Slabs::new(gpu, "no weight maps", d3, full, one)?,
+            Slabs::new(gpu, "no eigenmaps", d2, full, one)?,
+        )
+    };
+    // Decode table: per group, weight scale, weight bias, eigen scale, eigen bias (unused
+    // channels zero, so that they contribute nothing).
+    let groups = (full_groups + has_tail as u32).max(1) as usize;
+    let mut dequant = vec![[0f32; 4]; groups * 4];
+    for c in 0..rank {
+        let (group, ch) = (c / 4, c % 4);
+        dequant[group * 4][ch] = g.weights.scale[c];
+        dequant[group * 4 + 1][ch] = g.weights.bias[c];
+        dequant[group * 4 + 2][ch] = g.eigen.scale[c];
+        dequant[group * 4 + 3][ch] = g.eigen.bias[c];
+    }
+    let dequant = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("factor decode"),
+            contents: bytemuck::cast_slice(&dequant),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+    let params = GdmParams {
+        dims: [dims.x, dims.y, dims.z, dirs.n_theta],
+        n_phi: dirs.n_phi,
+        full_groups,
+        has_tail: has_tail as u32,
+        margin: g.accuracy.escape_margin,
+    };
+    let params = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("GDM parameters"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    let views = [
+        weights_full.view(),
+        weights_tail.view(),
+        eigen_full.view(),
+        eigen_tail.view(),
+    ];
+    let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("package"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&views[0]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(&views[1]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::TextureView(&views[2]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: wgpu::BindingResource::TextureView(&views[3]),
+            },
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: dequant.as_entire_binding(),
+            },
+        ],
+    });
+    let bytes = [&weights_full, &weights_tail, &eigen_full, &eigen_tail]
+        .iter()
+        .map(|s| s.bytes())
+        .sum::<u64>()
+        + dequant.size()
+        + params.size();
+    Ok(GpuPackage { bind_group, bytes })
+}
+
+/// Uploads the material volume for the pipeline's group 2 (`layout`): normals and linear
+/// albedo as `rgba32float` 3D textures (a 1×1×1 albedo texture for a uniform material).
+pub fn upload_material(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    material: &MaterialVolume,
+) -> Result<GpuMaterial> {
+    let d = material.dims();
+    let to_texels = |v: &[glam::Vec3]| -> Vec<[f32; 4]> {
+        v.iter().map(|n| n.extend(0.0).to_array()).collect()
+    };
+    let d3 = wgpu::TextureDimension::D3;
+    let normals = Slabs::new(
+        gpu,
+        "material normals",
+        d3,
+        TexelFormat::Rgba32float,
+        extent(d.x, d.y, d.z),
+    )?;
+    normals.write(
+        gpu,
+        bytemuck::cast_slice(&to_texels(material.normal_voxels())),
+        wgpu::Origin3d::ZERO,
+        d.y,
+        d.z,
+    );
+    let albedo = match material.albedo_voxels() {
+        Some(a) => {
+            let s = Slabs::new(
+                gpu,
+                "material albedo",
+                d3,
+                TexelFormat::Rgba32float,
+                extent(d.x, d.y, d.z),
+            )?;
+            s.write(
+                gpu,
+                bytemuck::cast_slice(&to_texels(a)),
+                wgpu::Origin3d::ZERO,
+                d.y,
+                d.z,
+            );
+            s
+        }
+        None => {
+            let s = Slabs::new(
+                gpu,
+                "uniform albedo",
+                d3,
+                TexelFormat::Rgba32float,
+                extent(1, 1, 1),
+            )?;
+            s.write(
+                gpu,
+                bytemuck::cast_slice(&to_texels(&[material.default_albedo().as_vec3()])),
+                wgpu::Origin3d::ZERO,
+                1,
+                1,
+            );
+            s
+        }
+    };
+    let (nv, av) = (normals.view(), albedo.view());
+    let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("material"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&nv),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&av),
+            },
+        ],
+    });
+    Ok(GpuMaterial {
+        bind_group,
+        bytes: normals.bytes() + albedo.bytes(),
+    })
+}
+
+/// Uploads the prepared prisms: their face triangles as vertices and their records.
+pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuShell> {
+    let limits = gpu.device.limits();
+    let record_bytes = std::mem::size_of::<PrismRecord>() as u64;
+    let vertex_bytes = 24 * std::mem::size_of::<Vertex>() as u64;
+    let n = prisms.len().max(1) as u64;
+    if n * record_bytes > limits.max_storage_buffer_binding_size
+        || n * vertex_bytes > limits.max_buffer_size
+    {
+        return Err(Error::Gpu(format!(
+            "{} prisms need {} bytes of prism data, over this adapter's storage buffer limit of {} bytes",
+            prisms.len(),
+            n * record_bytes,
+            limits.max_storage_buffer_binding_size
+        )));
+    }
+    let mut vertices = Vec::with_capacity(prisms.len() * 24);
+    let mut records = Vec::with_capacity(prisms.len().max(1));
+    for (p, prism) in prisms.iter().enumerate() {
+        for (f, face) in prism.faces.iter().enumerate() {
+            for c in 0..3 {
+                vertices.push(Vertex {
+                    position: face.triangle.corners[c].as_vec3().to_array(),
+                    texture: face.triangle.texture[c].as_vec3().to_array(),
+                    prism: p as u32,
+                    face: f as u32,
+                });
+            }
+        }
+        let frame = prism.frame.transpose(); // columns of the transpose are the rows
+        records.push(PrismRecord {
+            faces: prism.faces.map(|f| FaceRecord {
+                corners: f.triangle.corners.map(|c| vec4(c, 0.0)),
+                texture: f.triangle.texture.map(|t| vec4(t, 0.0)),
+                plane: vec4(f.normal, f.offset),
+            }),
+            frame: [
+                vec4(frame.x_axis, 0.0),
+                vec4(frame.y_axis, 0.0),
+                vec4(frame.z_axis, 0.0),
+            ],
+            convex: [
+                prism.convex[0] as u32,
+                prism.convex[1] as u32,
+                prism.convex[2] as u32,
+                0,
+            ],
+        });
+    }
+    if records.is_empty() {
+        records.push(PrismRecord::zeroed());
+    }
+    let vertex_count = vertices.len() as u32;
+    if vertices.is_empty() {
+        vertices.push(Vertex::zeroed());
+    }
+    let vertices = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("shell vertices"),
+            contents: bytemuck::cast_slice(&vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+    let prisms = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("prisms"),
+            contents: bytemuck::cast_slice(&records),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+    let bytes = vertices.size() + prisms.size();
+    Ok(GpuShell {
+        vertices,
+        vertex_count,
+        prisms,
+        bytes,
+    })
+}

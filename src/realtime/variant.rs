@@ -1,0 +1,65 @@
+//! Shader variants: the WGSL module of the preview is composed from `shaders/` for what the
+//! scene calls for, so that an effect it does not call for is absent from the pipeline (not
+//! switched off at run time). The variant matrix is documented in ARCHITECTURE.md.
+
+use crate::scene::{Effect, MAX_GDM_REFINEMENTS, Scene};
+use serde::Serialize;
+
+const PIPELINE: &str = include_str!("../../shaders/gdm_preview.wgsl");
+const SHADOWS_ON: &str = include_str!("../../shaders/shadows_on.wgsl");
+const SHADOWS_OFF: &str = include_str!("../../shaders/shadows_off.wgsl");
+
+/// The name of the function that only the shadow variant contains.
+pub const SHADOW_QUERY_FN: &str = "shadow_query";
+
+/// One variant of the preview's shader.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct ShaderVariant {
+    /// Shadow queries along the lights (the scene's `shadows` effect).
+    pub shadows: bool,
+    /// GDM refinement queries per hit (the scene's `gdm_refinements`), unrolled as a constant.
+    pub refinements: u32,
+}
+
+impl ShaderVariant {
+    /// The variant a scene calls for.
+    pub fn for_scene(scene: &Scene) -> ShaderVariant {
+        ShaderVariant {
+            shadows: scene.wants(Effect::Shadows),
+            refinements: scene.gdm_refinements,
+        }
+    }
+
+    /// Every variant a valid scene can ask for.
+    pub fn all() -> impl Iterator<Item = ShaderVariant> {
+        [false, true].into_iter().flat_map(|shadows| {
+            (0..=MAX_GDM_REFINEMENTS).map(move |refinements| ShaderVariant {
+                shadows,
+                refinements,
+            })
+        })
+    }
+
+    /// A short name, e.g. `shadows+refine2`.
+    pub fn name(&self) -> String {
+        format!(
+            "{}+refine{}",
+            if self.shadows { "shadows" } else { "noshadows" },
+            self.refinements
+        )
+    }
+
+    /// The complete WGSL source of this variant.
+    pub fn source(&self) -> String {
+        let shadows = if self.shadows {
+            SHADOWS_ON
+        } else {
+            SHADOWS_OFF
+        };
+        format!(
+            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{PIPELINE}\n{shadows}",
+            self.name(),
+            self.refinements
+        )
+    }
+}

@@ -1,0 +1,188 @@
+//! The real-time preview against its specification, the CPU GDM software renderer: the same
+//! scene and package must give the same image (PSNR ≥ 35 dB over sRGB values, hit/miss mask
+//! disagreement ≤ 0.5 %). Runs on whatever adapter wgpu finds; CI installs Mesa's software
+//! Vulkan driver. Without any adapter these tests fail, unless MESOBAKE_SKIP_GPU_TESTS=1 says
+//! to skip them (loudly).
+
+use mesobake::compress::quantize::Quantization;
+use mesobake::compress::svd::RankChoice;
+use mesobake::limits::Limits;
+use mesobake::package::Package;
+use mesobake::preview_scene::{ScenePackageParams, preview, scene_package};
+use mesobake::realtime::gpu::Gpu;
+use mesobake::render::gdm_lookup::PackageLookup;
+use mesobake::render::gdm_renderer::GdmRenderer;
+use mesobake::render::image::{Image, compare};
+use mesobake::render::render_image;
+use mesobake::scene::{Effect, LoadedScene, Scene};
+use std::path::Path;
+
+/// Whether GPU tests run here; panics with the reason when no adapter exists and skipping
+/// was not asked for.
+fn gpu_or_skip() -> bool {
+    match Gpu::open(None) {
+        Ok(_) => true,
+        Err(e) if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
+            eprintln!("SKIPPED: no GPU adapter ({e}) and MESOBAKE_SKIP_GPU_TESTS=1");
+            false
+        }
+        Err(e) => panic!("{e} (set MESOBAKE_SKIP_GPU_TESTS=1 to skip the GPU tests)"),
+    }
+}
+
+fn load(path: &str, edit: impl FnOnce(&mut Scene)) -> LoadedScene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
+    let mut scene = Scene::read(&path).unwrap();
+    edit(&mut scene);
+    LoadedScene::load(scene, path.parent().unwrap(), &Limits::default()).unwrap()
+}
+
+fn package(loaded: &LoadedScene, rank: usize, quantization: Quantization) -> Package {
+    let params = ScenePackageParams {
+        rank: RankChoice::Rank(rank),
+        quantization,
+    };
+    scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap()
+}
+
+fn cpu_image(loaded: &LoadedScene, package: &Package) -> Image {
+    let lookup = PackageLookup::new(package);
+    let scene = &loaded.scene;
+    let r = GdmRenderer::new(
+        &loaded.shell,
+        &lookup,
+        &loaded.material,
+        scene.gdm_refinements,
+    );
+    render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
+}
+
+/// Renders on both and checks the agreement; returns (PSNR, mask disagreement).
+fn agreement(loaded: &LoadedScene, package: &Package, label: &str) -> (f64, f64) {
+    let (gpu, report) = preview(loaded, package, None, 0).unwrap();
+    let cpu = cpu_image(loaded, package);
+    let c = compare(&gpu, &cpu).unwrap();
+    eprintln!(
+        "{label}: PSNR {:.2} dB, mask {:.4} %, {} hit pixels (CPU {}), variant {}",
+        c.psnr_db,
+        c.mask_disagreement * 100.0,
+        gpu.hits(),
+        cpu.hits(),
+        report.variant.name()
+    );
+    assert!(
+        cpu.hits() > cpu.mask.len() / 20,
+        "{label}: the scene shows too little to test"
+    );
+    assert!(c.psnr_db >= 35.0, "{label}: PSNR {} dB < 35 dB", c.psnr_db);
+    assert!(
+        c.mask_disagreement <= 0.005,
+        "{label}: mask disagreement {} > 0.5 %",
+        c.mask_disagreement
+    );
+    (c.psnr_db, c.mask_disagreement)
+}
+
+#[test]
+fn torus_chain_matches_the_cpu_gdm_renderer() {
+    if !gpu_or_skip() {
+        return;
+    }
+    let loaded = load("scenes/torus-chain.json", |s| {
+        s.camera.width = 256;
+        s.camera.height = 256;
+    });
+    let p = package(&loaded, 8, Quantization::F16);
+    agreement(&loaded, &p, "torus-chain rank 8 f16, shadows");
+}
+
+#[test]
+fn plane_weave_matches_with_refinements_and_partial_groups() {
+    if !gpu_or_skip() {
+        return;
+    }
+    let loaded = load("scenes/plane-weave.json", |s| {
+        s.camera.width = 256;
+        s.camera.height = 192;
+        s.gdm_refinements = 2;
+        s.effects.retain(|e| *e != Effect::Shadows);
+    });
+    // Rank 6 in u8: one full rgba8unorm group and a rg8unorm tail with per-map decode.
+    let p = package(&loaded, 6, Quantization::U8);
+    agreement(
+        &loaded,
+        &p,
+        "plane-weave rank 6 u8, refinements 2, no shadows",
+    );
+    // Rank 3 in f32: only a tail group (rgba32float with one padding channel).
+    let p = package(&loaded, 3, Quantization::F32);
+    agreement(
+        &loaded,
+        &p,
+        "plane-weave rank 3 f32, refinements 2, no shadows",
+    );
+}
+
+/// Every shader variant a scene can choose passes naga's validation, and only the shadow
+/// variants contain the shadow query.
+#[test]
+fn every_shader_variant_validates_and_shadow_code_exists_only_where_called_for() {
+    use mesobake::realtime::variant::{SHADOW_QUERY_FN, ShaderVariant};
+    let mut count = 0;
+    for variant in ShaderVariant::all() {
+        let module = naga::front::wgsl::parse_str(&variant.source()).unwrap_or_else(|e| {
+            panic!(
+                "{}: {}",
+                variant.name(),
+                e.emit_to_string(&variant.source())
+            )
+        });
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{}: {e:?}", variant.name()));
+        let has_shadow_query = module
+            .functions
+            .iter()
+            .any(|(_, f)| f.name.as_deref() == Some(SHADOW_QUERY_FN));
+        assert_eq!(has_shadow_query, variant.shadows, "{}", variant.name());
+        count += 1;
+    }
+    assert_eq!(count, 18);
+}
+
+/// A scene without shadows builds the pipeline of the variant without shadow code; with
+/// shadows, the one with it.
+#[test]
+fn the_pipeline_runs_the_variant_the_scene_calls_for() {
+    if !gpu_or_skip() {
+        return;
+    }
+    use mesobake::realtime::pipeline::Preview;
+    let mut loaded = load("scenes/plane-weave.json", |s| {
+        s.camera.width = 64;
+        s.camera.height = 48;
+        s.resolution = [16, 16, 8];
+        s.directions = [4, 8];
+    });
+    let p = package(&loaded, 4, Quantization::F16);
+    for shadows in [true, false] {
+        loaded.scene.effects = if shadows {
+            vec![Effect::Silhouettes, Effect::Shadows]
+        } else {
+            vec![Effect::Silhouettes]
+        };
+        let preview = Preview::new(Gpu::open(None).unwrap(), &loaded, &p).unwrap();
+        assert_eq!(preview.variant().shadows, shadows);
+        let source = preview.variant().source();
+        assert_eq!(
+            source.contains("fn shadow_query"),
+            shadows,
+            "{}",
+            preview.variant().name()
+        );
+        assert!(preview.render().unwrap().hits() > 0);
+    }
+}
