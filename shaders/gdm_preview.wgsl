@@ -346,17 +346,18 @@ fn vs_main(v: VertexIn) -> VertexOut {
 
 // Ray parameter (from the entry point) where the ray meets face f's plane from inside, or
 // −1 when the plane faces away from the ray.
-fn plane_exit(face: Face, p_in: vec3<f32>, dir: vec3<f32>) -> vec2<f32> {
-    let c = dot(face.plane.xyz, dir);
-    return vec2<f32>((face.plane.w - dot(face.plane.xyz, p_in)) / c, select(0.0, 1.0, c > 0.0));
+fn plane_exit(p: u32, f: u32, p_in: vec3<f32>, dir: vec3<f32>) -> vec2<f32> {
+    let plane = prisms[p].faces[f].plane;
+    let c = dot(plane.xyz, dir);
+    return vec2<f32>((plane.w - dot(plane.xyz, p_in)) / c, select(0.0, 1.0, c > 0.0));
 }
 
 // Barycentric coordinates (xyz) of p projected onto the face's plane, extrapolated outside
 // the triangle; w = 0 for a zero-area face.
-fn barycentric(face: Face, p: vec3<f32>) -> vec4<f32> {
-    let c0 = face.corners[0].xyz;
-    let c1 = face.corners[1].xyz;
-    let c2 = face.corners[2].xyz;
+fn barycentric(prism: u32, f: u32, p: vec3<f32>) -> vec4<f32> {
+    let c0 = prisms[prism].faces[f].corners[0].xyz;
+    let c1 = prisms[prism].faces[f].corners[1].xyz;
+    let c2 = prisms[prism].faces[f].corners[2].xyz;
     let n = cross(c1 - c0, c2 - c0);
     let nn = dot(n, n);
     if nn == 0.0 {
@@ -367,13 +368,14 @@ fn barycentric(face: Face, p: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(l1, l2, 1.0 - l1 - l2, 1.0);
 }
 
-fn texture_at(face: Face, l: vec3<f32>) -> vec3<f32> {
-    return face.texture[0].xyz * l.x + face.texture[1].xyz * l.y + face.texture[2].xyz * l.z;
+fn texture_at(prism: u32, f: u32, l: vec3<f32>) -> vec3<f32> {
+    let t = prisms[prism].faces[f].texture;
+    return t[0].xyz * l.x + t[1].xyz * l.y + t[2].xyz * l.z;
 }
 
 @fragment
 fn fs_main(in: VertexOut) -> FragmentOut {
-    let prism = prisms[in.prism];
+    let pi = in.prism;
     let p_in = in.world;
     let dir = normalize(p_in - view.eye.xyz);
     let t_in_tex = in.texture;
@@ -382,7 +384,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     var t_out = 3.0e38;
     var exit_face = NO_FACE;
     for (var f = 0u; f < 2u; f++) {
-        let h = plane_exit(prism.faces[f], p_in, dir);
+        let h = plane_exit(pi, f, p_in, dir);
         if h.y > 0.0 && h.x < t_out {
             t_out = h.x;
             exit_face = f;
@@ -391,9 +393,9 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     for (var k = 0u; k < 3u; k++) {
         let a = 2u + 2u * k;
         let b = a + 1u;
-        let convex = prism.convex[k] == 1u;
-        let ha = plane_exit(prism.faces[a], p_in, dir);
-        let hb = plane_exit(prism.faces[b], p_in, dir);
+        let convex = prisms[pi].convex[k] == 1u;
+        let ha = plane_exit(pi, a, p_in, dir);
+        let hb = plane_exit(pi, b, p_in, dir);
         var pick = vec2<f32>(0.0, 0.0);
         var face = NO_FACE;
         if ha.y > 0.0 && hb.y > 0.0 {
@@ -426,22 +428,22 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     // (for a fin, over whichever of its two triangles holds P_out).
     var t_out_tex: vec3<f32>;
     if exit_face < 2u {
-        let b = barycentric(prism.faces[exit_face], p_out);
+        let b = barycentric(pi, exit_face, p_out);
         if b.w == 0.0 {
             discard;
         }
-        t_out_tex = texture_at(prism.faces[exit_face], b.xyz);
+        t_out_tex = texture_at(pi, exit_face, b.xyz);
     } else {
         let a = 2u + (exit_face - 2u) / 2u * 2u;
-        let ba = barycentric(prism.faces[a], p_out);
-        let bb = barycentric(prism.faces[a + 1u], p_out);
+        let ba = barycentric(pi, a, p_out);
+        let bb = barycentric(pi, a + 1u, p_out);
         if ba.w == 0.0 || bb.w == 0.0 {
             discard;
         }
         if min(ba.x, min(ba.y, ba.z)) >= min(bb.x, min(bb.y, bb.z)) {
-            t_out_tex = texture_at(prism.faces[a], ba.xyz);
+            t_out_tex = texture_at(pi, a, ba.xyz);
         } else {
-            t_out_tex = texture_at(prism.faces[a + 1u], bb.xyz);
+            t_out_tex = texture_at(pi, a + 1u, bb.xyz);
         }
     }
 
@@ -460,7 +462,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     let t_hit = t_in_tex + view_tex * d;
 
     // Step 6: shading with the prism's mean frame.
-    let frame = prism.frame;
+    let frame = prisms[pi].frame;
     let n_raw = normal_at(t_hit);
     let n_tex = normalize_or(n_raw, -view_tex);
     let n_obj = normalize_or(frame[0].xyz * n_tex.x + frame[1].xyz * n_tex.y + frame[2].xyz * n_tex.z, -dir);

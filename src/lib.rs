@@ -39,6 +39,7 @@ pub mod limits;
 pub mod mesh_tile;
 pub mod npy;
 pub mod package;
+pub mod preview_bench;
 pub mod preview_scene;
 pub mod realtime;
 pub mod render;

@@ -276,6 +276,25 @@ enum BenchCommand {
     Svd,
     /// Package sizes and errors on W1: rank 8 f16, and the smallest package with RMSE ≤ 0.5.
     Package,
+    /// The real-time preview's frame time against the CPU GDM renderer on the same scene and
+    /// package, over image sizes and volume depths (Markdown table on stdout).
+    Preview {
+        /// Scene file.
+        #[arg(long, default_value = "scenes/torus-chain.json")]
+        scene: PathBuf,
+        /// Square image sizes.
+        #[arg(long, value_delimiter = ',', default_value = "512")]
+        sizes: Vec<u32>,
+        /// Volume depths Z (the scene's resolution otherwise).
+        #[arg(long, value_delimiter = ',', default_value = "32")]
+        depths: Vec<u32>,
+        /// Frames timed per configuration.
+        #[arg(long, default_value_t = 10)]
+        frames: u32,
+        /// Use the adapter whose name contains this.
+        #[arg(long)]
+        adapter: Option<String>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -828,6 +847,30 @@ fn run(cli: Cli) -> Result<()> {
             which: BenchCommand::Package,
         } => {
             print!("{}", bench::package_markdown(&bench::run_package(&limits)?));
+            Ok(())
+        }
+        Command::Bench {
+            which:
+                BenchCommand::Preview {
+                    scene,
+                    sizes,
+                    depths,
+                    frames,
+                    adapter,
+                },
+        } => {
+            let progress = Progress::new("baking GDM (exact)");
+            let (adapter, rows) = mesobake::preview_bench::run(
+                &scene,
+                &sizes,
+                &depths,
+                frames,
+                adapter.as_deref(),
+                &limits,
+                &progress,
+            )?;
+            progress.0.finish_and_clear();
+            print!("{}", mesobake::preview_bench::markdown(&adapter, &rows));
             Ok(())
         }
         Command::Bench {

@@ -118,7 +118,8 @@ pub fn preview(
     frames: u32,
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
-    let preview = Preview::new(Gpu::open(adapter)?, loaded, package)?;
+    let gpu = Gpu::open(adapter)?;
+    let preview = Preview::new(&gpu, loaded, package, true)?;
     let setup_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let image = preview.render()?;

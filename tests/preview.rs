@@ -150,7 +150,7 @@ fn every_shader_variant_validates_and_shadow_code_exists_only_where_called_for()
         assert_eq!(has_shadow_query, variant.shadows, "{}", variant.name());
         count += 1;
     }
-    assert_eq!(count, 18);
+    assert_eq!(count, 36);
 }
 
 /// A scene without shadows builds the pipeline of the variant without shadow code; with
@@ -174,7 +174,8 @@ fn the_pipeline_runs_the_variant_the_scene_calls_for() {
         } else {
             vec![Effect::Silhouettes]
         };
-        let preview = Preview::new(Gpu::open(None).unwrap(), &loaded, &p).unwrap();
+        let gpu = Gpu::open(None).unwrap();
+        let preview = Preview::new(&gpu, &loaded, &p, true).unwrap();
         assert_eq!(preview.variant().shadows, shadows);
         let source = preview.variant().source();
         assert_eq!(

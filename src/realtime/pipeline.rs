@@ -87,8 +87,8 @@ fn view_projection(camera: &Camera, bounds: impl Iterator<Item = DVec3>) -> DMat
 }
 
 /// A scene ready to render with the real-time pipeline.
-pub struct Preview {
-    gpu: Gpu,
+pub struct Preview<'g> {
+    gpu: &'g Gpu,
     variant: ShaderVariant,
     pipeline: wgpu::RenderPipeline,
     scene_group: wgpu::BindGroup,
@@ -141,10 +141,16 @@ fn texture(dimension: wgpu::TextureViewDimension) -> wgpu::BindingType {
     }
 }
 
-impl Preview {
+impl<'g> Preview<'g> {
     /// Uploads `loaded`'s shell and material and `package`'s GDM, and builds the pipeline of
-    /// the scene's shader variant. The package's grid must be the scene's.
-    pub fn new(gpu: Gpu, loaded: &LoadedScene, package: &Package) -> Result<Preview> {
+    /// the scene's shader variant (with the early depth test where `early_depth_test` allows
+    /// it and the adapter has it). The package's grid must be the scene's.
+    pub fn new(
+        gpu: &'g Gpu,
+        loaded: &LoadedScene,
+        package: &Package,
+        early_depth_test: bool,
+    ) -> Result<Preview<'g>> {
         let scene = &loaded.scene;
         if package.dims() != loaded.material.dims() {
             return Err(Error::Scene(format!(
@@ -153,7 +159,9 @@ impl Preview {
                 loaded.material.dims()
             )));
         }
-        let variant = ShaderVariant::for_scene(scene);
+        let early_depth_test = early_depth_test
+            && gpu.device.features().contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST);
+        let variant = ShaderVariant::for_scene(scene, early_depth_test);
         let (width, height) = (scene.camera.width, scene.camera.height);
         let max_side = gpu.device.limits().max_texture_dimension_2d;
         if width > max_side || height > max_side {
@@ -192,9 +200,9 @@ impl Preview {
         let prisms = prepare_prisms(&loaded.shell, package.dims());
         let (gpu_package, material, shell) = gpu.checked("uploading the scene", || {
             Ok::<_, Error>((
-                upload_package(&gpu, &package_layout, package)?,
-                upload_material(&gpu, &material_layout, &loaded.material)?,
-                upload_shell(&gpu, &prisms)?,
+                upload_package(gpu, &package_layout, package)?,
+                upload_material(gpu, &material_layout, &loaded.material)?,
+                upload_shell(gpu, &prisms, DVec3::from(scene.camera.eye))?,
             ))
         })??;
         let corners = prisms.iter().flat_map(|p| {

@@ -478,8 +478,9 @@ pub fn upload_material(
     })
 }
 
-/// Uploads the prepared prisms: their face triangles as vertices and their records.
-pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuShell> {
+/// Uploads the prepared prisms: their face triangles as vertices, nearest to `eye` first
+/// (so that an early depth test culls what lies behind the first hits), and their records.
+pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism], eye: glam::DVec3) -> Result<GpuShell> {
     let limits = gpu.device.limits();
     let record_bytes = std::mem::size_of::<PrismRecord>() as u64;
     let vertex_bytes = 24 * std::mem::size_of::<Vertex>() as u64;
@@ -496,8 +497,14 @@ pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuShell> {
     }
     let mut vertices = Vec::with_capacity(prisms.len() * 24);
     let mut records = Vec::with_capacity(prisms.len().max(1));
-    for (p, prism) in prisms.iter().enumerate() {
-        for (f, face) in prism.faces.iter().enumerate() {
+    let distance = |p: &PreparedPrism| {
+        let centre: glam::DVec3 = p.faces[0].triangle.corners.iter().chain(&p.faces[1].triangle.corners).sum();
+        (centre / 6.0 - eye).length_squared()
+    };
+    let mut order: Vec<(f64, usize)> = prisms.iter().enumerate().map(|(p, prism)| (distance(prism), p)).collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for &(_, p) in &order {
+        for (f, face) in prisms[p].faces.iter().enumerate() {
             for c in 0..3 {
                 vertices.push(Vertex {
                     position: face.triangle.corners[c].as_vec3().to_array(),
@@ -507,6 +514,8 @@ pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuShell> {
                 });
             }
         }
+    }
+    for prism in prisms {
         let frame = prism.frame.transpose(); // columns of the transpose are the rows
         records.push(PrismRecord {
             faces: prism.faces.map(|f| FaceRecord {

@@ -9,6 +9,9 @@ const PIPELINE: &str = include_str!("../../shaders/gdm_preview.wgsl");
 const SHADOWS_ON: &str = include_str!("../../shaders/shadows_on.wgsl");
 const SHADOWS_OFF: &str = include_str!("../../shaders/shadows_off.wgsl");
 
+/// The fragment entry point as `shaders/gdm_preview.wgsl` declares it.
+const FRAGMENT_ENTRY: &str = "@fragment\nfn fs_main";
+
 /// The name of the function that only the shadow variant contains.
 pub const SHADOW_QUERY_FN: &str = "shadow_query";
 
@@ -19,33 +22,42 @@ pub struct ShaderVariant {
     pub shadows: bool,
     /// GDM refinement queries per hit (the scene's `gdm_refinements`), unrolled as a constant.
     pub refinements: u32,
+    /// Declares the fragment depth conservative (`greater_equal`: a hit lies behind the face
+    /// it was found through), so that the depth test can run before the fragment shader
+    /// (where the adapter has the feature `SHADER_EARLY_DEPTH_TEST`).
+    pub early_depth_test: bool,
 }
 
 impl ShaderVariant {
     /// The variant a scene calls for.
-    pub fn for_scene(scene: &Scene) -> ShaderVariant {
+    pub fn for_scene(scene: &Scene, early_depth_test: bool) -> ShaderVariant {
         ShaderVariant {
             shadows: scene.wants(Effect::Shadows),
             refinements: scene.gdm_refinements,
+            early_depth_test,
         }
     }
 
     /// Every variant a valid scene can ask for.
     pub fn all() -> impl Iterator<Item = ShaderVariant> {
         [false, true].into_iter().flat_map(|shadows| {
-            (0..=MAX_GDM_REFINEMENTS).map(move |refinements| ShaderVariant {
-                shadows,
-                refinements,
+            (0..=MAX_GDM_REFINEMENTS).flat_map(move |refinements| {
+                [false, true].map(|early_depth_test| ShaderVariant {
+                    shadows,
+                    refinements,
+                    early_depth_test,
+                })
             })
         })
     }
 
-    /// A short name, e.g. `shadows+refine2`.
+    /// A short name, e.g. `shadows+refine2+earlyz`.
     pub fn name(&self) -> String {
         format!(
-            "{}+refine{}",
+            "{}+refine{}{}",
             if self.shadows { "shadows" } else { "noshadows" },
-            self.refinements
+            self.refinements,
+            if self.early_depth_test { "+earlyz" } else { "" }
         )
     }
 
@@ -56,8 +68,16 @@ impl ShaderVariant {
         } else {
             SHADOWS_OFF
         };
+        let pipeline = if self.early_depth_test {
+            PIPELINE.replace(
+                FRAGMENT_ENTRY,
+                &format!("@early_depth_test(greater_equal)\n{FRAGMENT_ENTRY}"),
+            )
+        } else {
+            PIPELINE.to_owned()
+        };
         format!(
-            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{PIPELINE}\n{shadows}",
+            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{pipeline}\n{shadows}",
             self.name(),
             self.refinements
         )
