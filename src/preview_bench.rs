@@ -49,22 +49,40 @@ pub fn run(
         let mut scene = base.clone();
         scene.resolution[2] = depth;
         let mut loaded = LoadedScene::load(scene, dir, limits)?;
-        let package = scene_package(&loaded, dir, ScenePackageParams::default(), limits, observer)?;
+        let package = scene_package(
+            &loaded,
+            dir,
+            ScenePackageParams::default(),
+            limits,
+            observer,
+        )?;
         let lookup = PackageLookup::new(&package);
         for &size in sizes {
             loaded.scene.camera.width = size;
             loaded.scene.camera.height = size;
             let scene = &loaded.scene;
             let start = Instant::now();
-            let r = GdmRenderer::new(&loaded.shell, &lookup, &loaded.material, scene.gdm_refinements);
+            let r = GdmRenderer::new(
+                &loaded.shell,
+                &lookup,
+                &loaded.material,
+                scene.gdm_refinements,
+            );
             render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
             let cpu_seconds = start.elapsed().as_secs_f64();
             let time = |early_z: bool| -> Result<(bool, f64)> {
                 let preview = Preview::new(&gpu, &loaded, &package, early_z)?;
-                Ok((preview.variant().early_depth_test, preview.time_frames(frames)?))
+                Ok((
+                    preview.variant().early_depth_test,
+                    preview.time_frames(frames)?,
+                ))
             };
             let (has_early_z, gpu_seconds) = time(true)?;
-            let gpu_seconds_without_early_z = if has_early_z { Some(time(false)?.1) } else { None };
+            let gpu_seconds_without_early_z = if has_early_z {
+                Some(time(false)?.1)
+            } else {
+                None
+            };
             rows.push(PreviewBenchRow {
                 size,
                 depth,

@@ -160,7 +160,10 @@ impl<'g> Preview<'g> {
             )));
         }
         let early_depth_test = early_depth_test
-            && gpu.device.features().contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST);
+            && gpu
+                .device
+                .features()
+                .contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST);
         let variant = ShaderVariant::for_scene(scene, early_depth_test);
         let (width, height) = (scene.camera.width, scene.camera.height);
         let max_side = gpu.device.limits().max_texture_dimension_2d;

@@ -498,10 +498,19 @@ pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism], eye: glam::DVec3) -> Re
     let mut vertices = Vec::with_capacity(prisms.len() * 24);
     let mut records = Vec::with_capacity(prisms.len().max(1));
     let distance = |p: &PreparedPrism| {
-        let centre: glam::DVec3 = p.faces[0].triangle.corners.iter().chain(&p.faces[1].triangle.corners).sum();
+        let centre: glam::DVec3 = p.faces[0]
+            .triangle
+            .corners
+            .iter()
+            .chain(&p.faces[1].triangle.corners)
+            .sum();
         (centre / 6.0 - eye).length_squared()
     };
-    let mut order: Vec<(f64, usize)> = prisms.iter().enumerate().map(|(p, prism)| (distance(prism), p)).collect();
+    let mut order: Vec<(f64, usize)> = prisms
+        .iter()
+        .enumerate()
+        .map(|(p, prism)| (distance(prism), p))
+        .collect();
     order.sort_by(|a, b| a.0.total_cmp(&b.0));
     for &(_, p) in &order {
         for (f, face) in prisms[p].faces.iter().enumerate() {

@@ -1,0 +1,228 @@
+//! `mesobake preview` end to end: every sample scene renders; a package baked by `mesobake
+//! bake` previews like `mesobake render --package` draws it; bad requests fail clearly.
+//! Needs a GPU adapter (CI installs Mesa's software Vulkan driver); MESOBAKE_SKIP_GPU_TESTS=1
+//! skips these tests loudly.
+
+mod common;
+
+use common::{each_fails_with, succeeds};
+use std::path::Path;
+
+fn skip() -> bool {
+    let skip = std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1");
+    if skip {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
+    }
+    skip
+}
+
+/// Scene `name` from `scenes/`, made small (grids and image) so that it bakes and renders
+/// in about a second.
+fn small_scene(name: &str) -> serde_json::Value {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name);
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    scene["resolution"] = serde_json::json!([16, 16, 8]);
+    scene["directions"] = serde_json::json!([8, 16]);
+    let (w, h) = (
+        scene["camera"]["width"].as_u64().unwrap(),
+        scene["camera"]["height"].as_u64().unwrap(),
+    );
+    scene["camera"]["width"] = (w / 4).into();
+    scene["camera"]["height"] = (h / 4).into();
+    scene
+}
+
+#[test]
+fn every_sample_scene_previews() {
+    if skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut names: Vec<String> =
+        std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".json"))
+            .collect();
+    names.sort();
+    assert!(names.len() >= 5, "{names:?}");
+    for name in &names {
+        let scene = small_scene(name);
+        let scene_path = dir.path().join(name);
+        std::fs::write(&scene_path, scene.to_string()).unwrap();
+        let out = dir.path().join(name.replace(".json", ".png"));
+        let o = succeeds(&[
+            "preview",
+            "--scene",
+            scene_path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--frames",
+            "2",
+            "--json",
+        ]);
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let pixels = json["width"].as_u64().unwrap() * json["height"].as_u64().unwrap();
+        let hits = json["hit_pixels"].as_u64().unwrap();
+        assert!(
+            hits * 20 > pixels && hits < pixels,
+            "{name}: {hits} of {pixels}"
+        );
+        let p = &json["preview"];
+        assert!(
+            p["mean_frame_seconds"].as_f64().unwrap() > 0.0,
+            "{name}: {p}"
+        );
+        assert_eq!(
+            p["variant"]["shadows"],
+            scene["effects"]
+                .as_array()
+                .unwrap()
+                .contains(&"shadows".into())
+        );
+        // Rank 8 in f16 over a 16×16×8 grid and 8×16 directions: weight maps 16·16·16 texels
+        // of 2 × rgba16float, eigenmaps 8·8 texels of 2 × rgba16float.
+        assert!(p["memory"]["package"].as_u64().unwrap() >= 2 * (16 * 16 * 16 + 8 * 8) * 8);
+        assert!(std::fs::metadata(&out).unwrap().len() > 0);
+    }
+}
+
+#[test]
+fn a_baked_package_previews_as_the_cpu_renderer_draws_it() {
+    if skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    succeeds(&[
+        "sample",
+        "weave",
+        "--res",
+        "16x16x8",
+        "--out",
+        &path("weave.mbvol"),
+    ]);
+    succeeds(&[
+        "bake",
+        "--input",
+        &path("weave.mbvol"),
+        "--dirs",
+        "8x16",
+        "--rank",
+        "5",
+        "--quant",
+        "u8",
+        "--out",
+        &path("weave.mbpkg"),
+    ]);
+    let mut scene = small_scene("plane-weave.json");
+    scene["mesostructure"] = serde_json::json!({ "volume": "weave.mbvol" });
+    std::fs::write(path("scene.json"), scene.to_string()).unwrap();
+    succeeds(&[
+        "preview",
+        "--scene",
+        &path("scene.json"),
+        "--package",
+        &path("weave.mbpkg"),
+        "--out",
+        &path("gpu.exr"),
+    ]);
+    succeeds(&[
+        "render",
+        "--scene",
+        &path("scene.json"),
+        "--method",
+        "gdm",
+        "--package",
+        &path("weave.mbpkg"),
+        "--out",
+        &path("cpu.exr"),
+    ]);
+    let o = succeeds(&["compare", &path("gpu.exr"), &path("cpu.exr"), "--json"]);
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let psnr = c["psnr_db"].as_f64().unwrap_or(f64::INFINITY);
+    assert!(
+        psnr >= 35.0 && c["mask_disagreement"].as_f64().unwrap() <= 0.005,
+        "{c}"
+    );
+}
+
+#[test]
+fn bad_preview_requests_fail_clearly() {
+    if skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    std::fs::write(
+        path("scene.json"),
+        small_scene("torus-chain.json").to_string(),
+    )
+    .unwrap();
+    succeeds(&[
+        "sample",
+        "chain",
+        "--res",
+        "32x32x16",
+        "--out",
+        &path("chain.mbvol"),
+    ]);
+    succeeds(&[
+        "bake",
+        "--input",
+        &path("chain.mbvol"),
+        "--dirs",
+        "8x16",
+        "--out",
+        &path("chain.mbpkg"),
+    ]);
+    std::fs::write(path("junk.mbpkg"), b"not a package").unwrap();
+    let scene = path("scene.json");
+    let out = path("out.png");
+    each_fails_with(&[
+        (
+            vec![
+                "preview",
+                "--scene",
+                &scene,
+                "--out",
+                &out,
+                "--adapter",
+                "no-such-gpu-anywhere",
+            ],
+            "no adapter's name contains \"no-such-gpu-anywhere\"",
+        ),
+        (
+            vec![
+                "preview",
+                "--scene",
+                &scene,
+                "--out",
+                &out,
+                "--package",
+                &path("chain.mbpkg"),
+            ],
+            "resolution",
+        ),
+        (
+            vec![
+                "preview",
+                "--scene",
+                &scene,
+                "--out",
+                &out,
+                "--package",
+                &path("junk.mbpkg"),
+            ],
+            "package",
+        ),
+        (
+            vec!["preview", "--scene", &path("missing.json"), "--out", &out],
+            "missing.json",
+        ),
+    ]);
+    assert!(!Path::new(&out).exists(), "a failed preview wrote an image");
+}
