@@ -224,5 +224,20 @@ fn bad_preview_requests_fail_clearly() {
             "missing.json",
         ),
     ]);
+    // No adapter at all (WGPU_BACKEND names a backend this build lacks): a clear error.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_mesobake"))
+        .args(["preview", "--scene", &scene, "--out", &out])
+        .env("WGPU_BACKEND", "gl")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("no GPU adapter available"),
+        "{err}"
+    );
+    assert!(
+        err.contains("mesa-vulkan-drivers") && !err.contains("panicked"),
+        "{err}"
+    );
     assert!(!Path::new(&out).exists(), "a failed preview wrote an image");
 }
