@@ -650,6 +650,11 @@ fn run(cli: Cli) -> Result<()> {
                 report.adapter.name,
                 report.variant.name()
             );
+            eprintln!(
+                "GPU memory {:.1} MB (package {:.1} MB)",
+                report.memory.total() as f64 / 1e6,
+                report.memory.package as f64 / 1e6
+            );
             if let Some(t) = report.mean_frame_seconds {
                 eprintln!("mean frame time over {frames} frames: {:.3} ms", t * 1e3);
             }
