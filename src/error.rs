@@ -48,6 +48,9 @@ pub enum Error {
     /// No GPU adapter, or the GPU refused a resource or a pipeline.
     #[error("GPU: {0}")]
     Gpu(String),
+    /// The database refused or failed a query.
+    #[error("database: {0}")]
+    Database(String),
     /// The caller asked the operation to stop.
     #[error("cancelled")]
     Cancelled,

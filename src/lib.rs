@@ -48,6 +48,7 @@ pub mod render_scene;
 pub mod report;
 pub mod samples;
 pub mod scene;
+pub mod server;
 pub mod shell;
 pub mod trimesh;
 pub mod volume;

@@ -166,6 +166,13 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Run the baking server: the HTTP API under /api/v1 on the configured address
+    /// (default 127.0.0.1:8080) over SQLite or PostgreSQL and the local blob store.
+    Serve {
+        /// A TOML file overriding config/default.toml (then MESOBAKE_* variables override it).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
     /// Compare two images of equal size: PSNR (dB, sRGB values), mean absolute error and the
     /// fraction of pixels whose hit/miss mask differs.
     Compare {
@@ -609,6 +616,16 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{summary}");
             }
             Ok(())
+        }
+        Command::Serve { config } => {
+            let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
+            tracing_subscriber::fmt()
+                .with_max_level(tracing::Level::INFO)
+                .with_writer(std::io::stderr)
+                .init();
+            let runtime = tokio::runtime::Runtime::new()
+                .map_err(|e| Error::InvalidParameter(format!("starting the runtime: {e}")))?;
+            runtime.block_on(mesobake::server::serve(config, limits))
         }
         Command::Preview {
             scene,

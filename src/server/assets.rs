@@ -1,0 +1,168 @@
+//! `POST /api/v1/assets` and `GET /api/v1/assets/{id}`: uploads, validated by kind and
+//! deduplicated by content.
+
+use super::AppState;
+use super::api_error::{ApiError, ApiResult};
+use super::blobs::{is_key, key_of};
+use super::db::{AssetRow, now_ms};
+use crate::base_mesh::BaseMesh;
+use crate::error::{Error, Result};
+use crate::limits::Limits;
+use crate::mesh_tile::MeshTile;
+use crate::trimesh::TriMesh;
+use crate::volume_format;
+use axum::Json;
+use axum::body::Bytes;
+use axum::extract::{Path, Query, State};
+use axum::http::StatusCode;
+use serde::Deserialize;
+
+/// What an upload is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AssetKind {
+    /// A `.mbvol` voxel volume.
+    Volume,
+    /// A closed OBJ mesostructure tile.
+    MeshTile,
+    /// An OBJ base mesh with UVs.
+    BaseMesh,
+}
+
+impl AssetKind {
+    fn name(self) -> &'static str {
+        match self {
+            AssetKind::Volume => "volume",
+            AssetKind::MeshTile => "mesh_tile",
+            AssetKind::BaseMesh => "base_mesh",
+        }
+    }
+}
+
+/// Query parameters of an upload.
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
+#[serde(deny_unknown_fields)]
+pub struct UploadParams {
+    /// What the body is.
+    pub kind: AssetKind,
+    /// A display name (no path separators), e.g. the original file name.
+    pub name: String,
+}
+
+/// Checks a display name: 1–255 bytes, no path separators, no `..`, no control characters.
+pub fn check_name(name: &str) -> Result<()> {
+    let bad = name.is_empty()
+        || name.len() > 255
+        || name.contains(['/', '\\'])
+        || name.contains("..")
+        || name.chars().any(char::is_control);
+    if bad {
+        return Err(Error::InvalidParameter(format!(
+            "name {name:?}: must be 1–255 bytes without path separators, \"..\" or control characters"
+        )));
+    }
+    Ok(())
+}
+
+fn utf8(bytes: &[u8], what: &str) -> Result<String> {
+    String::from_utf8(bytes.to_vec())
+        .map_err(|e| Error::InvalidParameter(format!("{what} is not UTF-8 text: {e}")))
+}
+
+/// Validates `bytes` as an asset of `kind`, returning a summary of what it holds.
+pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_json::Value> {
+    Ok(match kind {
+        AssetKind::Volume => {
+            let v = volume_format::decode(bytes, limits)?;
+            let d = v.dims();
+            serde_json::json!({ "dims": [d.x, d.y, d.z], "albedo": v.albedo().is_some() })
+        }
+        AssetKind::MeshTile => {
+            let mesh = TriMesh::from_obj(&utf8(bytes, "an OBJ tile")?)?;
+            let triangles = mesh.triangles.len();
+            MeshTile::new(mesh, false)?;
+            serde_json::json!({ "triangles": triangles })
+        }
+        AssetKind::BaseMesh => {
+            let (mesh, report) = BaseMesh::from_obj(&utf8(bytes, "an OBJ base mesh")?)?;
+            serde_json::json!({ "triangles": mesh.triangles.len(), "report": report })
+        }
+    })
+}
+
+/// Uploads an asset.
+#[utoipa::path(
+    post,
+    path = "/api/v1/assets",
+    params(UploadParams),
+    request_body(content = Vec<u8>, content_type = "application/octet-stream"),
+    responses(
+        (status = 201, description = "Stored", body = AssetRow),
+        (status = 200, description = "The same bytes were uploaded before", body = AssetRow),
+        (status = 413, description = "Body over the configured limit"),
+        (status = 422, description = "Not a valid asset of that kind"),
+    )
+)]
+pub async fn upload(
+    State(state): State<AppState>,
+    Query(params): Query<UploadParams>,
+    body: Bytes,
+) -> ApiResult<(StatusCode, Json<AssetRow>)> {
+    check_name(&params.name)?;
+    if body.is_empty() {
+        return Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "empty upload",
+        ));
+    }
+    let id = key_of(&body);
+    if let Some(existing) = state.db.asset(&id).await? {
+        return Ok((StatusCode::OK, Json(existing)));
+    }
+    let bytes = body.len() as i64;
+    let (limits, blobs, kind) = (state.limits, state.blobs.clone(), params.kind);
+    let summary = tokio::task::spawn_blocking(move || -> Result<serde_json::Value> {
+        let summary = validate(kind, &body, &limits)?;
+        blobs.put(&body)?;
+        Ok(summary)
+    })
+    .await??;
+    let row = AssetRow {
+        id,
+        kind: kind.name().into(),
+        name: params.name,
+        bytes,
+        summary,
+        created_ms: now_ms(),
+    };
+    let (stored, new) = state.db.insert_asset(&row).await?;
+    state
+        .metrics
+        .uploads
+        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let status = if new {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    };
+    Ok((status, Json(stored)))
+}
+
+/// An asset's record.
+#[utoipa::path(
+    get,
+    path = "/api/v1/assets/{id}",
+    params(("id" = String, Path, description = "The asset's BLAKE3 digest")),
+    responses((status = 200, body = AssetRow), (status = 404, description = "No such asset"))
+)]
+pub async fn get(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> ApiResult<Json<AssetRow>> {
+    if !is_key(&id) {
+        return Err(ApiError::not_found(format!("asset {id:?}")));
+    }
+    Ok(Json(state.db.asset(&id).await?.ok_or_else(|| {
+        ApiError::not_found(format!("asset {id}"))
+    })?))
+}

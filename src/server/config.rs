@@ -1,0 +1,60 @@
+//! Server configuration: `config/default.toml` (compiled in), then a `--config` file, then
+//! environment variables `MESOBAKE_<KEY>`, each overriding the one before.
+
+use crate::error::{Error, Result};
+use figment::Figment;
+use figment::providers::{Env, Format, Toml};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+const DEFAULTS: &str = include_str!("../../config/default.toml");
+
+/// Everything `mesobake serve` and `mesobake worker` read.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServerConfig {
+    /// Address and port to listen on.
+    pub listen: String,
+    /// `sqlite://PATH` (created if missing) or `postgres://…`.
+    pub database_url: String,
+    /// Root of the local blob store.
+    pub data_dir: PathBuf,
+    /// Largest accepted request body in bytes.
+    pub max_upload_bytes: u64,
+    /// Bake workers in the server process.
+    pub workers: u32,
+    /// Seed the built-in sample scene at start.
+    pub seed_sample: bool,
+}
+
+impl ServerConfig {
+    /// The defaults, overridden by the TOML file `file` (if any), then by `MESOBAKE_*`
+    /// environment variables.
+    pub fn load(file: Option<&Path>) -> Result<ServerConfig> {
+        let mut figment = Figment::from(Toml::string(DEFAULTS));
+        if let Some(path) = file {
+            if !path.is_file() {
+                return Err(Error::InvalidParameter(format!(
+                    "config file {} does not exist",
+                    path.display()
+                )));
+            }
+            figment = figment.merge(Toml::file_exact(path));
+        }
+        figment
+            .merge(Env::prefixed("MESOBAKE_").only(&KEYS))
+            .extract()
+            .map_err(|e| Error::InvalidParameter(format!("configuration: {e}")))
+    }
+}
+
+/// The configuration keys (environment variables are only read for these, so that other
+/// `MESOBAKE_*` variables such as `MESOBAKE_MEMORY_LIMIT` keep their own meaning).
+const KEYS: [&str; 6] = [
+    "listen",
+    "database_url",
+    "data_dir",
+    "max_upload_bytes",
+    "workers",
+    "seed_sample",
+];

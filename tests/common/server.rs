@@ -1,0 +1,78 @@
+//! Running the server in-process against each database backend.
+
+use mesobake::limits::Limits;
+use mesobake::server::{AppState, config::ServerConfig, open_state, router};
+use std::net::SocketAddr;
+
+/// The PostgreSQL server of the test machine (trust authentication).
+pub const POSTGRES_ADMIN_URL: &str = "postgres://postgres@127.0.0.1:5432/test";
+
+/// A database for one test: a SQLite file in `dir`, or a fresh PostgreSQL database.
+pub async fn database_urls(dir: &std::path::Path, test: &str) -> Vec<String> {
+    let mut urls = vec![format!("sqlite://{}", dir.join("db.sqlite").display())];
+    match sqlx::PgPool::connect(POSTGRES_ADMIN_URL).await {
+        Ok(admin) => {
+            let name = format!("mesobake_{test}_{}", std::process::id());
+            // Earlier runs' databases of this test go first.
+            let old: Vec<String> =
+                sqlx::query_scalar("SELECT datname FROM pg_database WHERE datname LIKE $1")
+                    .bind(format!("mesobake_{test}_%"))
+                    .fetch_all(&admin)
+                    .await
+                    .unwrap();
+            for db in old {
+                let drop = format!("DROP DATABASE IF EXISTS {db} WITH (FORCE)");
+                sqlx::query(sqlx::AssertSqlSafe(drop))
+                    .execute(&admin)
+                    .await
+                    .unwrap();
+            }
+            sqlx::query(sqlx::AssertSqlSafe(format!("CREATE DATABASE {name}")))
+                .execute(&admin)
+                .await
+                .unwrap();
+            urls.push(format!("postgres://postgres@127.0.0.1:5432/{name}"));
+        }
+        Err(e) if std::env::var("MESOBAKE_REQUIRE_POSTGRES").as_deref() == Ok("1") => {
+            panic!("PostgreSQL required but unreachable at {POSTGRES_ADMIN_URL}: {e}")
+        }
+        Err(e) => {
+            eprintln!("SKIPPED the PostgreSQL backend: {POSTGRES_ADMIN_URL} unreachable: {e}")
+        }
+    }
+    urls
+}
+
+/// A server listening on an ephemeral port.
+pub struct TestServer {
+    /// Its address.
+    pub addr: SocketAddr,
+    /// Its state (database and blob store), for checks behind the API.
+    pub state: AppState,
+}
+
+impl TestServer {
+    /// Starts a server over `database_url` with its blobs under `data_dir`.
+    pub async fn start(
+        database_url: &str,
+        data_dir: &std::path::Path,
+        max_upload: u64,
+    ) -> TestServer {
+        let mut config = ServerConfig::load(None).unwrap();
+        config.database_url = database_url.into();
+        config.data_dir = data_dir.into();
+        config.max_upload_bytes = max_upload;
+        config.listen = "127.0.0.1:0".into();
+        let state = open_state(&config, Limits::default()).await.unwrap();
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap();
+        let app = router(state.clone(), max_upload);
+        tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
+        TestServer { addr, state }
+    }
+
+    /// The URL of `path`.
+    pub fn url(&self, path: &str) -> String {
+        format!("http://{}{path}", self.addr)
+    }
+}
