@@ -173,6 +173,13 @@ enum Command {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// Run bake workers only (no HTTP server) against the configured database and blob
+    /// store: more machines for the same queue.
+    Worker {
+        /// A TOML file overriding config/default.toml (then MESOBAKE_* variables override it).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
     /// Compare two images of equal size: PSNR (dB, sRGB values), mean absolute error and the
     /// fraction of pixels whose hit/miss mask differs.
     Compare {
@@ -369,6 +376,16 @@ enum EscapeArg {
 }
 
 /// A progress bar on stderr, drawn only when stderr is a terminal.
+/// Logging to stderr and a tokio runtime, for the server and the workers.
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tracing_subscriber::fmt()
+        .with_max_level(tracing::Level::INFO)
+        .with_writer(std::io::stderr)
+        .init();
+    tokio::runtime::Runtime::new()
+        .map_err(|e| Error::InvalidParameter(format!("starting the runtime: {e}")))
+}
+
 struct Progress(ProgressBar);
 
 impl Progress {
@@ -619,13 +636,11 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Serve { config } => {
             let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
-            tracing_subscriber::fmt()
-                .with_max_level(tracing::Level::INFO)
-                .with_writer(std::io::stderr)
-                .init();
-            let runtime = tokio::runtime::Runtime::new()
-                .map_err(|e| Error::InvalidParameter(format!("starting the runtime: {e}")))?;
-            runtime.block_on(mesobake::server::serve(config, limits))
+            runtime()?.block_on(mesobake::server::serve(config, limits))
+        }
+        Command::Worker { config } => {
+            let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
+            runtime()?.block_on(mesobake::server::work(config, limits))
         }
         Command::Preview {
             scene,

@@ -2,7 +2,9 @@
 //! its package or bakes one (exact GDM, then SVD and quantization as `mesobake bake` does),
 //! renders on the GPU and optionally times frames.
 
-use crate::bake_package::{PackageParams, StageSeconds, bake_info, compress_and_encode};
+use crate::bake_package::{
+    BakedPackage, PackageParams, StageSeconds, bake_info, compress_and_encode,
+};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
@@ -24,7 +26,7 @@ use std::path::Path;
 use std::time::Instant;
 
 /// How a package is made for a scene that names none.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct ScenePackageParams {
     /// SVD components.
     pub rank: RankChoice,
@@ -46,13 +48,13 @@ impl Default for ScenePackageParams {
 /// compressed with `params`. The manifest's input identity is the hash of the mesostructure
 /// file the scene names, or of the scene's `mesostructure` and `resolution` entries for a
 /// built-in sample.
-pub fn scene_package(
+pub fn bake_scene_package(
     loaded: &LoadedScene,
     scene_dir: &Path,
     params: ScenePackageParams,
     limits: &Limits,
     observer: &dyn BakeObserver,
-) -> Result<Package> {
+) -> Result<BakedPackage> {
     let scene = &loaded.scene;
     let identity = match &scene.mesostructure {
         MesostructureSource::Sample(_) => {
@@ -73,7 +75,10 @@ pub fn scene_package(
         bytes: identity.len() as u64,
         blake3: blake3::hash(&identity).to_hex().to_string(),
     };
+    let mut seconds = StageSeconds::default();
+    let start = Instant::now();
     let mut g = bake_gdm(loaded, limits, observer)?;
+    seconds.bake = start.elapsed().as_secs_f64();
     g.set_escape_convention(EscapeConvention::Boundary);
     let package_params = PackageParams {
         res: Some(g.dims()),
@@ -85,9 +90,26 @@ pub fn scene_package(
         allow_open: false,
     };
     let info = bake_info(&g, Method::Exact, FastParams::default(), false);
-    let mut seconds = StageSeconds::default();
-    let (bytes, _) = compress_and_encode(&g, input, info, &package_params, limits, &mut seconds)?;
-    Package::parse(bytes)
+    if observer.cancelled() {
+        return Err(Error::Cancelled);
+    }
+    let (bytes, gdm) = compress_and_encode(&g, input, info, &package_params, limits, &mut seconds)?;
+    Ok(BakedPackage {
+        bytes,
+        gdm,
+        seconds,
+    })
+}
+
+/// [`bake_scene_package`], parsed.
+pub fn scene_package(
+    loaded: &LoadedScene,
+    scene_dir: &Path,
+    params: ScenePackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Package> {
+    Package::parse(bake_scene_package(loaded, scene_dir, params, limits, observer)?.bytes)
 }
 
 /// What a preview ran on, chose and measured.

@@ -312,6 +312,7 @@ impl Scene {
                 self.gdm_refinements
             )));
         }
+        self.shell.validate()?;
         self.camera.validate()?;
         for light in &self.lights {
             light.validate()?;

@@ -380,6 +380,13 @@ impl Shell {
     }
 }
 
+impl ShellParams {
+    /// Checks the parameters (thickness, tiling, smoothing passes).
+    pub fn validate(&self) -> Result<()> {
+        check_params(self)
+    }
+}
+
 fn check_params(p: &ShellParams) -> Result<()> {
     if !(p.thickness.is_finite() && p.thickness > 0.0) {
         return Err(Error::InvalidParameter(format!(

@@ -8,7 +8,10 @@ pub mod blobs;
 pub mod config;
 pub mod db;
 pub mod health;
+pub mod jobs;
+pub mod jobs_api;
 pub mod packages;
+pub mod worker;
 
 use crate::error::{Error, Result};
 use crate::limits::Limits;
@@ -20,6 +23,7 @@ use config::ServerConfig;
 use db::Db;
 use health::Metrics;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use utoipa::OpenApi;
 
 /// What every handler shares.
@@ -42,6 +46,11 @@ pub struct AppState {
     paths(
         assets::upload,
         assets::get,
+        jobs_api::submit,
+        jobs_api::list,
+        jobs_api::get,
+        jobs_api::cancel,
+        jobs_api::events,
         packages::get,
         health::healthz,
         health::readyz,
@@ -59,6 +68,10 @@ pub fn router(state: AppState, max_body: u64) -> Router {
     let api = Router::new()
         .route("/assets", post(assets::upload))
         .route("/assets/{id}", get(assets::get))
+        .route("/jobs", post(jobs_api::submit).get(jobs_api::list))
+        .route("/jobs/{id}", get(jobs_api::get))
+        .route("/jobs/{id}/cancel", post(jobs_api::cancel))
+        .route("/jobs/{id}/events", get(jobs_api::events))
         .route("/packages/{digest}", get(packages::get))
         .route("/openapi.json", get(openapi));
     Router::new()
@@ -83,9 +96,22 @@ pub async fn open_state(config: &ServerConfig, limits: Limits) -> Result<AppStat
     })
 }
 
-/// Serves until Ctrl-C or SIGTERM.
+/// Starts `count` workers in this process; they stop when `stop` is set.
+pub fn spawn_workers(state: &AppState, count: u32, stop: &Arc<AtomicBool>) {
+    for i in 0..count {
+        tokio::spawn(worker::work(
+            state.clone(),
+            worker::worker_name(i),
+            stop.clone(),
+        ));
+    }
+}
+
+/// Serves until Ctrl-C or SIGTERM, with the configured number of workers.
 pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
     let state = open_state(&config, limits).await?;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&state, config.workers, &stop);
     let listener = tokio::net::TcpListener::bind(&config.listen)
         .await
         .map_err(|e| Error::InvalidParameter(format!("cannot listen on {}: {e}", config.listen)))?;
@@ -96,7 +122,25 @@ pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
     axum::serve(listener, router(state, config.max_upload_bytes))
         .with_graceful_shutdown(shutdown_signal())
         .await
-        .map_err(|e| Error::InvalidParameter(format!("server: {e}")))
+        .map_err(|e| Error::InvalidParameter(format!("server: {e}")))?;
+    stop.store(true, Ordering::Relaxed);
+    Ok(())
+}
+
+/// Runs `config.workers` (at least one) workers without the HTTP server, until Ctrl-C or
+/// SIGTERM (`mesobake worker`).
+pub async fn work(config: ServerConfig, limits: Limits) -> Result<()> {
+    let state = open_state(&config, limits).await?;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&state, config.workers.max(1), &stop);
+    eprintln!(
+        "mesobake worker: {} worker(s) on {}",
+        config.workers.max(1),
+        config.database_url
+    );
+    shutdown_signal().await;
+    stop.store(true, Ordering::Relaxed);
+    Ok(())
 }
 
 async fn shutdown_signal() {

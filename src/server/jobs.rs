@@ -1,0 +1,433 @@
+//! Bake jobs: what a client posts ([`JobSpec`]), the planner that derives the stages from
+//! the scene's effects, and the durable queue in the database.
+//!
+//! The queue is the `jobs` table itself. A worker claims a job with one conditional
+//! `UPDATE … RETURNING` (portable between SQLite and PostgreSQL: the condition is checked
+//! again on the row it updates, so two workers never both win) and owns it until its lease
+//! expires; heartbeats extend the lease. A worker that dies stops heartbeating, its lease
+//! expires and another worker claims the job again. Finishing is conditional on still owning
+//! the lease, so a job has exactly one successful result. Transient failures are retried
+//! with exponential backoff; input errors fail at once.
+
+use super::api_error::ApiError;
+use super::db::{Db, db_error, now_ms};
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::RankChoice;
+use crate::error::{Error, Result};
+use crate::preview_scene::ScenePackageParams;
+use crate::scene::{Effect, Scene};
+use serde::{Deserialize, Serialize};
+use sqlx::any::AnyRow;
+use sqlx::{AssertSqlSafe, Row};
+
+/// How many times a job is tried before it fails for good.
+pub const MAX_ATTEMPTS: i32 = 3;
+
+/// What a client asks to bake.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JobSpec {
+    /// The scene (docs/scene-format.md). Files it names (a volume, a mesh tile, a base mesh)
+    /// are the digests of uploaded assets.
+    #[schema(value_type = Object)]
+    pub scene: Scene,
+    /// SVD components of the package.
+    #[serde(default = "default_rank")]
+    pub rank: usize,
+    /// Number format of the package's factors.
+    #[serde(default = "default_quantization")]
+    #[schema(value_type = String)]
+    pub quantization: Quantization,
+}
+
+fn default_rank() -> usize {
+    8
+}
+
+fn default_quantization() -> Quantization {
+    Quantization::F16
+}
+
+impl JobSpec {
+    /// The package parameters.
+    pub fn package_params(&self) -> ScenePackageParams {
+        ScenePackageParams {
+            rank: RankChoice::Rank(self.rank),
+            quantization: self.quantization,
+        }
+    }
+
+    /// What the result depends on, hashed: the mesostructure, its grids and the package
+    /// parameters (not the camera, lights or base mesh, which a package does not hold).
+    pub fn dedup_key(&self) -> String {
+        let s = &self.scene;
+        let key = serde_json::json!({
+            "version": 1,
+            "mesostructure": s.mesostructure,
+            "resolution": s.resolution,
+            "directions": s.directions,
+            "rank": self.rank,
+            "quantization": self.quantization,
+        });
+        blake3::hash(key.to_string().as_bytes())
+            .to_hex()
+            .to_string()
+    }
+}
+
+/// A stage the planner left out, and why.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct Skipped {
+    /// The stage.
+    pub stage: String,
+    /// Why the scene does not need it.
+    pub reason: String,
+}
+
+/// The stages a job runs, in order, and those it skips.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct Plan {
+    /// Stages to run.
+    pub stages: Vec<String>,
+    /// Stages left out.
+    pub skipped: Vec<Skipped>,
+}
+
+/// The stages of a package bake for `scene`: the GDM and its compression always; nothing the
+/// scene's effects do not call for.
+pub fn plan(scene: &Scene) -> Plan {
+    let stages = ["load", "bake_gdm", "compress", "store"]
+        .map(String::from)
+        .to_vec();
+    let mut skipped = Vec::new();
+    let no_environment = "the scene calls for no environment lighting".to_owned();
+    for stage in ["bake_prt", "bake_rtv"] {
+        skipped.push(Skipped {
+            stage: stage.into(),
+            reason: no_environment.clone(),
+        });
+    }
+    if !scene.wants(Effect::Shadows) {
+        skipped.push(Skipped {
+            stage: "preview_shadows".into(),
+            reason: "the scene does not call for shadows".into(),
+        });
+    }
+    Plan { stages, skipped }
+}
+
+/// A job as the API shows it.
+#[derive(Clone, Debug, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct JobView {
+    /// The job's id.
+    pub id: String,
+    /// `queued`, `running`, `succeeded`, `failed` or `cancelled`.
+    pub state: String,
+    /// The stage running now (or the last one).
+    pub stage: Option<String>,
+    /// Fraction done, 0 to 1.
+    pub progress: f64,
+    /// Attempts so far.
+    pub attempts: i32,
+    /// What runs and what was skipped.
+    pub plan: Plan,
+    /// Seconds per finished stage.
+    #[schema(value_type = Object)]
+    pub timings: serde_json::Value,
+    /// Why it failed.
+    pub error: Option<String>,
+    /// The package, once succeeded.
+    pub package_digest: Option<String>,
+    /// Whether a cancellation was asked for.
+    pub cancel_requested: bool,
+    /// Submission time, Unix milliseconds.
+    pub created_ms: i64,
+    /// Last change, Unix milliseconds.
+    pub updated_ms: i64,
+}
+
+impl JobView {
+    /// Whether the job will not change any more.
+    pub fn is_final(&self) -> bool {
+        matches!(self.state.as_str(), "succeeded" | "failed" | "cancelled")
+    }
+}
+
+/// A job a worker has claimed.
+#[derive(Clone, Debug)]
+pub struct Claimed {
+    /// The job's id.
+    pub id: String,
+    /// What to bake.
+    pub spec: JobSpec,
+    /// This attempt's number (1 for the first).
+    pub attempt: i32,
+}
+
+const VIEW_COLUMNS: &str = "id, state, stage, progress, attempts, plan, timings, error, \
+    package_digest, cancel_requested, created_ms, updated_ms";
+
+fn json(row: &AnyRow, name: &str) -> Result<serde_json::Value> {
+    let text: String = row.try_get(name).map_err(db_error)?;
+    serde_json::from_str(&text).map_err(|e| Error::Database(format!("column {name}: {e}")))
+}
+
+fn view(row: &AnyRow) -> Result<JobView> {
+    let get = |e: sqlx::Error| db_error(e);
+    Ok(JobView {
+        id: row.try_get("id").map_err(get)?,
+        state: row.try_get("state").map_err(get)?,
+        stage: row.try_get("stage").map_err(get)?,
+        progress: row.try_get("progress").map_err(get)?,
+        attempts: row.try_get("attempts").map_err(get)?,
+        plan: serde_json::from_value(json(row, "plan")?)
+            .map_err(|e| Error::Database(format!("plan: {e}")))?,
+        timings: json(row, "timings")?,
+        error: row.try_get("error").map_err(get)?,
+        package_digest: row.try_get("package_digest").map_err(get)?,
+        cancel_requested: row.try_get::<i32, _>("cancel_requested").map_err(get)? != 0,
+        created_ms: row.try_get("created_ms").map_err(get)?,
+        updated_ms: row.try_get("updated_ms").map_err(get)?,
+    })
+}
+
+/// A random job id: a UUID v4 as 32 lowercase hex digits.
+fn new_id() -> String {
+    uuid::Uuid::new_v4().simple().to_string()
+}
+
+impl Db {
+    /// Submits `spec`: a new queued job, or the existing job with the same inputs and
+    /// parameters (re-queued if it failed or was cancelled). Returns the job and whether a
+    /// bake was queued.
+    pub async fn submit_job(&self, spec: &JobSpec) -> Result<(JobView, bool)> {
+        let key = spec.dedup_key();
+        let now = now_ms();
+        let plan = serde_json::to_string(&plan(&spec.scene)).expect("plans serialize");
+        let spec_text = serde_json::to_string(spec).expect("specs serialize");
+        let inserted = sqlx::query(
+            "INSERT INTO jobs (id, dedup_key, spec, plan, state, stage, progress, attempts, \
+             max_attempts, run_after_ms, cancel_requested, timings, created_ms, updated_ms) \
+             VALUES ($1, $2, $3, $4, 'queued', NULL, 0, 0, $5, $6, 0, '{}', $6, $6) \
+             ON CONFLICT (dedup_key) DO NOTHING",
+        )
+        .bind(new_id())
+        .bind(&key)
+        .bind(&spec_text)
+        .bind(&plan)
+        .bind(MAX_ATTEMPTS)
+        .bind(now)
+        .execute(&self.pool)
+        .await
+        .map_err(db_error)?
+        .rows_affected()
+            == 1;
+        let requeued = !inserted
+            && sqlx::query(
+                "UPDATE jobs SET state = 'queued', stage = NULL, progress = 0, attempts = 0, \
+                 error = NULL, cancel_requested = 0, lease_owner = NULL, \
+                 lease_expires_ms = NULL, run_after_ms = $2, updated_ms = $2 \
+                 WHERE dedup_key = $1 AND state IN ('failed', 'cancelled')",
+            )
+            .bind(&key)
+            .bind(now)
+            .execute(&self.pool)
+            .await
+            .map_err(db_error)?
+            .rows_affected()
+                == 1;
+        let row = sqlx::query(AssertSqlSafe(format!(
+            "SELECT {VIEW_COLUMNS} FROM jobs WHERE dedup_key = $1"
+        )))
+        .bind(&key)
+        .fetch_one(&self.pool)
+        .await
+        .map_err(db_error)?;
+        Ok((view(&row)?, inserted || requeued))
+    }
+
+    /// The job `id`.
+    pub async fn job(&self, id: &str) -> Result<Option<JobView>> {
+        sqlx::query(AssertSqlSafe(format!(
+            "SELECT {VIEW_COLUMNS} FROM jobs WHERE id = $1"
+        )))
+        .bind(id)
+        .fetch_optional(&self.pool)
+        .await
+        .map_err(db_error)?
+        .map(|r| view(&r))
+        .transpose()
+    }
+
+    /// The newest `limit` jobs.
+    pub async fn jobs(&self, limit: i64) -> Result<Vec<JobView>> {
+        sqlx::query(AssertSqlSafe(format!(
+            "SELECT {VIEW_COLUMNS} FROM jobs ORDER BY created_ms DESC, id LIMIT $1"
+        )))
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await
+        .map_err(db_error)?
+        .iter()
+        .map(view)
+        .collect()
+    }
+
+    /// Claims the oldest runnable job for `worker` with a lease of `lease_ms`: a queued job
+    /// whose backoff has passed, or a running job whose lease expired.
+    pub async fn claim_job(&self, worker: &str, lease_ms: i64) -> Result<Option<Claimed>> {
+        let now = now_ms();
+        let runnable = "((state = 'queued' AND run_after_ms <= $3) \
+                        OR (state = 'running' AND lease_expires_ms < $3)) AND cancel_requested = 0";
+        let row = sqlx::query(AssertSqlSafe(format!(
+            "UPDATE jobs SET state = 'running', lease_owner = $1, lease_expires_ms = $2, \
+             attempts = attempts + 1, updated_ms = $3 \
+             WHERE id = (SELECT id FROM jobs WHERE {runnable} ORDER BY created_ms, id LIMIT 1) \
+             AND {runnable} RETURNING id, spec, attempts"
+        )))
+        .bind(worker)
+        .bind(now + lease_ms)
+        .bind(now)
+        .fetch_optional(&self.pool)
+        .await
+        .map_err(db_error)?;
+        let Some(row) = row else { return Ok(None) };
+        let spec: String = row.try_get("spec").map_err(db_error)?;
+        Ok(Some(Claimed {
+            id: row.try_get("id").map_err(db_error)?,
+            spec: serde_json::from_str(&spec)
+                .map_err(|e| Error::Database(format!("job spec: {e}")))?,
+            attempt: row.try_get("attempts").map_err(db_error)?,
+        }))
+    }
+
+    /// Extends `worker`'s lease on job `id` and records its progress. `None` when the lease
+    /// was lost; otherwise whether a cancellation was asked for.
+    pub async fn heartbeat_job(
+        &self,
+        id: &str,
+        worker: &str,
+        lease_ms: i64,
+        stage: &str,
+        progress: f64,
+    ) -> Result<Option<bool>> {
+        let now = now_ms();
+        let row = sqlx::query(
+            "UPDATE jobs SET lease_expires_ms = $3, stage = $4, progress = $5, updated_ms = $6 \
+             WHERE id = $1 AND lease_owner = $2 AND state = 'running' \
+             RETURNING cancel_requested",
+        )
+        .bind(id)
+        .bind(worker)
+        .bind(now + lease_ms)
+        .bind(stage)
+        .bind(progress)
+        .bind(now)
+        .fetch_optional(&self.pool)
+        .await
+        .map_err(db_error)?;
+        row.map(|r| r.try_get::<i32, _>("cancel_requested").map(|c| c != 0))
+            .transpose()
+            .map_err(db_error)
+    }
+
+    /// Ends `worker`'s run of job `id` in `state` (with the package or the error), if it
+    /// still owns the lease; returns whether it did.
+    pub async fn finish_job(
+        &self,
+        id: &str,
+        worker: &str,
+        state: &str,
+        package_digest: Option<&str>,
+        error: Option<&str>,
+        timings: &serde_json::Value,
+    ) -> Result<bool> {
+        let now = now_ms();
+        let done = sqlx::query(
+            "UPDATE jobs SET state = $3, package_digest = $4, error = $5, timings = $6, \
+             progress = CASE WHEN $3 = 'succeeded' THEN 1 ELSE progress END, \
+             lease_owner = NULL, lease_expires_ms = NULL, updated_ms = $7 \
+             WHERE id = $1 AND lease_owner = $2 AND state = 'running'",
+        )
+        .bind(id)
+        .bind(worker)
+        .bind(state)
+        .bind(package_digest)
+        .bind(error)
+        .bind(timings.to_string())
+        .bind(now)
+        .execute(&self.pool)
+        .await
+        .map_err(db_error)?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Puts `worker`'s job `id` back in the queue after a transient failure, to run again
+    /// after `backoff_ms`; returns whether it still owned the lease.
+    pub async fn retry_job(
+        &self,
+        id: &str,
+        worker: &str,
+        error: &str,
+        backoff_ms: i64,
+    ) -> Result<bool> {
+        let now = now_ms();
+        let done = sqlx::query(
+            "UPDATE jobs SET state = 'queued', error = $3, lease_owner = NULL, \
+             lease_expires_ms = NULL, run_after_ms = $4, updated_ms = $5 \
+             WHERE id = $1 AND lease_owner = $2 AND state = 'running'",
+        )
+        .bind(id)
+        .bind(worker)
+        .bind(error)
+        .bind(now + backoff_ms)
+        .bind(now)
+        .execute(&self.pool)
+        .await
+        .map_err(db_error)?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// Asks for job `id` to stop: a queued job is cancelled at once, a running one when its
+    /// worker next looks (or when its lease expires, if the worker died). `None` when there
+    /// is no such job.
+    pub async fn cancel_job(&self, id: &str) -> Result<Option<JobView>> {
+        let now = now_ms();
+        sqlx::query(
+            "UPDATE jobs SET cancel_requested = 1, updated_ms = $2, \
+             state = CASE WHEN state = 'queued' THEN 'cancelled' ELSE state END \
+             WHERE id = $1 AND state IN ('queued', 'running')",
+        )
+        .bind(id)
+        .bind(now)
+        .execute(&self.pool)
+        .await
+        .map_err(db_error)?;
+        self.job(id).await
+    }
+
+    /// Cancels running jobs whose cancellation was asked for and whose worker's lease
+    /// expired (the worker died before it could see the request).
+    pub async fn reap_cancelled_jobs(&self) -> Result<u64> {
+        let now = now_ms();
+        Ok(sqlx::query(
+            "UPDATE jobs SET state = 'cancelled', lease_owner = NULL, lease_expires_ms = NULL, \
+             updated_ms = $1 WHERE state = 'running' AND cancel_requested = 1 \
+             AND lease_expires_ms < $1",
+        )
+        .bind(now)
+        .execute(&self.pool)
+        .await
+        .map_err(db_error)?
+        .rows_affected())
+    }
+}
+
+/// A job id from a path: 32 lowercase hex digits.
+pub fn check_job_id(id: &str) -> std::result::Result<(), ApiError> {
+    if id.len() == 32 && id.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f')) {
+        Ok(())
+    } else {
+        Err(ApiError::not_found(format!("job {id:?}")))
+    }
+}

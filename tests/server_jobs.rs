@@ -1,0 +1,281 @@
+//! Bake jobs through the API on both database backends: planning, deduplication, progress
+//! events, cancellation mid-bake, and a dead worker's job taken over after its lease.
+
+#[path = "common/server.rs"]
+mod server;
+
+use mesobake::grid::Dims;
+use mesobake::limits::Limits;
+use mesobake::package::Package;
+use mesobake::samples::{self, SampleKind};
+use mesobake::server::spawn_workers;
+use mesobake::volume_format;
+use serde_json::{Value, json};
+use server::{TestServer, database_urls};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+fn scene(volume: &str, res: [u32; 3], dirs: [u32; 2]) -> Value {
+    json!({
+        "base_mesh": { "builtin": { "plane": { "size": 2.0, "segments": 8 } } },
+        "mesostructure": { "volume": volume },
+        "resolution": res,
+        "directions": dirs,
+        "shell": { "thickness": 0.1, "tiles_per_uv": [4, 4] },
+        "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 64, "height": 64 },
+        "effects": ["silhouettes"]
+    })
+}
+
+async fn upload(s: &TestServer, kind: SampleKind, res: [u32; 3]) -> String {
+    let v = samples::volume(
+        kind,
+        Dims::new(res[0], res[1], res[2]).unwrap(),
+        &Limits::default(),
+    )
+    .unwrap();
+    let r = reqwest::Client::new()
+        .post(s.url("/api/v1/assets?kind=volume&name=v.mbvol"))
+        .body(volume_format::encode(&v))
+        .send()
+        .await
+        .unwrap();
+    assert!(r.status().is_success());
+    r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned()
+}
+
+async fn submit(s: &TestServer, body: &Value) -> (u16, Value) {
+    let r = reqwest::Client::new()
+        .post(s.url("/api/v1/jobs"))
+        .json(body)
+        .send()
+        .await
+        .unwrap();
+    let status = r.status().as_u16();
+    (status, r.json().await.unwrap_or(Value::Null))
+}
+
+async fn job(s: &TestServer, id: &str) -> Value {
+    reqwest::get(s.url(&format!("/api/v1/jobs/{id}")))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap()
+}
+
+async fn wait_for(s: &TestServer, id: &str, until: impl Fn(&Value) -> bool) -> Value {
+    let start = Instant::now();
+    loop {
+        let j = job(s, id).await;
+        if until(&j) {
+            return j;
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "timed out: {j}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn jobs_bake_once_report_progress_and_reuse_results() {
+    let dir = tempfile::tempdir().unwrap();
+    for url in database_urls(dir.path(), "jobs").await {
+        let data = tempfile::tempdir().unwrap();
+        let s = TestServer::start(&url, data.path(), 1 << 24).await;
+        let stop = Arc::new(AtomicBool::new(false));
+        spawn_workers(&s.state, 1, &stop);
+        let volume = upload(&s, SampleKind::Weave, [16, 16, 8]).await;
+        let spec = json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]), "rank": 4 });
+        let (status, queued) = submit(&s, &spec).await;
+        assert_eq!(status, 202, "{url}: {queued}");
+        let id = queued["id"].as_str().unwrap().to_owned();
+        let skipped: Vec<&str> = queued["plan"]["skipped"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|k| k["stage"].as_str().unwrap())
+            .collect();
+        assert!(
+            skipped.contains(&"bake_rtv") && skipped.contains(&"preview_shadows"),
+            "{queued}"
+        );
+        // The event stream ends with the final state.
+        let events = reqwest::get(s.url(&format!("/api/v1/jobs/{id}/events")))
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        let last = events
+            .lines()
+            .filter_map(|l| l.strip_prefix("data: "))
+            .next_back()
+            .unwrap();
+        let done: Value = serde_json::from_str(last).unwrap();
+        assert_eq!(done["state"], "succeeded", "{done}");
+        assert_eq!(done["progress"], 1.0);
+        assert_eq!(done["attempts"], 1);
+        assert!(
+            done["timings"]["bake_gdm"].as_f64().unwrap() > 0.0,
+            "{done}"
+        );
+        let digest = done["package_digest"].as_str().unwrap();
+        let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        let package = Package::parse(bytes.to_vec()).unwrap();
+        assert_eq!(package.dims(), Dims::new(16, 16, 8).unwrap());
+        assert_eq!(package.manifest().gdm.rank, 4);
+        // Identical inputs: the same job, not a second bake; a different camera changes
+        // nothing a package holds.
+        let (status, again) = submit(&s, &spec).await;
+        assert_eq!((status, &again["id"]), (200, &json!(id)));
+        let mut moved = spec.clone();
+        moved["scene"]["camera"]["eye"] = json!([1, 3, 2]);
+        assert_eq!(submit(&s, &moved).await.1["id"], json!(id));
+        let jobs: Vec<Value> = reqwest::get(s.url("/api/v1/jobs"))
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        assert_eq!(jobs.len(), 1);
+
+        // Bad submissions: 4xx naming the problem, nothing queued.
+        let mut wrong_kind = spec.clone();
+        wrong_kind["scene"]["mesostructure"] = json!({ "tile": volume });
+        let mut unknown = spec.clone();
+        unknown["scene"]["mesostructure"] = json!({ "volume": "0".repeat(64) });
+        let mut traversal = spec.clone();
+        traversal["scene"]["mesostructure"] = json!({ "volume": "../../etc/passwd" });
+        let mut bad_scene = spec.clone();
+        bad_scene["scene"]["shell"]["thickness"] = json!(-1.0);
+        let mut extra = spec.clone();
+        extra["priority"] = json!(1);
+        for (body, want) in [
+            (
+                wrong_kind,
+                "is a volume, but the scene uses it as a mesh_tile",
+            ),
+            (unknown, "not the digest of an uploaded volume"),
+            (traversal, "not the digest of an uploaded volume"),
+            (bad_scene, "thickness"),
+            (extra, "unknown field `priority`"),
+        ] {
+            let (status, answer) = submit(&s, &body).await;
+            assert_eq!(status, 422, "{want}: {answer}");
+            assert!(answer["error"].as_str().unwrap().contains(want), "{answer}");
+        }
+        let client = reqwest::Client::new();
+        let r = client
+            .post(s.url("/api/v1/jobs"))
+            .header("content-type", "application/json")
+            .body("{not json")
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 400);
+        let r = client
+            .post(s.url("/api/v1/jobs"))
+            .header("content-type", "text/plain")
+            .body(spec.to_string())
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 415);
+        for path in [
+            "/api/v1/jobs/nope",
+            "/api/v1/jobs/00000000000000000000000000000000",
+        ] {
+            assert_eq!(reqwest::get(s.url(path)).await.unwrap().status(), 404);
+        }
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cancellation_stops_a_running_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    for url in database_urls(dir.path(), "cancel").await {
+        let data = tempfile::tempdir().unwrap();
+        let s = TestServer::start(&url, data.path(), 1 << 26).await;
+        let stop = Arc::new(AtomicBool::new(false));
+        spawn_workers(&s.state, 1, &stop);
+        // A bake of a few seconds (the GDM dominates; the SVD is checked for a
+        // cancellation only before it starts).
+        let volume = upload(&s, SampleKind::Chain, [128, 128, 32]).await;
+        let (_, queued) = submit(
+            &s,
+            &json!({ "scene": scene(&volume, [128, 128, 32], [16, 32]) }),
+        )
+        .await;
+        let id = queued["id"].as_str().unwrap().to_owned();
+        wait_for(&s, &id, |j| j["state"] == "running").await;
+        let r = reqwest::Client::new()
+            .post(s.url(&format!("/api/v1/jobs/{id}/cancel")))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 200);
+        let asked = Instant::now();
+        let j = wait_for(&s, &id, |j| j["state"] != "running").await;
+        assert_eq!(j["state"], "cancelled", "{j}");
+        assert!(j["package_digest"].is_null());
+        assert!(
+            asked.elapsed() < Duration::from_secs(5),
+            "took {:?}",
+            asked.elapsed()
+        );
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_dead_workers_job_is_taken_over_and_finishes_once() {
+    let dir = tempfile::tempdir().unwrap();
+    for url in database_urls(dir.path(), "lease").await {
+        let data = tempfile::tempdir().unwrap();
+        let s = TestServer::start(&url, data.path(), 1 << 24).await;
+        let volume = upload(&s, SampleKind::Grid, [16, 16, 8]).await;
+        let (_, queued) = submit(
+            &s,
+            &json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]) }),
+        )
+        .await;
+        let id = queued["id"].as_str().unwrap().to_owned();
+        // A worker claims it with a short lease and dies.
+        let claimed = s
+            .state
+            .db
+            .claim_job("dead-worker", 300)
+            .await
+            .unwrap()
+            .unwrap();
+        assert_eq!((claimed.id.as_str(), claimed.attempt), (id.as_str(), 1));
+        assert!(
+            s.state.db.claim_job("other", 300).await.unwrap().is_none(),
+            "claimed twice"
+        );
+        let stop = Arc::new(AtomicBool::new(false));
+        spawn_workers(&s.state, 1, &stop);
+        let j = wait_for(&s, &id, |j| j["state"] == "succeeded").await;
+        assert_eq!(j["attempts"], 2, "{j}");
+        // The dead worker coming back cannot finish it a second time.
+        let late = s
+            .state
+            .db
+            .finish_job(&id, "dead-worker", "failed", None, Some("late"), &json!({}))
+            .await
+            .unwrap();
+        assert!(!late);
+        assert_eq!(job(&s, &id).await["state"], "succeeded");
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}
