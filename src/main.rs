@@ -671,7 +671,8 @@ fn run(cli: Cli) -> Result<()> {
                 }
             };
             let package_s = start.elapsed().as_secs_f64();
-            let (image, report) = preview(&loaded, &package, adapter.as_deref(), frames)?;
+            let gpu = mesobake::realtime::gpu::Gpu::open(adapter.as_deref())?;
+            let (image, report) = preview(&gpu, &loaded, &package, frames)?;
             image.write(&out)?;
             eprintln!(
                 "wrote {} ({}×{}, {} hit pixels) on {} ({})",

@@ -131,17 +131,15 @@ pub struct PreviewReport {
     pub frames: u32,
 }
 
-/// Renders `loaded` with `package` on the adapter named `adapter` (or the default one);
-/// with `frames` > 0, also times that many frames.
+/// Renders `loaded` with `package` on `gpu`; with `frames` > 0, also times that many frames.
 pub fn preview(
+    gpu: &Gpu,
     loaded: &LoadedScene,
     package: &Package,
-    adapter: Option<&str>,
     frames: u32,
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
-    let gpu = Gpu::open(adapter)?;
-    let preview = Preview::new(&gpu, loaded, package, true)?;
+    let preview = Preview::new(gpu, loaded, package, true)?;
     let setup_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let image = preview.render()?;

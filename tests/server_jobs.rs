@@ -279,3 +279,61 @@ async fn a_dead_workers_job_is_taken_over_and_finishes_once() {
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn previews_render_once_the_package_is_baked() {
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "preview").await.remove(0);
+    let data = tempfile::tempdir().unwrap();
+    let s = TestServer::start(&url, data.path(), 1 << 24).await;
+    let volume = upload(&s, SampleKind::Weave, [16, 16, 8]).await;
+    let spec = json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]), "rank": 4 });
+    let client = reqwest::Client::new();
+    let ask = || client.post(s.url("/api/v1/preview")).json(&spec).send();
+    // No worker yet: the package is not baked, and the answer says which job bakes it.
+    let r = ask().await.unwrap();
+    assert_eq!(r.status(), 409);
+    let answer: Value = r.json().await.unwrap();
+    let id = answer["job"]["id"].as_str().unwrap().to_owned();
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&s.state, 1, &stop);
+    let done = wait_for(&s, &id, |j| j["state"] == "succeeded").await;
+    let r = ask().await.unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(r.headers()["content-type"], "image/png");
+    let png = r.bytes().await.unwrap();
+    let decoder = png::Decoder::new(std::io::Cursor::new(png.to_vec()));
+    let info = decoder.read_info().unwrap().info().clone();
+    assert_eq!((info.width, info.height), (64, 64));
+    // The same scene again: the cached image, byte for byte.
+    assert_eq!(ask().await.unwrap().bytes().await.unwrap(), png);
+    let manifest: Value = reqwest::get(s.url(&format!(
+        "/api/v1/packages/{}/manifest",
+        done["package_digest"].as_str().unwrap()
+    )))
+    .await
+    .unwrap()
+    .json()
+    .await
+    .unwrap();
+    assert_eq!(manifest["gdm"]["rank"], 4);
+    let sample: Value = reqwest::get(s.url("/api/v1/scenes/sample"))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(sample["mesostructure"]["sample"], "chain");
+    let page = reqwest::get(s.url("/"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    assert!(page.contains("mesobake"));
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}

@@ -57,6 +57,25 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
     Ok(())
 }
 
+/// Parses and checks a job specification: the scene is valid, the rank in 1..=64 and every
+/// asset it names uploaded as the right kind.
+pub async fn check_spec(state: &AppState, body: serde_json::Value) -> ApiResult<JobSpec> {
+    let unprocessable = |m: String| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, m);
+    let spec: JobSpec =
+        serde_json::from_value(body).map_err(|e| unprocessable(format!("job: {e}")))?;
+    // Deserializing does not validate a scene; parsing its text does.
+    let text = serde_json::to_string(&spec.scene).expect("scenes serialize");
+    Scene::from_json(&text)?;
+    if spec.rank == 0 || spec.rank > 64 {
+        return Err(unprocessable(format!(
+            "rank must be in 1..=64, got {}",
+            spec.rank
+        )));
+    }
+    check_assets(state, &spec.scene).await?;
+    Ok(spec)
+}
+
 /// Submits a bake. Identical inputs and parameters reuse the existing job and its result.
 #[utoipa::path(
     post,

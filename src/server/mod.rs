@@ -11,6 +11,7 @@ pub mod health;
 pub mod jobs;
 pub mod jobs_api;
 pub mod packages;
+pub mod preview_api;
 pub mod worker;
 
 use crate::error::{Error, Result};
@@ -37,6 +38,8 @@ pub struct AppState {
     pub limits: Limits,
     /// Counters for `/metrics`.
     pub metrics: Arc<Metrics>,
+    /// The GPU for previews, opened on first use.
+    pub gpu: preview_api::SharedGpu,
 }
 
 /// The OpenAPI document of the API.
@@ -52,12 +55,20 @@ pub struct AppState {
         jobs_api::cancel,
         jobs_api::events,
         packages::get,
+        packages::manifest,
+        preview_api::render,
+        preview_api::sample_scene,
         health::healthz,
         health::readyz,
         health::metrics,
     )
 )]
 pub struct ApiDoc;
+
+/// The web page (`static/index.html`, compiled in).
+async fn index() -> axum::response::Html<&'static str> {
+    axum::response::Html(include_str!("../../static/index.html"))
+}
 
 async fn openapi() -> axum::Json<utoipa::openapi::OpenApi> {
     axum::Json(ApiDoc::openapi())
@@ -73,8 +84,12 @@ pub fn router(state: AppState, max_body: u64) -> Router {
         .route("/jobs/{id}/cancel", post(jobs_api::cancel))
         .route("/jobs/{id}/events", get(jobs_api::events))
         .route("/packages/{digest}", get(packages::get))
+        .route("/packages/{digest}/manifest", get(packages::manifest))
+        .route("/preview", post(preview_api::render))
+        .route("/scenes/sample", get(preview_api::sample_scene))
         .route("/openapi.json", get(openapi));
     Router::new()
+        .route("/", get(index))
         .nest("/api/v1", api)
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))
@@ -93,6 +108,7 @@ pub async fn open_state(config: &ServerConfig, limits: Limits) -> Result<AppStat
         blobs: BlobStore::open(&config.data_dir)?,
         limits,
         metrics: Arc::new(Metrics::default()),
+        gpu: Default::default(),
     })
 }
 
@@ -112,6 +128,9 @@ pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
     let state = open_state(&config, limits).await?;
     let stop = Arc::new(AtomicBool::new(false));
     spawn_workers(&state, config.workers, &stop);
+    if config.seed_sample {
+        seed_sample(&state).await?;
+    }
     let listener = tokio::net::TcpListener::bind(&config.listen)
         .await
         .map_err(|e| Error::InvalidParameter(format!("cannot listen on {}: {e}", config.listen)))?;
@@ -124,6 +143,21 @@ pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
         .await
         .map_err(|e| Error::InvalidParameter(format!("server: {e}")))?;
     stop.store(true, Ordering::Relaxed);
+    Ok(())
+}
+
+/// Queues the bake of the built-in sample scene (a no-op when it was baked before), so that
+/// the web page has a preview at once.
+pub async fn seed_sample(state: &AppState) -> Result<()> {
+    let scene = crate::scene::Scene::from_json(preview_api::SAMPLE_SCENE)?;
+    let spec: jobs::JobSpec = serde_json::from_value(serde_json::json!({ "scene": scene }))
+        .map_err(|e| Error::Scene(e.to_string()))?;
+    let (job, queued) = state.db.submit_job(&spec).await?;
+    eprintln!(
+        "sample scene: job {} {}",
+        job.id,
+        if queued { "queued" } else { job.state.as_str() }
+    );
     Ok(())
 }
 

@@ -157,3 +157,23 @@ mod tests {
         assert_eq!(parse_range("bytes=0-", 0), ByteRange::Unsatisfiable);
     }
 }
+
+/// A package's manifest (its JSON, as the package holds it).
+#[utoipa::path(
+    get,
+    path = "/api/v1/packages/{digest}/manifest",
+    params(("digest" = String, Path, description = "BLAKE3 of the package bytes")),
+    responses((status = 200, description = "The manifest"), (status = 404, description = "No such package"))
+)]
+pub async fn manifest(
+    State(state): State<AppState>,
+    Path(digest): Path<String>,
+) -> ApiResult<axum::Json<serde_json::Value>> {
+    let row = if is_key(&digest) {
+        state.db.package(&digest).await?
+    } else {
+        None
+    };
+    let row = row.ok_or_else(|| ApiError::not_found(format!("package {digest:?}")))?;
+    Ok(axum::Json(row.manifest))
+}
