@@ -1,4 +1,5 @@
 //! Running the server in-process against each database backend.
+#![allow(dead_code)] // each test file uses part of it
 
 use mesobake::limits::Limits;
 use mesobake::server::{AppState, config::ServerConfig, open_state, router};

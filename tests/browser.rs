@@ -1,0 +1,219 @@
+//! The web page in a real headless browser (Debian's chromium and chromedriver, driven over
+//! WebDriver with fantoccini): upload a sample volume, bake it and watch the job finish, see
+//! the preview image change when a control moves. Skipped loudly when chromedriver is
+//! missing, unless MESOBAKE_REQUIRE_BROWSER=1 (set by `.ci/run`, which installs it).
+
+#[path = "common/server.rs"]
+mod server;
+
+use fantoccini::{ClientBuilder, Locator};
+use mesobake::grid::Dims;
+use mesobake::limits::Limits;
+use mesobake::samples::{self, SampleKind};
+use mesobake::server::spawn_workers;
+use server::TestServer;
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+/// chromedriver on a free port, killed on drop.
+struct Driver(Child, u16);
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn start_driver() -> Option<Driver> {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .ok()?
+        .local_addr()
+        .ok()?
+        .port();
+    match Command::new("chromedriver")
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+    {
+        Ok(child) => Some(Driver(child, port)),
+        Err(e) if std::env::var("MESOBAKE_REQUIRE_BROWSER").as_deref() == Ok("1") => {
+            panic!("chromedriver is required but did not start: {e}")
+        }
+        Err(e) => {
+            eprintln!("SKIPPED: chromedriver did not start ({e}); install chromium-driver");
+            None
+        }
+    }
+}
+
+/// Polls `check` until it gives a value, failing after `secs` seconds with `what`.
+async fn eventually<T, F, Fut>(secs: u64, what: &str, mut check: F) -> T
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Option<T>>,
+{
+    let start = Instant::now();
+    loop {
+        if let Some(v) = check().await {
+            return v;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(secs),
+            "timed out waiting for {what}"
+        );
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn upload_bake_and_preview_in_a_browser() {
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1 (the page's preview needs a GPU adapter)");
+        return;
+    }
+    let Some(driver) = start_driver() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let s = TestServer::start(
+        &format!("sqlite://{}", dir.path().join("db.sqlite").display()),
+        &dir.path().join("data"),
+        1 << 26,
+    )
+    .await;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&s.state, 1, &stop);
+    // The volume to upload: the sample scene's mesostructure at its resolution.
+    let volume = samples::volume(
+        SampleKind::Weave,
+        Dims::new(64, 64, 32).unwrap(),
+        &Limits::default(),
+    )
+    .unwrap();
+    let file = dir.path().join("weave.mbvol");
+    mesobake::volume_format::write(&volume, &file).unwrap();
+
+    let mut caps = serde_json::Map::new();
+    caps.insert(
+        "goog:chromeOptions".into(),
+        serde_json::json!({ "args": ["--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1300,1000"] }),
+    );
+    let driver_url = format!("http://127.0.0.1:{}", driver.1);
+    let c = eventually(20, "chromedriver", || {
+        let caps = caps.clone();
+        let url = driver_url.clone();
+        async move {
+            ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
+                .capabilities(caps)
+                .connect(&url)
+                .await
+                .ok()
+        }
+    })
+    .await;
+    c.goto(&s.url("/")).await.unwrap();
+    eventually(20, "the sample scene in the editor", || async {
+        let text = c
+            .find(Locator::Id("scene-json"))
+            .await
+            .ok()?
+            .prop("value")
+            .await
+            .ok()??;
+        text.contains("torus").then_some(())
+    })
+    .await;
+
+    // Upload.
+    c.find(Locator::Id("upload-file"))
+        .await
+        .unwrap()
+        .send_keys(file.to_str().unwrap())
+        .await
+        .unwrap();
+    c.find(Locator::Id("upload-button"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    let digest = mesobake::server::blobs::key_of(&std::fs::read(&file).unwrap());
+    eventually(30, "the upload's digest", || async {
+        let text = c
+            .find(Locator::Id("upload-status"))
+            .await
+            .ok()?
+            .text()
+            .await
+            .ok()?;
+        text.contains(&digest).then_some(())
+    })
+    .await;
+    let scene = c
+        .find(Locator::Id("scene-json"))
+        .await
+        .unwrap()
+        .prop("value")
+        .await
+        .unwrap()
+        .unwrap();
+    assert!(
+        scene.contains(&digest),
+        "the scene does not name the upload: {scene}"
+    );
+
+    // Bake, and watch the job finish in the list.
+    c.find(Locator::Id("bake-button"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    eventually(120, "a succeeded job in the list", || async {
+        let cells = c.find_all(Locator::Css("#jobs .job-state")).await.ok()?;
+        for cell in cells {
+            if cell.text().await.ok()? == "succeeded" {
+                return Some(());
+            }
+        }
+        None
+    })
+    .await;
+
+    // A preview, then another after the orbit control moves.
+    let hash = |c: fantoccini::Client| async move {
+        let v = c
+            .execute(
+                "const img = document.getElementById('preview'); \
+                 return [img.dataset.sceneHash || null, img.naturalWidth];",
+                vec![],
+            )
+            .await
+            .ok()?;
+        let hash = v[0].as_str()?.to_owned();
+        (v[1].as_u64()? > 0).then_some(hash)
+    };
+    c.find(Locator::Id("preview-button"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    let first = eventually(120, "the first preview", || hash(c.clone())).await;
+    c.execute(
+        "const el = document.getElementById('orbit-azimuth'); el.value = 90; \
+         el.dispatchEvent(new Event('input'));",
+        vec![],
+    )
+    .await
+    .unwrap();
+    let second = eventually(120, "a new preview after orbiting", || async {
+        hash(c.clone()).await.filter(|h| *h != first)
+    })
+    .await;
+    assert_ne!(first, second);
+    c.close().await.unwrap();
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}
