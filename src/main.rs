@@ -180,6 +180,11 @@ enum Command {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// Issue an API key (printed once; the database keeps only its hash).
+    Keys {
+        #[command(subcommand)]
+        which: KeysCommand,
+    },
     /// Compare two images of equal size: PSNR (dB, sRGB values), mean absolute error and the
     /// fraction of pixels whose hit/miss mask differs.
     Compare {
@@ -276,6 +281,22 @@ impl BakeOptions {
             max_spread: self.spread,
         }
     }
+}
+
+#[derive(Subcommand)]
+enum KeysCommand {
+    /// Create a key with the given scopes.
+    Create {
+        /// Comma-separated scopes: upload, bake, read.
+        #[arg(long)]
+        scopes: String,
+        /// A note saying whose key it is.
+        #[arg(long, default_value = "")]
+        label: String,
+        /// The server's configuration file (for its database).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -637,6 +658,25 @@ fn run(cli: Cli) -> Result<()> {
         Command::Serve { config } => {
             let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
             runtime()?.block_on(mesobake::server::serve(config, limits))
+        }
+        Command::Keys {
+            which:
+                KeysCommand::Create {
+                    scopes,
+                    label,
+                    config,
+                },
+        } => {
+            let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
+            let scopes = mesobake::server::auth::Scope::parse_list(&scopes)?;
+            let runtime = tokio::runtime::Runtime::new()
+                .map_err(|e| Error::InvalidParameter(format!("starting the runtime: {e}")))?;
+            let key = runtime.block_on(async {
+                let db = mesobake::server::db::Db::connect(&config.database_url).await?;
+                db.create_api_key(&scopes, &label).await
+            })?;
+            println!("{key}");
+            Ok(())
         }
         Command::Worker { config } => {
             let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;

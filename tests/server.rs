@@ -198,3 +198,92 @@ async fn packages_download_with_etags_and_ranges() {
         assert!(doc["paths"]["/api/v1/packages/{digest}"]["get"].is_object());
     }
 }
+
+#[tokio::test]
+async fn api_keys_guard_the_api_by_scope() {
+    let dir = tempfile::tempdir().unwrap();
+    for url in database_urls(dir.path(), "keys").await {
+        let data = tempfile::tempdir().unwrap();
+        let s = TestServer::start_with(&url, data.path(), 1 << 20, |c| c.require_keys = true).await;
+        use mesobake::server::auth::Scope;
+        let reader = s
+            .state
+            .db
+            .create_api_key(&[Scope::Read], "reader")
+            .await
+            .unwrap();
+        let uploader = s
+            .state
+            .db
+            .create_api_key(&[Scope::Upload, Scope::Read], "ci")
+            .await
+            .unwrap();
+        let client = reqwest::Client::new();
+        let body = volume_bytes(SampleKind::Grid, 16);
+        let post = |key: Option<&str>| {
+            let mut r = client
+                .post(s.url("/api/v1/assets?kind=volume&name=g.mbvol"))
+                .body(body.clone());
+            if let Some(k) = key {
+                r = r.bearer_auth(k);
+            }
+            r.send()
+        };
+        assert_eq!(post(None).await.unwrap().status(), 401);
+        assert_eq!(post(Some("mbk_0_forged")).await.unwrap().status(), 401);
+        let r = post(Some(&reader)).await.unwrap();
+        assert_eq!(r.status(), 403);
+        assert!(r.text().await.unwrap().contains("upload scope"));
+        let r = post(Some(&uploader)).await.unwrap();
+        assert_eq!(r.status(), 201);
+        let id = r.json::<serde_json::Value>().await.unwrap()["id"]
+            .as_str()
+            .unwrap()
+            .to_owned();
+        let get = |key: Option<&str>| {
+            let mut r = client.get(s.url(&format!("/api/v1/assets/{id}")));
+            if let Some(k) = key {
+                r = r.bearer_auth(k);
+            }
+            r.send()
+        };
+        assert_eq!(get(None).await.unwrap().status(), 401);
+        assert_eq!(get(Some(&reader)).await.unwrap().status(), 200);
+        let r = client
+            .post(s.url("/api/v1/jobs"))
+            .bearer_auth(&uploader)
+            .json(&serde_json::json!({}))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 403, "bake needs the bake scope");
+        // Public routes stay public; package downloads are public by default.
+        for path in ["/healthz", "/api/v1/openapi.json", "/"] {
+            assert_eq!(
+                client.get(s.url(path)).send().await.unwrap().status(),
+                200,
+                "{path}"
+            );
+        }
+        let r = client
+            .get(s.url(&format!("/api/v1/packages/{}", "0".repeat(64))))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(
+            r.status(),
+            404,
+            "a public package route answers without a key"
+        );
+        // Only hashes are stored.
+        let stored: Vec<String> = sqlx::query_scalar("SELECT key_hash FROM api_keys")
+            .fetch_all(&s.state.db.pool)
+            .await
+            .unwrap();
+        assert!(
+            stored
+                .iter()
+                .all(|h| h.len() == 64 && *h != reader && *h != uploader)
+        );
+    }
+}

@@ -25,6 +25,10 @@ pub struct ServerConfig {
     pub workers: u32,
     /// Seed the built-in sample scene at start.
     pub seed_sample: bool,
+    /// Whether API requests need an API key.
+    pub require_keys: bool,
+    /// Whether package downloads are public even when keys are required.
+    pub public_packages: bool,
 }
 
 impl ServerConfig {
@@ -50,11 +54,13 @@ impl ServerConfig {
 
 /// The configuration keys (environment variables are only read for these, so that other
 /// `MESOBAKE_*` variables such as `MESOBAKE_MEMORY_LIMIT` keep their own meaning).
-const KEYS: [&str; 6] = [
+const KEYS: [&str; 8] = [
     "listen",
     "database_url",
     "data_dir",
     "max_upload_bytes",
     "workers",
     "seed_sample",
+    "require_keys",
+    "public_packages",
 ];

@@ -4,6 +4,7 @@
 
 pub mod api_error;
 pub mod assets;
+pub mod auth;
 pub mod blobs;
 pub mod config;
 pub mod db;
@@ -40,6 +41,8 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     /// The GPU for previews, opened on first use.
     pub gpu: preview_api::SharedGpu,
+    /// Who may call what.
+    pub auth: auth::AuthPolicy,
 }
 
 /// The OpenAPI document of the API.
@@ -94,6 +97,10 @@ pub fn router(state: AppState, max_body: u64) -> Router {
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))
         .route("/metrics", get(health::metrics))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            auth::check,
+        ))
         .layer(DefaultBodyLimit::max(
             usize::try_from(max_body).unwrap_or(usize::MAX),
         ))
@@ -109,6 +116,10 @@ pub async fn open_state(config: &ServerConfig, limits: Limits) -> Result<AppStat
         limits,
         metrics: Arc::new(Metrics::default()),
         gpu: Default::default(),
+        auth: auth::AuthPolicy {
+            require_keys: config.require_keys,
+            public_packages: config.public_packages,
+        },
     })
 }
 

@@ -59,11 +59,22 @@ impl TestServer {
         data_dir: &std::path::Path,
         max_upload: u64,
     ) -> TestServer {
+        Self::start_with(database_url, data_dir, max_upload, |_| {}).await
+    }
+
+    /// [`TestServer::start`] with further changes to the configuration.
+    pub async fn start_with(
+        database_url: &str,
+        data_dir: &std::path::Path,
+        max_upload: u64,
+        edit: impl FnOnce(&mut ServerConfig),
+    ) -> TestServer {
         let mut config = ServerConfig::load(None).unwrap();
         config.database_url = database_url.into();
         config.data_dir = data_dir.into();
         config.max_upload_bytes = max_upload;
         config.listen = "127.0.0.1:0".into();
+        edit(&mut config);
         let state = open_state(&config, Limits::default()).await.unwrap();
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let addr = listener.local_addr().unwrap();
