@@ -287,3 +287,41 @@ async fn api_keys_guard_the_api_by_scope() {
         );
     }
 }
+
+#[tokio::test]
+async fn malformed_requests_get_a_4xx_with_a_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "malformed").await.remove(0);
+    let data = tempfile::tempdir().unwrap();
+    let s = TestServer::start(&url, data.path(), 1 << 16).await;
+    let client = reqwest::Client::new();
+    let json = |body: Vec<u8>| {
+        client
+            .post(s.url("/api/v1/jobs"))
+            .header("content-type", "application/json")
+            .body(body)
+            .send()
+    };
+    let cases: Vec<(Vec<u8>, u16)> = vec![
+        (b"{\"scene\": \xff\xfe}".to_vec(), 400),              // invalid UTF-8
+        (b"[1, 2".to_vec(), 400),                              // truncated JSON
+        (b"{\"scene\": 3}".to_vec(), 422),                     // wrong type
+        (format!("[{}]", "0,".repeat(40_000) + "0").into_bytes(), 413), // over the body limit
+    ];
+    for (body, status) in cases {
+        let r = json(body).await.unwrap();
+        assert_eq!(r.status(), status);
+        assert!(!r.text().await.unwrap().is_empty(), "a message");
+    }
+    for path in [
+        "/api/v1/assets/..%2F..%2Fetc%2Fpasswd",
+        "/api/v1/packages/%2e%2e%2f%2e%2e",
+        "/api/v1/jobs/..%2Fjobs/cancel",
+        "/api/v1/packages/..%2F..%2Fblobs/manifest",
+    ] {
+        let r = client.get(s.url(path)).send().await.unwrap();
+        assert!(r.status().is_client_error(), "{path}: {}", r.status());
+    }
+    let r = client.post(s.url("/api/v1/jobs/..%2F..%2Fx/cancel")).send().await.unwrap();
+    assert_eq!(r.status(), 404);
+}
