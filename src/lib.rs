@@ -25,6 +25,7 @@
 pub mod bake_package;
 pub mod base_mesh;
 pub mod bench;
+pub mod client;
 pub mod compress;
 pub mod empty_space;
 pub mod error;

@@ -3,6 +3,7 @@
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use mesobake::bake_package::{PackageParams, bake_package};
+use mesobake::client::Client;
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
 use mesobake::fsutil::write_atomic;
@@ -91,6 +92,28 @@ enum Command {
         /// Print a JSON summary (sizes, rank, errors, seconds per stage) on stdout.
         #[arg(long)]
         json: bool,
+        /// Bake on this server (e.g. http://127.0.0.1:8080) instead of here: upload the input,
+        /// follow the job, download and verify the package (exact method, --rank only).
+        #[arg(long)]
+        server: Option<String>,
+        /// API key for --server (default: the MESOBAKE_API_KEY environment variable).
+        #[arg(long)]
+        api_key: Option<String>,
+    },
+    /// Download a package from a server and verify it (its bytes must hash to DIGEST and parse
+    /// as a package) before writing it.
+    Fetch {
+        /// The server, e.g. http://127.0.0.1:8080.
+        #[arg(long)]
+        server: String,
+        /// The package's digest.
+        digest: String,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+        /// API key (default: the MESOBAKE_API_KEY environment variable).
+        #[arg(long)]
+        api_key: Option<String>,
     },
     /// Reconstruct the dense GDM from a package into .npy (the convention of `mesobake gdm`:
     /// escapes +inf), optionally exporting the weight maps and eigenmaps as a multi-layer EXR.
@@ -519,6 +542,80 @@ fn run(cli: Cli) -> Result<()> {
             max_rmse,
             quant,
             json,
+            server: Some(server),
+            api_key,
+        } => {
+            if max_rmse.is_some() || bake.method != Method::Exact || bake.allow_open {
+                return Err(Error::InvalidParameter(
+                    "--server bakes with the exact method and an explicit --rank; \
+                     --max-rmse, --method fast and --allow-open are local only"
+                        .into(),
+                ));
+            }
+            let client = Client::new(
+                &server,
+                api_key.or_else(|| std::env::var("MESOBAKE_API_KEY").ok()),
+            )?;
+            let asset = client.upload(&bake.input)?;
+            let res = match bake.res {
+                Some(r) => r,
+                None => {
+                    let d = &asset["summary"]["dims"];
+                    let dim = |i: usize| d[i].as_u64().unwrap_or(0) as u32;
+                    Dims::new(dim(0), dim(1), dim(2)).map_err(|_| {
+                        Error::InvalidParameter("--res is required for OBJ tiles".into())
+                    })?
+                }
+            };
+            let job = client.submit(&asset, res, bake.dirs, rank.unwrap_or(8), quant)?;
+            let id = job["id"].as_str().unwrap_or_default().to_owned();
+            let bar = Progress::new(&format!("job {}", &id[..8.min(id.len())]));
+            bar.0.set_length(1000);
+            let done = client.wait(&id, |j| {
+                bar.0
+                    .set_position((j["progress"].as_f64().unwrap_or(0.0) * 1000.0) as u64)
+            })?;
+            bar.0.finish_and_clear();
+            let digest = done["package_digest"].as_str().unwrap_or_default();
+            let bytes = client.fetch(digest)?;
+            write_atomic(&out, &bytes)?;
+            eprintln!(
+                "wrote {} ({} bytes, package {digest}) from job {id}",
+                out.display(),
+                bytes.len()
+            );
+            if json {
+                println!(
+                    "{}",
+                    serde_json::json!({ "output": out, "bytes": bytes.len(), "digest": digest, "job": done })
+                );
+            }
+            Ok(())
+        }
+        Command::Fetch {
+            server,
+            digest,
+            out,
+            api_key,
+        } => {
+            let client = Client::new(
+                &server,
+                api_key.or_else(|| std::env::var("MESOBAKE_API_KEY").ok()),
+            )?;
+            let bytes = client.fetch(&digest)?;
+            write_atomic(&out, &bytes)?;
+            eprintln!("wrote {} ({} bytes, verified)", out.display(), bytes.len());
+            Ok(())
+        }
+        Command::Bake {
+            bake,
+            out,
+            rank,
+            max_rmse,
+            quant,
+            json,
+            server: None,
+            ..
         } => {
             let params = PackageParams {
                 res: bake.res,

@@ -303,9 +303,9 @@ async fn malformed_requests_get_a_4xx_with_a_message() {
             .send()
     };
     let cases: Vec<(Vec<u8>, u16)> = vec![
-        (b"{\"scene\": \xff\xfe}".to_vec(), 400),              // invalid UTF-8
-        (b"[1, 2".to_vec(), 400),                              // truncated JSON
-        (b"{\"scene\": 3}".to_vec(), 422),                     // wrong type
+        (b"{\"scene\": \xff\xfe}".to_vec(), 400), // invalid UTF-8
+        (b"[1, 2".to_vec(), 400),                 // truncated JSON
+        (b"{\"scene\": 3}".to_vec(), 422),        // wrong type
         (format!("[{}]", "0,".repeat(40_000) + "0").into_bytes(), 413), // over the body limit
     ];
     for (body, status) in cases {
@@ -322,6 +322,10 @@ async fn malformed_requests_get_a_4xx_with_a_message() {
         let r = client.get(s.url(path)).send().await.unwrap();
         assert!(r.status().is_client_error(), "{path}: {}", r.status());
     }
-    let r = client.post(s.url("/api/v1/jobs/..%2F..%2Fx/cancel")).send().await.unwrap();
+    let r = client
+        .post(s.url("/api/v1/jobs/..%2F..%2Fx/cancel"))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.status(), 404);
 }
