@@ -50,6 +50,7 @@ pub mod report;
 pub mod samples;
 pub mod scene;
 pub mod server;
+pub mod server_bench;
 pub mod shell;
 pub mod trimesh;
 pub mod volume;

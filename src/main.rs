@@ -334,6 +334,13 @@ enum BenchCommand {
     Svd,
     /// Package sizes and errors on W1: rank 8 f16, and the smallest package with RMSE ≤ 0.5.
     Package,
+    /// The server: upload-to-package time, upload throughput, job claim latency and package
+    /// download throughput against nginx (needs nginx and wrk installed).
+    Server {
+        /// Database (default: a temporary SQLite file), e.g. postgres://127.0.0.1/bench.
+        #[arg(long)]
+        database_url: Option<String>,
+    },
     /// The real-time preview's frame time against the CPU GDM renderer on the same scene and
     /// package, over image sizes and volume depths (Markdown table on stdout).
     Preview {
@@ -1046,6 +1053,15 @@ fn run(cli: Cli) -> Result<()> {
             )?;
             progress.0.finish_and_clear();
             print!("{}", mesobake::preview_bench::markdown(&adapter, &rows));
+            Ok(())
+        }
+        Command::Bench {
+            which: BenchCommand::Server { database_url },
+        } => {
+            print!(
+                "{}",
+                mesobake::server_bench::run(database_url.as_deref(), &limits)?
+            );
             Ok(())
         }
         Command::Bench {
