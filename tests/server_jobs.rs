@@ -100,7 +100,7 @@ async fn jobs_bake_once_report_progress_and_reuse_results() {
             .map(|k| k["stage"].as_str().unwrap())
             .collect();
         assert!(
-            skipped.contains(&"bake_rtv") && skipped.contains(&"preview_shadows"),
+            skipped.contains(&"bake_rtv") && skipped.contains(&"bake_prt"),
             "{queued}"
         );
         // The event stream ends with the final state.
@@ -118,6 +118,7 @@ async fn jobs_bake_once_report_progress_and_reuse_results() {
         let done: Value = serde_json::from_str(last).unwrap();
         assert_eq!(done["state"], "succeeded", "{done}");
         assert_eq!(done["progress"], 1.0);
+        assert_eq!(done["stage"], "store");
         assert_eq!(done["attempts"], 1);
         assert!(
             done["timings"]["bake_gdm"].as_f64().unwrap() > 0.0,

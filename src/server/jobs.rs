@@ -15,7 +15,7 @@ use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
 use crate::preview_scene::ScenePackageParams;
-use crate::scene::{Effect, Scene};
+use crate::scene::Scene;
 use serde::{Deserialize, Serialize};
 use sqlx::any::AnyRow;
 use sqlx::{AssertSqlSafe, Row};
@@ -93,9 +93,10 @@ pub struct Plan {
     pub skipped: Vec<Skipped>,
 }
 
-/// The stages of a package bake for `scene`: the GDM and its compression always; nothing the
-/// scene's effects do not call for.
-pub fn plan(scene: &Scene) -> Plan {
+/// The stages of a package bake for `scene`: the GDM and its compression always; the
+/// radiance transfer stages only when its effects call for environment lighting, which no
+/// effect does yet.
+pub fn plan(_scene: &Scene) -> Plan {
     let stages = ["load", "bake_gdm", "compress", "store"]
         .map(String::from)
         .to_vec();
@@ -105,12 +106,6 @@ pub fn plan(scene: &Scene) -> Plan {
         skipped.push(Skipped {
             stage: stage.into(),
             reason: no_environment.clone(),
-        });
-    }
-    if !scene.wants(Effect::Shadows) {
-        skipped.push(Skipped {
-            stage: "preview_shadows".into(),
-            reason: "the scene does not call for shadows".into(),
         });
     }
     Plan { stages, skipped }
@@ -346,6 +341,7 @@ impl Db {
         let done = sqlx::query(
             "UPDATE jobs SET state = $3, package_digest = $4, error = $5, timings = $6, \
              progress = CASE WHEN $3 = 'succeeded' THEN 1 ELSE progress END, \
+             stage = CASE WHEN $3 = 'succeeded' THEN 'store' ELSE stage END, \
              lease_owner = NULL, lease_expires_ms = NULL, updated_ms = $7 \
              WHERE id = $1 AND lease_owner = $2 AND state = 'running'",
         )
