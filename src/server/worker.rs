@@ -154,6 +154,18 @@ async fn run(state: &AppState, worker: &str, job: Claimed) -> Result<()> {
         return Ok(());
     }
     match result {
+        // A cancellation that arrived during the last, uninterruptible stages still wins.
+        Ok(_) if shared.cancel.load(Ordering::Relaxed) => {
+            db.finish_job(
+                &job.id,
+                worker,
+                "cancelled",
+                None,
+                None,
+                &serde_json::json!({}),
+            )
+            .await?;
+        }
         Ok((digest, bytes, manifest, timings)) => {
             db.insert_package(&PackageRow {
                 digest: digest.clone(),
