@@ -427,6 +427,14 @@ enum EscapeArg {
 }
 
 /// A progress bar on stderr, drawn only when stderr is a terminal.
+/// A client of `server` with `api_key`, else the MESOBAKE_API_KEY environment variable.
+fn client(server: &str, api_key: Option<String>) -> Result<Client> {
+    Client::new(
+        server,
+        api_key.or_else(|| std::env::var("MESOBAKE_API_KEY").ok()),
+    )
+}
+
 /// Logging to stderr and a tokio runtime, for the server and the workers.
 fn runtime() -> Result<tokio::runtime::Runtime> {
     tracing_subscriber::fmt()
@@ -559,10 +567,7 @@ fn run(cli: Cli) -> Result<()> {
                         .into(),
                 ));
             }
-            let client = Client::new(
-                &server,
-                api_key.or_else(|| std::env::var("MESOBAKE_API_KEY").ok()),
-            )?;
+            let client = client(&server, api_key)?;
             let asset = client.upload(&bake.input)?;
             let res = match bake.res {
                 Some(r) => r,
@@ -605,10 +610,7 @@ fn run(cli: Cli) -> Result<()> {
             out,
             api_key,
         } => {
-            let client = Client::new(
-                &server,
-                api_key.or_else(|| std::env::var("MESOBAKE_API_KEY").ok()),
-            )?;
+            let client = client(&server, api_key)?;
             let bytes = client.fetch(&digest)?;
             write_atomic(&out, &bytes)?;
             eprintln!("wrote {} ({} bytes, verified)", out.display(), bytes.len());

@@ -91,19 +91,7 @@ pub async fn submit(
     State(state): State<AppState>,
     Json(body): Json<serde_json::Value>,
 ) -> ApiResult<(StatusCode, Json<JobView>)> {
-    let unprocessable = |m: String| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, m);
-    let spec: JobSpec =
-        serde_json::from_value(body).map_err(|e| unprocessable(format!("job: {e}")))?;
-    // Deserializing does not validate a scene; parsing its text does.
-    let text = serde_json::to_string(&spec.scene).expect("scenes serialize");
-    Scene::from_json(&text)?;
-    if spec.rank == 0 || spec.rank > 64 {
-        return Err(unprocessable(format!(
-            "rank must be in 1..=64, got {}",
-            spec.rank
-        )));
-    }
-    check_assets(&state, &spec.scene).await?;
+    let spec = check_spec(&state, body).await?;
     let (job, queued) = state.db.submit_job(&spec).await?;
     let status = if queued {
         StatusCode::ACCEPTED

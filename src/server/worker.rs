@@ -153,19 +153,12 @@ async fn run(state: &AppState, worker: &str, job: Claimed) -> Result<()> {
         tracing::warn!("worker {worker} lost its lease on job {}", job.id);
         return Ok(());
     }
+    // A cancellation that arrived during the last, uninterruptible stages still wins.
+    let result = match result {
+        Ok(_) if shared.cancel.load(Ordering::Relaxed) => Err(Error::Cancelled),
+        r => r,
+    };
     match result {
-        // A cancellation that arrived during the last, uninterruptible stages still wins.
-        Ok(_) if shared.cancel.load(Ordering::Relaxed) => {
-            db.finish_job(
-                &job.id,
-                worker,
-                "cancelled",
-                None,
-                None,
-                &serde_json::json!({}),
-            )
-            .await?;
-        }
         Ok((digest, bytes, manifest, timings)) => {
             db.insert_package(&PackageRow {
                 digest: digest.clone(),
