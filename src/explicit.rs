@@ -1369,10 +1369,10 @@ impl ExplicitInput {
             MesostructureSource::Tile(p) => {
                 TriMesh::read_obj(&dir.join(p), limits.memory_bytes / 8)?
             }
-            MesostructureSource::Volume(p) => {
+            MesostructureSource::Volume(p) | MesostructureSource::HeightField(p) => {
                 return Err(Error::Scene(format!(
                     "{}: explicit geometry needs triangles, but the mesostructure is the \
-                     volume {}; use a tile or a sample",
+                     volume (or height field) {}; use a tile or a sample",
                     path.display(),
                     p.display()
                 )));

@@ -5,6 +5,7 @@ use crate::gdm::caster::Caster;
 use crate::gdm::mesh_caster::MeshCaster;
 use crate::gdm::volume_caster::VolumeCaster;
 use crate::grid::Dims;
+use crate::height_field::{HeightField, PNG_MAGIC};
 use crate::limits::Limits;
 use crate::mesh_tile::MeshTile;
 use crate::trimesh::TriMesh;
@@ -30,9 +31,9 @@ impl Mesostructure {
     }
 }
 
-/// Loads `path`: a `.mbvol` volume (recognized by its magic number) or else an OBJ tile.
-/// `res` is required for OBJ tiles (the grid to sample them on) and, for volumes, must match
-/// the volume's own resolution when given.
+/// Loads `path`: a `.mbvol` volume or a PNG height field (each recognized by its magic
+/// number), or else an OBJ tile. `res` is required for height fields and OBJ tiles (the grid
+/// to sample them on) and, for volumes, must match the volume's own resolution when given.
 pub fn load(
     path: &Path,
     res: Option<Dims>,
@@ -53,6 +54,13 @@ pub fn load(
                 volume.dims()
             )));
         }
+        return Ok(Mesostructure::Volume(VolumeCaster::new(&volume)));
+    }
+    if magic[..n] == PNG_MAGIC[..] {
+        let res = res.ok_or_else(|| {
+            Error::InvalidParameter("a height field needs --res to choose its voxel grid".into())
+        })?;
+        let volume = HeightField::read(path, limits)?.to_volume(res, limits)?;
         return Ok(Mesostructure::Volume(VolumeCaster::new(&volume)));
     }
     let res = res.ok_or_else(|| {

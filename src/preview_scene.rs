@@ -10,7 +10,6 @@ use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
 use crate::gdm::fast::FastParams;
 use crate::gdm::{BakeObserver, EscapeConvention, Method};
-use crate::input::Mesostructure;
 use crate::limits::Limits;
 use crate::package::Package;
 use crate::package::manifest::InputInfo;
@@ -61,15 +60,18 @@ pub fn bake_scene_package(
             serde_json::to_vec(&(&scene.mesostructure, scene.resolution))
                 .map_err(|e| Error::Scene(e.to_string()))?
         }
-        MesostructureSource::Volume(p) | MesostructureSource::Tile(p) => {
+        MesostructureSource::Volume(p)
+        | MesostructureSource::Tile(p)
+        | MesostructureSource::HeightField(p) => {
             let path = scene_dir.join(p);
             std::fs::read(&path).map_err(|e| Error::io(path, e))?
         }
     };
     let input = InputInfo {
-        kind: match loaded.mesostructure {
-            Mesostructure::Volume(_) => "volume",
-            Mesostructure::Mesh(_) => "mesh",
+        kind: match scene.mesostructure {
+            MesostructureSource::HeightField(_) => "height_field",
+            MesostructureSource::Tile(_) => "mesh",
+            MesostructureSource::Volume(_) | MesostructureSource::Sample(_) => "volume",
         }
         .into(),
         bytes: identity.len() as u64,
@@ -90,10 +92,15 @@ pub fn bake_scene_package(
         allow_open: false,
     };
     let info = bake_info(&g, Method::Exact, FastParams::default(), false);
-    if observer.cancelled() {
-        return Err(Error::Cancelled);
-    }
-    let (bytes, gdm) = compress_and_encode(&g, input, info, &package_params, limits, &mut seconds)?;
+    let (bytes, gdm) = compress_and_encode(
+        &g,
+        input,
+        info,
+        &package_params,
+        limits,
+        observer,
+        &mut seconds,
+    )?;
     Ok(BakedPackage {
         bytes,
         gdm,

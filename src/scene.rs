@@ -7,6 +7,7 @@ use crate::gdm::caster::Caster;
 use crate::gdm::mesh_caster::MeshCaster;
 use crate::gdm::volume_caster::VolumeCaster;
 use crate::grid::{Dims, DirectionGrid};
+use crate::height_field::HeightField;
 use crate::input::Mesostructure;
 use crate::limits::Limits;
 use crate::mesh_tile::MeshTile;
@@ -101,6 +102,9 @@ pub enum MesostructureSource {
     Volume(PathBuf),
     /// A closed OBJ tile, sampled on the scene's resolution.
     Tile(PathBuf),
+    /// A grayscale PNG height field ([`crate::height_field`]), the volume under it on the
+    /// scene's resolution.
+    HeightField(PathBuf),
 }
 
 /// Blinn–Phong reflectance; the diffuse albedo comes from the volume where it has one.
@@ -396,6 +400,11 @@ impl LoadedScene {
                         volume.dims()
                     )));
                 }
+                let material = MaterialVolume::from_volume(&volume, default_albedo);
+                (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+            }
+            MesostructureSource::HeightField(p) => {
+                let volume = HeightField::read(&resolve(p), limits)?.to_volume(dims, limits)?;
                 let material = MaterialVolume::from_volume(&volume, default_albedo);
                 (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
             }

@@ -88,6 +88,51 @@ fn obj_tile_through_the_cli() {
 }
 
 #[test]
+fn a_png_height_field_bakes_as_the_volume_under_it() {
+    let dir = tempfile::tempdir().unwrap();
+    // 16×16, 8 bits: heights 0.75 for x < 8 and 0.25 beyond (6 and 2 voxels of 8).
+    let png_path = dir.path().join("step.png");
+    let pixels: Vec<u8> = (0..256)
+        .map(|p| if p % 16 < 8 { 191 } else { 64 })
+        .collect();
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, 16, 16);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder
+        .write_header()
+        .unwrap()
+        .write_image_data(&pixels)
+        .unwrap();
+    std::fs::write(&png_path, &bytes).unwrap();
+    let npy = dir.path().join("h.npy");
+    succeeds(&[
+        "gdm",
+        "--input",
+        png_path.to_str().unwrap(),
+        "--res",
+        "16x16x8",
+        "--dirs",
+        "4x8",
+        "--out",
+        npy.to_str().unwrap(),
+    ]);
+    let (shape, data) = read_npy(&npy);
+    assert_eq!(shape, vec![16, 16, 8, 4, 8]);
+    // Distance 0 (inside) exactly in the 16·16·6/2 + 16·16·2/2 voxels under the steps.
+    let solid = data.chunks(32).filter(|d| d[0] == 0.0).count();
+    assert_eq!(solid, 16 * 8 * 6 + 16 * 8 * 2);
+    // Above the surface, looking up escapes (+inf); on the low step, looking down from
+    // z = 4.5 meets the surface at z = 2.
+    let idx =
+        |x: usize, y: usize, z: usize, a: usize, b: usize| (((x * 16 + y) * 8 + z) * 4 + a) * 8 + b;
+    assert!(data[idx(3, 3, 7, 0, 0)].is_infinite());
+    let down = data[idx(12, 5, 4, 3, 0)];
+    let expected = 2.5 / (7.0 * std::f32::consts::PI / 8.0).cos().abs();
+    assert!((down - expected).abs() < 1e-3, "{down} vs {expected}");
+}
+
+#[test]
 fn bad_input_exits_non_zero_with_a_message() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.obj");

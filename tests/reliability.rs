@@ -1,5 +1,6 @@
 //! The server under load and failure: concurrent uploads, worker processes killed with
-//! SIGKILL mid-bake on PostgreSQL, and a blob store that refuses writes.
+//! SIGKILL mid-bake on PostgreSQL, a server process killed and restarted mid-job, and a blob
+//! store that refuses writes.
 
 #[path = "common/server.rs"]
 mod server;
@@ -97,26 +98,39 @@ fn spec(sample: &str, rank: usize, dirs: [u32; 2]) -> JobSpec {
     .unwrap()
 }
 
-struct Worker(Child);
+/// A child process of `mesobake`, killed (SIGKILL) when dropped.
+struct Process(Child);
 
-impl Drop for Worker {
+impl Drop for Process {
     fn drop(&mut self) {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
 }
 
-fn worker(database_url: &str, data_dir: &std::path::Path) -> Worker {
-    Worker(
+/// `mesobake COMMAND` (`worker` or `serve`) with one worker over `database_url` and
+/// `data_dir`, configured by environment variables `extra` beyond those.
+fn mesobake(
+    command: &str,
+    database_url: &str,
+    data_dir: &std::path::Path,
+    extra: &[(&str, &str)],
+) -> Process {
+    Process(
         Command::new(env!("CARGO_BIN_EXE_mesobake"))
-            .arg("worker")
+            .arg(command)
             .env("MESOBAKE_DATABASE_URL", database_url)
             .env("MESOBAKE_DATA_DIR", data_dir)
             .env("MESOBAKE_WORKERS", "1")
+            .envs(extra.iter().copied())
             .stderr(std::process::Stdio::null())
             .spawn()
             .unwrap(),
     )
+}
+
+fn worker(database_url: &str, data_dir: &std::path::Path) -> Process {
+    mesobake("worker", database_url, data_dir, &[])
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -263,4 +277,108 @@ async fn a_blob_store_that_refuses_writes_fails_the_job_cleanly() {
         assert_eq!(packages, 0);
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_server_killed_mid_job_picks_the_job_up_again_after_restart() {
+    let dir = tempfile::tempdir().unwrap();
+    let url = format!("sqlite://{}", dir.path().join("db.sqlite").display());
+    let data = dir.path().join("data");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let listen = format!("127.0.0.1:{port}");
+    let serve = || {
+        mesobake(
+            "serve",
+            &url,
+            &data,
+            &[
+                ("MESOBAKE_LISTEN", &listen),
+                ("MESOBAKE_SEED_SAMPLE", "false"),
+            ],
+        )
+    };
+    let base = format!("http://{listen}/api/v1");
+    let client = reqwest::Client::new();
+    let up = || async {
+        let start = Instant::now();
+        while client
+            .get(format!("{base}/../healthz"))
+            .send()
+            .await
+            .is_err()
+        {
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "the server did not start"
+            );
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    };
+    let job = |id: String| {
+        let client = client.clone();
+        let url = format!("{base}/jobs/{id}");
+        async move {
+            let r = client.get(url).send().await.unwrap();
+            r.json::<serde_json::Value>().await.unwrap()
+        }
+    };
+    let first = serve();
+    up().await;
+    // A bake of some seconds: the chain at the default resolution and directions.
+    let mut spec = serde_json::to_value(spec("chain", 4, [16, 32])).unwrap();
+    spec["scene"]["resolution"] = json!([64, 64, 32]);
+    let queued: serde_json::Value = client
+        .post(format!("{base}/jobs"))
+        .json(&spec)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let id = queued["id"].as_str().expect("a job id").to_owned();
+    let start = Instant::now();
+    loop {
+        let j = job(id.clone()).await;
+        assert!(j["state"] == "queued" || j["state"] == "running", "{j}");
+        if j["state"] == "running" && j["progress"].as_f64().unwrap() > 0.0 {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "never ran: {j}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    drop(first); // SIGKILL, mid-bake
+    let _second = serve();
+    up().await;
+    let start = Instant::now();
+    let done = loop {
+        let j = job(id.clone()).await;
+        if j["state"] != "queued" && j["state"] != "running" {
+            break j;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "not picked up: {j}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert_eq!(done["state"], "succeeded", "{done}");
+    assert_eq!(
+        done["attempts"], 2,
+        "taken over after the lease ran out: {done}"
+    );
+    let digest = done["package_digest"].as_str().unwrap();
+    let bytes = client
+        .get(format!("{base}/packages/{digest}"))
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    Package::parse(bytes.to_vec()).unwrap();
 }

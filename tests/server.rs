@@ -86,6 +86,18 @@ async fn uploads_are_validated_and_deduplicated() {
                 422,
                 "path separators",
             ),
+            (
+                b"not a png".to_vec(),
+                "kind=height_field&name=h.png",
+                422,
+                "height field PNG",
+            ),
+            (
+                body.clone(),
+                "kind=height_field&name=h.png",
+                409,
+                "already stored as the volume asset",
+            ),
             (body.clone(), "kind=teapot&name=x", 400, "kind"),
             (body.clone(), "kind=volume", 400, "name"),
             (body.clone(), "kind=volume&name=x&extra=1", 400, "extra"),

@@ -10,6 +10,7 @@ use mesobake::package::Package;
 use mesobake::samples::{self, SampleKind};
 use mesobake::server::spawn_workers;
 use mesobake::volume_format;
+use object_store::ObjectStoreExt;
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};
 use std::sync::Arc;
@@ -455,6 +456,189 @@ async fn the_ci_client_bakes_on_the_server_and_verifies_downloads() {
         std::fs::read(&fetched).unwrap(),
         bytes,
         "a failed fetch leaves the file as it was"
+    );
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// A `side`² 16-bit grayscale PNG of periodic bumps.
+fn height_field_png(side: u32) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, side, side);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Sixteen);
+    let tau = std::f64::consts::TAU;
+    let data: Vec<u8> = (0..side * side)
+        .flat_map(|p| {
+            let (u, v) = (
+                (p % side) as f64 / side as f64,
+                (p / side) as f64 / side as f64,
+            );
+            let h = 0.5 + 0.3 * (tau * u).sin() * (tau * v).cos();
+            ((h * 65535.0) as u16).to_be_bytes()
+        })
+        .collect();
+    encoder
+        .write_header()
+        .unwrap()
+        .write_image_data(&data)
+        .unwrap();
+    out
+}
+
+/// A moto S3 server on a free port (killed on drop), with its endpoint.
+struct S3Server(std::process::Child, String);
+
+impl Drop for S3Server {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts moto's S3 server with an empty bucket `bucket`, or `None` (skipping loudly) where
+/// moto is not installed and `MESOBAKE_REQUIRE_S3` is not set.
+async fn s3_server(bucket: &str) -> Option<S3Server> {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let child = match std::process::Command::new("moto_server")
+        .args(["-H", "127.0.0.1", "-p", &port.to_string()])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+    {
+        Ok(child) => child,
+        Err(e) if std::env::var("MESOBAKE_REQUIRE_S3").as_deref() == Ok("1") => {
+            panic!("moto_server required (pip install 'moto[server]'): {e}")
+        }
+        Err(e) => {
+            eprintln!("SKIPPED: the S3 test needs moto_server (pip install 'moto[server]'): {e}");
+            return None;
+        }
+    };
+    let server = S3Server(child, format!("http://127.0.0.1:{port}"));
+    let client = reqwest::Client::new();
+    let start = Instant::now();
+    while client.get(&server.1).send().await.is_err() {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "moto did not start"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    let created = client
+        .put(format!("{}/{bucket}", server.1))
+        .send()
+        .await
+        .unwrap();
+    assert!(created.status().is_success(), "{created:?}");
+    Some(server)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_s3_blob_store_is_shared_by_servers_on_other_machines() {
+    let Some(s3) = s3_server("mesobake-test").await else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "s3").await.remove(0);
+    let on_s3 = |c: &mut mesobake::server::config::ServerConfig| {
+        c.blob_url = "s3://mesobake-test/blobs".into();
+        for (k, v) in [
+            ("endpoint", s3.1.as_str()),
+            ("allow_http", "true"),
+            ("region", "us-east-1"),
+            ("access_key_id", "test"),
+            ("secret_access_key", "test"),
+        ] {
+            c.blob_options.insert(k.into(), v.into());
+        }
+    };
+    // Machine A uploads and bakes.
+    let data_a = tempfile::tempdir().unwrap();
+    let a = TestServer::start_with(&url, data_a.path(), 1 << 24, on_s3).await;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&a.state, 1, &stop);
+    let volume = upload(&a, SampleKind::Chain, [16, 16, 8]).await;
+    // The bake reads a height field (a bumpy 16-bit PNG) from the bucket.
+    let r = reqwest::Client::new()
+        .post(a.url("/api/v1/assets?kind=height_field&name=bumps.png"))
+        .body(height_field_png(32))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 201);
+    let heights: Value = r.json().await.unwrap();
+    assert_eq!(heights["summary"]["size"], json!([32, 32]));
+    let heights = heights["id"].as_str().unwrap().to_owned();
+    let mut job_scene = scene("", [16, 16, 8], [4, 8]);
+    job_scene["mesostructure"] = json!({ "height_field": heights });
+    let (status, queued) = submit(&a, &json!({ "scene": job_scene })).await;
+    assert_eq!(status, 202, "{queued}");
+    let id = queued["id"].as_str().unwrap();
+    let done = wait_for(&a, id, |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    let digest = done["package_digest"].as_str().unwrap().to_owned();
+    // The package and the upload are objects in the bucket, under the prefix.
+    let bucket = object_store::aws::AmazonS3Builder::new()
+        .with_bucket_name("mesobake-test")
+        .with_endpoint(&s3.1)
+        .with_allow_http(true)
+        .with_region("us-east-1")
+        .with_access_key_id("test")
+        .with_secret_access_key("test")
+        .build()
+        .unwrap();
+    let object = |key: &str| object_store::path::Path::from(format!("blobs/{key}"));
+    for key in [&digest, &volume, &heights] {
+        let stored = bucket
+            .get(&object(key))
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        assert_eq!(blake3::hash(&stored).to_hex().as_str(), key);
+    }
+    // Machine B, with an empty cache, serves the package and deduplicates the upload.
+    let data_b = tempfile::tempdir().unwrap();
+    let b = TestServer::start_with(&url, data_b.path(), 1 << 24, on_s3).await;
+    let package = reqwest::get(b.url(&format!("/api/v1/packages/{digest}")))
+        .await
+        .unwrap();
+    assert_eq!(package.status(), 200);
+    Package::parse(package.bytes().await.unwrap().to_vec()).unwrap();
+    assert!(
+        data_b
+            .path()
+            .join("blobs")
+            .join(&digest[..2])
+            .join(&digest)
+            .is_file()
+    );
+    assert_eq!(upload(&b, SampleKind::Chain, [16, 16, 8]).await, volume);
+    // An object that no longer matches its key is refused, not served.
+    bucket
+        .put(&object(&digest), "not a package".into())
+        .await
+        .unwrap();
+    let data_c = tempfile::tempdir().unwrap();
+    let c = TestServer::start_with(&url, data_c.path(), 1 << 24, on_s3).await;
+    let refused = reqwest::get(c.url(&format!("/api/v1/packages/{digest}")))
+        .await
+        .unwrap();
+    assert_eq!(refused.status(), 500);
+    assert!(
+        refused
+            .text()
+            .await
+            .unwrap()
+            .contains("does not match its key")
     );
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }

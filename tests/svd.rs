@@ -234,3 +234,43 @@ fn gdm_layout_rows_and_columns() {
         assert_eq!(value, want, "row {r} column {c}");
     }
 }
+
+/// Cancels once `after` row blocks have started.
+struct CancelAfter {
+    after: usize,
+    asked: std::sync::atomic::AtomicUsize,
+}
+
+impl mesobake::gdm::BakeObserver for CancelAfter {
+    fn cancelled(&self) -> bool {
+        self.asked
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+            >= self.after
+    }
+}
+
+#[test]
+fn the_gram_accumulation_stops_when_cancelled() {
+    use mesobake::compress::svd::GramEigen;
+    // 8192 rows make 4 row blocks of 2048.
+    let data = test_matrix(8192, 12, 0.5, 1e-3, 7);
+    let a = DenseRows::new(&data, 12).unwrap();
+    let limits = Limits::default();
+    let cancel = |after| CancelAfter {
+        after,
+        asked: 0.into(),
+    };
+    let e = GramEigen::observed(&a, &limits, &cancel(2)).err();
+    assert!(matches!(e, Some(mesobake::Error::Cancelled)), "{e:?}");
+    // An observer that never cancels changes nothing.
+    let spectrum = |g: GramEigen| {
+        g.truncate(&a, RankChoice::Rank(3), &limits)
+            .unwrap()
+            .spectrum
+    };
+    let observed = GramEigen::observed(&a, &limits, &cancel(usize::MAX)).unwrap();
+    assert_eq!(
+        spectrum(observed),
+        spectrum(GramEigen::new(&a, &limits).unwrap())
+    );
+}

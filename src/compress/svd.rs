@@ -20,6 +20,7 @@
 //! are dropped, so a zero matrix has rank 0, a constant one rank 1, and no NaN arises.
 
 use crate::error::{Error, Result};
+use crate::gdm::BakeObserver;
 use crate::limits::Limits;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
@@ -172,6 +173,16 @@ pub struct GramEigen {
 impl GramEigen {
     /// Forms and decomposes AᵀA; refuses empty matrices and NaN or infinite entries.
     pub fn new(a: &dyn RowSource, limits: &Limits) -> Result<Self> {
+        Self::observed(a, limits, &())
+    }
+
+    /// [`GramEigen::new`] that stops with [`Error::Cancelled`] when `observer` asks, checked
+    /// before each row block of the Gram accumulation (the bulk of the work).
+    pub fn observed(
+        a: &dyn RowSource,
+        limits: &Limits,
+        observer: &dyn BakeObserver,
+    ) -> Result<Self> {
         let (m, n) = (a.rows(), a.cols());
         if m == 0 || n == 0 {
             return Err(Error::InvalidParameter(format!(
@@ -186,7 +197,7 @@ impl GramEigen {
             (block * n) as u64,
             4 * rayon::current_num_threads() as u64,
         )?;
-        let gram = gram_matrix(a, block);
+        let gram = gram_matrix(a, block, observer)?;
         if !gram.iter().all(|v| v.is_finite()) {
             return Err(Error::InvalidParameter(
                 "the matrix holds NaN or infinite values (escapes must be replaced before compression)"
@@ -437,7 +448,11 @@ pub(crate) fn gemm<T: GemmScalar>(
 const GRAM_PANEL: usize = 128;
 
 /// AᵀA: per block in f32, accumulated in f64 in block order.
-fn gram_matrix(a: &dyn RowSource, block: usize) -> DMatrix<f64> {
+fn gram_matrix(
+    a: &dyn RowSource,
+    block: usize,
+    observer: &dyn BakeObserver,
+) -> Result<DMatrix<f64>> {
     let n = a.cols();
     let panels: Vec<(usize, usize)> = (0..n.div_ceil(GRAM_PANEL))
         .map(|p| (p * GRAM_PANEL, GRAM_PANEL.min(n - p * GRAM_PANEL)))
@@ -445,6 +460,9 @@ fn gram_matrix(a: &dyn RowSource, block: usize) -> DMatrix<f64> {
     let partial: Vec<Vec<f32>> = blocks(a.rows(), block)
         .into_par_iter()
         .map(|(start, count)| {
+            if observer.cancelled() {
+                return Err(Error::Cancelled);
+            }
             let rows = read_block(a, start, count);
             let mut g = vec![0.0f32; n * n];
             for (p, &(p0, pw)) in panels.iter().enumerate() {
@@ -454,9 +472,9 @@ fn gram_matrix(a: &dyn RowSource, block: usize) -> DMatrix<f64> {
                     gemm(pw, count, qw, at, b, (&mut g[p0 * n + q0..], n, 1));
                 }
             }
-            g
+            Ok(g)
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let mut sum = vec![0.0f64; n * n];
     for g in partial {
         sum.iter_mut().zip(g).for_each(|(s, v)| *s += v as f64);
@@ -469,5 +487,5 @@ fn gram_matrix(a: &dyn RowSource, block: usize) -> DMatrix<f64> {
             }
         }
     }
-    DMatrix::from_row_slice(n, n, &sum)
+    Ok(DMatrix::from_row_slice(n, n, &sum))
 }

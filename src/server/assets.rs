@@ -7,6 +7,7 @@ use super::blobs::{is_key, key_of};
 use super::db::{AssetRow, now_ms};
 use crate::base_mesh::BaseMesh;
 use crate::error::{Error, Result};
+use crate::height_field::HeightField;
 use crate::limits::Limits;
 use crate::mesh_tile::MeshTile;
 use crate::trimesh::TriMesh;
@@ -27,6 +28,8 @@ pub enum AssetKind {
     MeshTile,
     /// An OBJ base mesh with UVs.
     BaseMesh,
+    /// A grayscale PNG height field (8 or 16 bits).
+    HeightField,
 }
 
 impl AssetKind {
@@ -35,6 +38,7 @@ impl AssetKind {
             AssetKind::Volume => "volume",
             AssetKind::MeshTile => "mesh_tile",
             AssetKind::BaseMesh => "base_mesh",
+            AssetKind::HeightField => "height_field",
         }
     }
 }
@@ -87,6 +91,10 @@ pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_
             let (mesh, report) = BaseMesh::from_obj(&utf8(bytes, "an OBJ base mesh")?)?;
             serde_json::json!({ "triangles": mesh.triangles.len(), "report": report })
         }
+        AssetKind::HeightField => {
+            let (width, height) = HeightField::decode_png(bytes, limits)?.size();
+            serde_json::json!({ "size": [width, height] })
+        }
     })
 }
 
@@ -99,6 +107,7 @@ pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_
     responses(
         (status = 201, description = "Stored", body = AssetRow),
         (status = 200, description = "The same bytes were uploaded before", body = AssetRow),
+        (status = 409, description = "The same bytes were uploaded before as another kind"),
         (status = 413, description = "Body over the configured limit"),
         (status = 422, description = "Not a valid asset of that kind"),
     )
@@ -117,6 +126,15 @@ pub async fn upload(
     }
     let id = key_of(&body);
     if let Some(existing) = state.db.asset(&id).await? {
+        if existing.kind != params.kind.name() {
+            return Err(ApiError::new(
+                StatusCode::CONFLICT,
+                format!(
+                    "these bytes are already stored as the {} asset {id}; an asset has one kind",
+                    existing.kind
+                ),
+            ));
+        }
         return Ok((StatusCode::OK, Json(existing)));
     }
     let bytes = body.len() as i64;

@@ -1,19 +1,35 @@
 //! The content-addressed blob store: uploads, packages and previews, each under the BLAKE3
-//! hash of its bytes (lowercase hex) at `DATA_DIR/blobs/<first two hex>/<hash>`.
+//! hash of its bytes (lowercase hex).
 //!
-//! Writes go to a temporary file in the same directory, are synced and renamed into place
-//! (`fsutil::write_atomic`), so a crash never leaves a half-written blob under a valid key;
-//! writing a key that exists is a no-op (same key, same bytes). Keys are validated before
-//! they become paths, so no name from a request can reach outside the store.
+//! Two backends, chosen by `blob_url` in the configuration:
+//! - **local** (the default, `blob_url = ""`): files at `DATA_DIR/blobs/<first two hex>/<hash>`.
+//!   Writes go to a temporary file in the same directory, are synced and renamed into place
+//!   (`fsutil::write_atomic`), so a crash never leaves a half-written blob under a valid key.
+//! - **S3** (`blob_url = "s3://BUCKET[/PREFIX]"`, through the `object_store` crate): objects at
+//!   `PREFIX/<hash>`, shared by every server and worker on every machine. An S3 PUT is atomic
+//!   (the object appears whole or not at all). The local directory becomes a read-through
+//!   cache of the same layout, filled atomically, so the bake reads assets as files.
+//!
+//! Writing a key that exists is a no-op (same key, same bytes). Every read is checked against
+//! its key. Keys are validated before they become paths, so no name from a request can reach
+//! outside the store.
 
 use crate::error::{Error, Result};
 use crate::fsutil::write_atomic;
+use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey};
+use object_store::path::Path as ObjectPath;
+use object_store::prefix::PrefixStore;
+use object_store::{ObjectStore, ObjectStoreExt, PutPayload};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-/// A local blob store.
+/// A blob store: a local directory, or an S3 bucket with a local cache.
 #[derive(Clone, Debug)]
 pub struct BlobStore {
+    /// The local store, or the cache of the remote one.
     root: PathBuf,
+    remote: Option<Arc<Remote>>,
 }
 
 /// Whether `key` is a blob key: 64 lowercase hexadecimal digits.
@@ -26,15 +42,43 @@ pub fn key_of(bytes: &[u8]) -> String {
     blake3::hash(bytes).to_hex().to_string()
 }
 
+fn corrupted(path: PathBuf) -> Error {
+    Error::Io {
+        path,
+        source: std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "blob content does not match its key (corrupted store)",
+        ),
+    }
+}
+
 impl BlobStore {
-    /// Opens (creating if needed) the store under `data_dir`.
-    pub fn open(data_dir: &Path) -> Result<BlobStore> {
+    /// Opens (creating if needed) the store under `data_dir`: local when `blob_url` is empty,
+    /// else the S3 bucket it names, configured by `options` (object_store's S3 keys such as
+    /// `endpoint`, `region`, `access_key_id`, `allow_http`) over the standard `AWS_*`
+    /// environment variables.
+    pub fn open(
+        data_dir: &Path,
+        blob_url: &str,
+        options: &BTreeMap<String, String>,
+    ) -> Result<BlobStore> {
         let root = data_dir.join("blobs");
         std::fs::create_dir_all(&root).map_err(|e| Error::io(&root, e))?;
-        Ok(BlobStore { root })
+        let remote = match blob_url {
+            "" if options.is_empty() => None,
+            "" => {
+                return Err(Error::InvalidParameter(
+                    "blob_options are set but blob_url is empty (the local store takes none)"
+                        .into(),
+                ));
+            }
+            url => Some(Arc::new(Remote::open(url, options)?)),
+        };
+        Ok(BlobStore { root, remote })
     }
 
-    /// The path of blob `key`, or an error for a string that is not a key.
+    /// The local path of blob `key` (in the cache, for S3), or an error for a string that is
+    /// not a key.
     pub fn path(&self, key: &str) -> Result<PathBuf> {
         if !is_key(key) {
             return Err(Error::InvalidParameter(format!(
@@ -48,6 +92,9 @@ impl BlobStore {
     pub fn put(&self, bytes: &[u8]) -> Result<String> {
         let key = key_of(bytes);
         let path = self.path(&key)?;
+        if let Some(remote) = &self.remote {
+            remote.put(&key, bytes)?;
+        }
         if !path.exists() {
             let dir = path.parent().expect("blob paths have a parent");
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -60,16 +107,148 @@ impl BlobStore {
     pub fn get(&self, key: &str) -> Result<Option<Vec<u8>>> {
         let path = self.path(key)?;
         match std::fs::read(&path) {
-            Ok(bytes) if key_of(&bytes) == key => Ok(Some(bytes)),
-            Ok(_) => Err(Error::Io {
-                path,
-                source: std::io::Error::new(
-                    std::io::ErrorKind::InvalidData,
-                    "blob content does not match its key (corrupted store)",
-                ),
-            }),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-            Err(e) => Err(Error::io(path, e)),
+            Ok(bytes) if key_of(&bytes) == key => return Ok(Some(bytes)),
+            // A corrupted cache entry is fetched again; a corrupted local store is an error.
+            Ok(_) if self.remote.is_none() => return Err(corrupted(path)),
+            Ok(_) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(Error::io(path, e)),
+        }
+        let Some(remote) = &self.remote else {
+            return Ok(None);
+        };
+        let Some(bytes) = remote.get(key)? else {
+            return Ok(None);
+        };
+        if key_of(&bytes) != key {
+            return Err(corrupted(remote.location(key)));
+        }
+        let dir = path.parent().expect("blob paths have a parent");
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        write_atomic(&path, &bytes)?;
+        Ok(Some(bytes))
+    }
+
+    /// The local file of blob `key` (fetched into the cache first, for S3), or `None` when
+    /// no such blob exists.
+    pub fn file(&self, key: &str) -> Result<Option<PathBuf>> {
+        let path = self.path(key)?;
+        if self.remote.is_none() || path.is_file() {
+            return Ok(path.is_file().then_some(path));
+        }
+        Ok(self.get(key)?.map(|_| path))
+    }
+}
+
+/// An S3 bucket, driven by its own small tokio runtime so that the store's synchronous
+/// methods work from any thread (bake threads, blocking tasks, tests).
+#[derive(Debug)]
+struct Remote {
+    /// The bucket, under the prefix.
+    store: Arc<dyn ObjectStore>,
+    /// `s3://bucket/prefix`, for messages.
+    url: String,
+    runtime: OwnedRuntime,
+}
+
+impl Remote {
+    fn open(url: &str, options: &BTreeMap<String, String>) -> Result<Remote> {
+        let bad = |why: String| Error::InvalidParameter(format!("blob_url {url:?}: {why}"));
+        let rest = url
+            .strip_prefix("s3://")
+            .ok_or_else(|| bad("only s3://BUCKET[/PREFIX] is supported".into()))?;
+        let (bucket, prefix) = rest.split_once('/').unwrap_or((rest, ""));
+        if bucket.is_empty() {
+            return Err(bad("no bucket name".into()));
+        }
+        let prefix = prefix.trim_matches('/').to_string();
+        let mut builder = AmazonS3Builder::from_env().with_bucket_name(bucket);
+        for (key, value) in options {
+            let config_key: AmazonS3ConfigKey = key.parse().map_err(|_| {
+                Error::InvalidParameter(format!("blob_options: unknown S3 option {key:?}"))
+            })?;
+            builder = builder.with_config(config_key, value);
+        }
+        let s3 = builder.build().map_err(|e| bad(e.to_string()))?;
+        let store: Arc<dyn ObjectStore> = if prefix.is_empty() {
+            Arc::new(s3)
+        } else {
+            Arc::new(PrefixStore::new(s3, prefix.as_str()))
+        };
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .thread_name("mesobake-s3")
+            .enable_all()
+            .build()
+            .map_err(|e| Error::io("tokio runtime", e))?;
+        Ok(Remote {
+            store,
+            url: format!("s3://{bucket}/{prefix}"),
+            runtime: OwnedRuntime(Some(runtime)),
+        })
+    }
+
+    /// Where `key` lives, for messages.
+    fn location(&self, key: &str) -> PathBuf {
+        PathBuf::from(format!("{}/{key}", self.url.trim_end_matches('/')))
+    }
+
+    /// Runs `task` on the store's runtime and waits for it, from any thread.
+    fn run<T: Send + 'static>(&self, task: impl Future<Output = T> + Send + 'static) -> Result<T> {
+        let runtime = self
+            .runtime
+            .0
+            .as_ref()
+            .expect("the runtime lives as long as the store");
+        let (send, receive) = std::sync::mpsc::sync_channel(1);
+        runtime.spawn(async move {
+            let _ = send.send(task.await);
+        });
+        receive
+            .recv()
+            .map_err(|_| Error::io(&self.url, std::io::Error::other("S3 task was dropped")))
+    }
+
+    fn failed(&self, key: &str, e: object_store::Error) -> Error {
+        Error::io(self.location(key), std::io::Error::other(e))
+    }
+
+    fn put(&self, key: &str, bytes: &[u8]) -> Result<()> {
+        let (store, object) = (self.store.clone(), ObjectPath::from(key));
+        let payload = PutPayload::from(bytes.to_vec());
+        let result = self.run(async move {
+            match store.head(&object).await {
+                Ok(_) => Ok(()),
+                Err(object_store::Error::NotFound { .. }) => {
+                    store.put(&object, payload).await.map(|_| ())
+                }
+                Err(e) => Err(e),
+            }
+        })?;
+        result.map_err(|e| self.failed(key, e))
+    }
+
+    fn get(&self, key: &str) -> Result<Option<Vec<u8>>> {
+        let (store, object) = (self.store.clone(), ObjectPath::from(key));
+        let result = self.run(async move {
+            match store.get(&object).await {
+                Ok(found) => found.bytes().await.map(|b| Some(b.to_vec())),
+                Err(object_store::Error::NotFound { .. }) => Ok(None),
+                Err(e) => Err(e),
+            }
+        })?;
+        result.map_err(|e| self.failed(key, e))
+    }
+}
+
+/// A runtime that may be dropped anywhere, async contexts included.
+#[derive(Debug)]
+struct OwnedRuntime(Option<tokio::runtime::Runtime>);
+
+impl Drop for OwnedRuntime {
+    fn drop(&mut self) {
+        if let Some(runtime) = self.0.take() {
+            runtime.shutdown_background();
         }
     }
 }
@@ -78,20 +257,52 @@ impl BlobStore {
 mod tests {
     use super::*;
 
+    fn local(dir: &Path) -> BlobStore {
+        BlobStore::open(dir, "", &BTreeMap::new()).unwrap()
+    }
+
     #[test]
     fn blobs_round_trip_deduplicate_and_reject_non_keys() {
         let dir = tempfile::tempdir().unwrap();
-        let store = BlobStore::open(dir.path()).unwrap();
+        let store = local(dir.path());
         let key = store.put(b"chain mail").unwrap();
         assert_eq!(key, key_of(b"chain mail"));
         assert_eq!(store.put(b"chain mail").unwrap(), key);
         assert_eq!(store.get(&key).unwrap().unwrap(), b"chain mail");
+        assert_eq!(store.file(&key).unwrap(), Some(store.path(&key).unwrap()));
         assert!(store.get(&key_of(b"absent")).unwrap().is_none());
+        assert!(store.file(&key_of(b"absent")).unwrap().is_none());
         for bad in ["../../etc/passwd", "", &key.to_uppercase(), &key[..63]] {
             assert!(store.path(bad).is_err(), "{bad}");
         }
         // A blob whose bytes no longer match its key is reported, not served.
         std::fs::write(store.path(&key).unwrap(), b"chain mall").unwrap();
         assert!(store.get(&key).is_err());
+    }
+
+    #[test]
+    fn bad_remote_configurations_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let options = |pairs: &[(&str, &str)]| -> BTreeMap<String, String> {
+            pairs
+                .iter()
+                .map(|(k, v)| (k.to_string(), v.to_string()))
+                .collect()
+        };
+        for (url, opts, expected) in [
+            ("gs://bucket", options(&[]), "only s3://"),
+            ("s3://", options(&[]), "no bucket"),
+            (
+                "s3://b",
+                options(&[("colour", "blue")]),
+                "unknown S3 option \"colour\"",
+            ),
+            ("", options(&[("region", "eu")]), "blob_url is empty"),
+        ] {
+            let e = BlobStore::open(dir.path(), url, &opts)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(expected), "{url}: {e}");
+        }
     }
 }

@@ -5,6 +5,7 @@ use crate::error::{Error, Result};
 use figment::Figment;
 use figment::providers::{Env, Format, Toml};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 const DEFAULTS: &str = include_str!("../../config/default.toml");
@@ -17,8 +18,14 @@ pub struct ServerConfig {
     pub listen: String,
     /// `sqlite://PATH` (created if missing) or `postgres://…`.
     pub database_url: String,
-    /// Root of the local blob store.
+    /// Root of the local blob store (the cache of the remote one when `blob_url` is set).
     pub data_dir: PathBuf,
+    /// Empty for the local blob store, or `s3://BUCKET[/PREFIX]`.
+    pub blob_url: String,
+    /// S3 options (object_store's keys: `endpoint`, `region`, `access_key_id`,
+    /// `secret_access_key`, `allow_http`, …), over the `AWS_*` environment variables.
+    #[serde(default)]
+    pub blob_options: BTreeMap<String, String>,
     /// Largest accepted request body in bytes.
     pub max_upload_bytes: u64,
     /// Bake workers in the server process.
@@ -54,10 +61,11 @@ impl ServerConfig {
 
 /// The configuration keys (environment variables are only read for these, so that other
 /// `MESOBAKE_*` variables such as `MESOBAKE_MEMORY_LIMIT` keep their own meaning).
-const KEYS: [&str; 8] = [
+const KEYS: [&str; 9] = [
     "listen",
     "database_url",
     "data_dir",
+    "blob_url",
     "max_upload_bytes",
     "workers",
     "seed_sample",

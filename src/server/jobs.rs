@@ -231,14 +231,26 @@ impl Db {
             .map_err(db_error)?
             .rows_affected()
                 == 1;
-        let row = sqlx::query(AssertSqlSafe(format!(
+        let job = self.job_for(spec).await?.ok_or_else(|| {
+            Error::Database(format!(
+                "the job of dedup key {key} vanished after its insert"
+            ))
+        })?;
+        Ok((job, inserted || requeued))
+    }
+
+    /// The job of `spec` (same inputs and parameters), if one was ever submitted: a read, so
+    /// that callers that only need a finished result (the preview) write nothing.
+    pub async fn job_for(&self, spec: &JobSpec) -> Result<Option<JobView>> {
+        sqlx::query(AssertSqlSafe(format!(
             "SELECT {VIEW_COLUMNS} FROM jobs WHERE dedup_key = $1"
         )))
-        .bind(&key)
-        .fetch_one(&self.pool)
+        .bind(spec.dedup_key())
+        .fetch_optional(&self.pool)
         .await
-        .map_err(db_error)?;
-        Ok((view(&row)?, inserted || requeued))
+        .map_err(db_error)?
+        .map(|row| view(&row))
+        .transpose()
     }
 
     /// The job `id`.

@@ -21,6 +21,7 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
     match &scene.mesostructure {
         MesostructureSource::Volume(p) => wanted.push((p, "volume")),
         MesostructureSource::Tile(p) => wanted.push((p, "mesh_tile")),
+        MesostructureSource::HeightField(p) => wanted.push((p, "height_field")),
         MesostructureSource::Sample(_) => {}
     }
     if let BaseMeshSource::Obj(p) = &scene.base_mesh {

@@ -112,7 +112,7 @@ pub fn router(state: AppState, max_body: u64) -> Router {
 pub async fn open_state(config: &ServerConfig, limits: Limits) -> Result<AppState> {
     Ok(AppState {
         db: Db::connect(&config.database_url).await?,
-        blobs: BlobStore::open(&config.data_dir)?,
+        blobs: BlobStore::open(&config.data_dir, &config.blob_url, &config.blob_options)?,
         limits,
         metrics: Arc::new(Metrics::default()),
         gpu: Default::default(),

@@ -81,7 +81,10 @@ pub async fn render(
             format!("previews are at most {MAX_PREVIEW_SIDE} pixels a side"),
         ));
     }
-    let (job, _) = state.db.submit_job(&spec).await?;
+    let job = match state.db.job_for(&spec).await? {
+        Some(job) if job.state == "succeeded" => job,
+        _ => state.db.submit_job(&spec).await?.0,
+    };
     let Some(digest) = job
         .package_digest
         .clone()

@@ -30,19 +30,20 @@ const POLL: Duration = Duration::from_millis(200);
 pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
     let resolve = |p: &mut std::path::PathBuf| -> Result<()> {
         let digest = p.to_string_lossy().into_owned();
-        let path = blobs.path(&digest).map_err(|_| {
-            Error::Scene(format!("{digest:?} is not the digest of an uploaded asset"))
-        })?;
-        if !path.is_file() {
+        if !super::blobs::is_key(&digest) {
             return Err(Error::Scene(format!(
-                "no uploaded asset has the digest {digest}"
+                "{digest:?} is not the digest of an uploaded asset"
             )));
         }
-        *p = path;
+        *p = blobs
+            .file(&digest)?
+            .ok_or_else(|| Error::Scene(format!("no uploaded asset has the digest {digest}")))?;
         Ok(())
     };
     match &mut scene.mesostructure {
-        MesostructureSource::Volume(p) | MesostructureSource::Tile(p) => resolve(p)?,
+        MesostructureSource::Volume(p)
+        | MesostructureSource::Tile(p)
+        | MesostructureSource::HeightField(p) => resolve(p)?,
         MesostructureSource::Sample(_) => {}
     }
     if let BaseMeshSource::Obj(p) = &mut scene.base_mesh {
