@@ -34,6 +34,7 @@ pub mod exr_export;
 pub mod flat_preview;
 pub mod fsutil;
 pub mod gdm;
+pub mod gi;
 pub mod grid;
 pub mod height_field;
 pub mod input;
