@@ -70,7 +70,8 @@ impl Environment {
         let bad = |why: String| {
             Error::InvalidParameter(format!("environment map {}: {why}", path.display()))
         };
-        let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| bad(e.to_string()))?;
+        let meta =
+            exr::meta::MetaData::read_from_file(path, false).map_err(|e| bad(e.to_string()))?;
         let header = meta
             .headers
             .first()
@@ -237,7 +238,9 @@ impl Sky {
             } => {
                 let d = DVec3::from(sun_direction);
                 if !(d.is_finite() && d.length() > 1e-9) {
-                    return bad(format!("sun_direction {sun_direction:?} is not a direction"));
+                    return bad(format!(
+                        "sun_direction {sun_direction:?} is not a direction"
+                    ));
                 }
                 if !(0.1..=20.0).contains(&sun_radius_degrees) {
                     return bad(format!(
@@ -309,6 +312,11 @@ mod tests {
             horizon: [1.0; 3],
             ground: [1.0; 3],
         };
-        assert!(sky.validate().unwrap_err().to_string().contains("sun_direction"));
+        assert!(
+            sky.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("sun_direction")
+        );
     }
 }

@@ -1,7 +1,8 @@
 //! Global illumination: bi-scale radiance transfer. Spherical harmonics ([`sh`]), environment
 //! lighting projected to SH ([`environment`]) and the macro-scale per-vertex transfer
-//! ([`prt`]); the radiance transfer volume builds on them.
+//! ([`prt`]), and the meso-scale radiance transfer volume ([`rtv`]).
 
 pub mod environment;
 pub mod prt;
+pub mod rtv;
 pub mod sh;

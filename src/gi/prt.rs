@@ -82,7 +82,9 @@ pub fn vertex_frames(mesh: &BaseMesh) -> Vec<DMat3> {
         .zip(tangents)
         .map(|(&n, t)| {
             let n = n.normalize_or(DVec3::Z);
-            let t = (t - n * n.dot(t)).try_normalize().unwrap_or_else(|| n.any_orthonormal_vector());
+            let t = (t - n * n.dot(t))
+                .try_normalize()
+                .unwrap_or_else(|| n.any_orthonormal_vector());
             DMat3::from_cols(t, n.cross(t), n)
         })
         .collect()
@@ -112,7 +114,11 @@ pub fn transfer(mesh: &BaseMesh, visibility: Visibility) -> Result<Transfer> {
                     let origin = p + frame.z_axis * occluder.offset;
                     sh::transfer_matrix(&quadrature, frame, |d| {
                         let world = frame * d;
-                        if occluder.blocked(origin, world) { 0.0 } else { 1.0 }
+                        if occluder.blocked(origin, world) {
+                            0.0
+                        } else {
+                            1.0
+                        }
                     })
                 })
                 .collect()
@@ -148,7 +154,11 @@ impl Occluder {
             &mut Duration::default(),
         );
         // Traversal reports positions in the BVH's primitive order.
-        let tris = bvh.primitive_indices.iter().map(|&i| tris[i as usize]).collect();
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
         Occluder {
             bvh,
             tris,

@@ -260,7 +260,11 @@ mod tests {
             let (x, w) = gauss_legendre_nodes(n);
             for k in 0..2 * n {
                 let q: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(k as i32)).sum();
-                let exact = if k % 2 == 1 { 0.0 } else { 2.0 / (k + 1) as f64 };
+                let exact = if k % 2 == 1 {
+                    0.0
+                } else {
+                    2.0 / (k + 1) as f64
+                };
                 assert!((q - exact).abs() < 1e-13, "n={n} k={k}: {q} vs {exact}");
             }
         }
