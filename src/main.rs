@@ -756,6 +756,7 @@ fn run(cli: Cli) -> Result<()> {
                     "base_mesh": loaded.base_report,
                     "shell": loaded.shell.report,
                     "seconds": rendered.seconds,
+                    "gi": rendered.gi,
                 });
                 println!("{summary}");
             }

@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::gdm::{self, BakeObserver, Gdm};
+use crate::gi::shading::{GiReport, GiShading};
 use crate::limits::Limits;
 use crate::package::Package;
 use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
@@ -10,7 +11,7 @@ use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::Image;
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
-use crate::scene::{LoadedScene, Scene};
+use crate::scene::{Effect, LoadedScene, Scene};
 use serde::Serialize;
 use std::path::Path;
 use std::str::FromStr;
@@ -56,6 +57,8 @@ pub struct Rendered {
     pub image: Image,
     /// Seconds per stage.
     pub seconds: RenderSeconds,
+    /// The GI bakes, when the scene calls for environment lighting.
+    pub gi: Option<GiReport>,
 }
 
 /// The GDM a `gdm` render uses.
@@ -89,7 +92,16 @@ pub fn render(
 ) -> Result<Rendered> {
     let scene = &loaded.scene;
     let mut seconds = RenderSeconds::default();
+    let environment = scene.wants(Effect::EnvironmentLighting);
+    let mut gi_report = None;
     let image = match method {
+        RenderMethod::Truth if environment => {
+            return Err(Error::Scene(
+                "the ground-truth renderer does not shade environment lighting yet; \
+                 render the scene with --method gdm"
+                    .into(),
+            ));
+        }
         RenderMethod::Truth => {
             let start = Instant::now();
             let caster = loaded.mesostructure.caster();
@@ -101,11 +113,20 @@ pub fn render(
         RenderMethod::Gdm => {
             let start = Instant::now();
             let (raw, raw_lookup, package_lookup);
+            let mut baked: Option<&Gdm> = None;
             let lookup: &dyn GdmLookup = match source {
                 GdmSource::Bake => {
                     raw = bake_gdm(loaded, limits, observer)?;
                     raw_lookup = RawLookup::new(&raw);
+                    baked = Some(&raw);
                     &raw_lookup
+                }
+                GdmSource::Package(_) if environment => {
+                    return Err(Error::Scene(
+                        "packages hold no radiance transfer volume yet: render environment \
+                         lighting from the scene's own bake (without --package)"
+                            .into(),
+                    ));
                 }
                 GdmSource::Package(path) => {
                     let pkg = Package::read(path, limits)?;
@@ -122,17 +143,29 @@ pub fn render(
                 }
             };
             seconds.gdm = start.elapsed().as_secs_f64();
+            let gi = match baked {
+                Some(g) if environment => Some(GiShading::bake(loaded, g, limits, observer)?),
+                _ => None,
+            };
             let start = Instant::now();
-            let r = GdmRenderer::new(
+            let mut r = GdmRenderer::new(
                 &loaded.shell,
                 lookup,
                 &loaded.material,
                 scene.gdm_refinements,
             );
+            if let Some((gi, report)) = &gi {
+                r = r.with_gi(gi);
+                gi_report = Some(*report);
+            }
             let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
     };
-    Ok(Rendered { image, seconds })
+    Ok(Rendered {
+        image,
+        seconds,
+        gi: gi_report,
+    })
 }

@@ -6,6 +6,7 @@ use crate::error::{Error, Result};
 use crate::gdm::caster::Caster;
 use crate::gdm::mesh_caster::MeshCaster;
 use crate::gdm::volume_caster::VolumeCaster;
+use crate::gi::environment::{Environment, Sky};
 use crate::grid::{Dims, DirectionGrid};
 use crate::height_field::HeightField;
 use crate::input::Mesostructure;
@@ -61,6 +62,53 @@ pub struct Scene {
     /// The effects the scene calls for; nothing else is baked or shaded.
     #[serde(default)]
     pub effects: Vec<Effect>,
+    /// Distant environment light (shaded only when the effects call for
+    /// `environment_lighting`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<EnvironmentSource>,
+    /// Knobs of the global-illumination bakes.
+    #[serde(default, skip_serializing_if = "GiParams::is_default")]
+    pub gi: GiParams,
+}
+
+/// Where a scene's environment light comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum EnvironmentSource {
+    /// A built-in procedural sky.
+    Sky(Sky),
+    /// A lat-long OpenEXR radiance map (relative paths are relative to the scene file).
+    Exr(PathBuf),
+}
+
+/// The accuracy knobs of the global-illumination bakes.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GiParams {
+    /// Interreflection bounces in the RTV (0 = direct light only; at most
+    /// [`crate::gi::rtv::MAX_BOUNCES`]).
+    pub bounces: u32,
+    /// Visibility directions per base-mesh vertex in the shadowed PRT (16 to 2²⁰).
+    pub prt_samples: usize,
+    /// Width of the lat-long map a procedural sky is rendered to (height is half).
+    pub sky_width: usize,
+}
+
+impl Default for GiParams {
+    /// Four bounces, 1024 PRT directions, a 256×128 sky.
+    fn default() -> Self {
+        GiParams {
+            bounces: 4,
+            prt_samples: 1024,
+            sky_width: 256,
+        }
+    }
+}
+
+impl GiParams {
+    fn is_default(&self) -> bool {
+        *self == GiParams::default()
+    }
 }
 
 fn one() -> f64 {
@@ -260,6 +308,12 @@ pub enum Effect {
     Silhouettes,
     /// Shadows from point and directional lights.
     Shadows,
+    /// Distant light from the scene's `environment`, through the macro-scale PRT and the
+    /// mesostructure's radiance transfer volume (bounces included).
+    EnvironmentLighting,
+    /// The base mesh shadowing the environment light (shadowed PRT; without it, the PRT is a
+    /// pure rotation).
+    MacroShadows,
 }
 
 impl Scene {
@@ -321,6 +375,30 @@ impl Scene {
         for light in &self.lights {
             light.validate()?;
         }
+        if self.wants(Effect::EnvironmentLighting) {
+            match &self.environment {
+                None => {
+                    return Err(Error::Scene(
+                        "effects call for environment_lighting but no environment is given".into(),
+                    ));
+                }
+                Some(EnvironmentSource::Sky(sky)) => {
+                    sky.validate().map_err(|e| Error::Scene(e.to_string()))?
+                }
+                Some(EnvironmentSource::Exr(_)) => {}
+            }
+            let g = &self.gi;
+            if g.bounces > crate::gi::rtv::MAX_BOUNCES
+                || !(16..=1 << 20).contains(&g.prt_samples)
+                || !(4..=8192).contains(&g.sky_width)
+            {
+                return Err(Error::Scene(format!(
+                    "gi: bounces must be at most {}, prt_samples 16–{}, sky_width 4–8192; got {g:?}",
+                    crate::gi::rtv::MAX_BOUNCES,
+                    1 << 20
+                )));
+            }
+        }
         let m = &self.material;
         let colours_ok = (m.albedo.iter().chain(&m.specular)).all(|c| c.is_finite() && *c >= 0.0);
         if !colours_ok || !m.shininess.is_finite() || m.shininess < 0.0 {
@@ -369,6 +447,8 @@ pub struct LoadedScene {
     pub mesostructure: Mesostructure,
     /// Albedo and normals of the mesostructure.
     pub material: MaterialVolume,
+    /// The environment map, loaded only when the effects call for environment lighting.
+    pub environment: Option<Environment>,
 }
 
 impl LoadedScene {
@@ -416,6 +496,15 @@ impl LoadedScene {
                 (Mesostructure::Mesh(Box::new(caster)), material)
             }
         };
+        let environment = match &scene.environment {
+            Some(source) if scene.wants(Effect::EnvironmentLighting) => Some(match source {
+                EnvironmentSource::Sky(sky) => {
+                    sky.to_map(scene.gi.sky_width, (scene.gi.sky_width / 2).max(1))?
+                }
+                EnvironmentSource::Exr(p) => Environment::read_exr(&resolve(p), limits)?,
+            }),
+            _ => None,
+        };
         Ok(LoadedScene {
             scene,
             base,
@@ -423,6 +512,7 @@ impl LoadedScene {
             shell,
             mesostructure,
             material,
+            environment,
         })
     }
 }

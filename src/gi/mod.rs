@@ -1,8 +1,10 @@
 //! Global illumination: bi-scale radiance transfer. Spherical harmonics ([`sh`]), environment
 //! lighting projected to SH ([`environment`]) and the macro-scale per-vertex transfer
-//! ([`prt`]), and the meso-scale radiance transfer volume ([`rtv`]).
+//! ([`prt`]), the meso-scale radiance transfer volume ([`rtv`]), and shading with them
+//! ([`shading`]).
 
 pub mod environment;
 pub mod prt;
 pub mod rtv;
 pub mod sh;
+pub mod shading;

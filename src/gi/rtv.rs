@@ -91,6 +91,42 @@ impl Rtv {
         (s != NO_SAMPLE).then_some(s as usize)
     }
 
+    /// The transfer at texture point `t` (voxel units): trilinear over the voxel centres
+    /// around it, renormalized over those that are samples (x and y periodic, z clamped);
+    /// `None` where no sample has weight.
+    pub fn interpolate(&self, t: DVec3) -> Option<[[f64; COEFFS]; 3]> {
+        let d = self.dims;
+        let f = t - DVec3::splat(0.5);
+        let fz = f.z.clamp(0.0, (d.z - 1) as f64);
+        let (x0, y0, z0) = (f.x.floor(), f.y.floor(), fz.floor());
+        let (ax, ay, az) = (f.x - x0, f.y - y0, fz - z0);
+        let (wx, wy) = (Wrap::new(d.x), Wrap::new(d.y));
+        let mut out = [[0.0; COEFFS]; 3];
+        let mut total = 0.0;
+        for c in 0..8u32 {
+            let (dx, dy, dz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+            let w = if dx == 1 { ax } else { 1.0 - ax }
+                * if dy == 1 { ay } else { 1.0 - ay }
+                * if dz == 1 { az } else { 1.0 - az };
+            let i = wx.apply(x0 as i64 + dx as i64) as u32;
+            let j = wy.apply(y0 as i64 + dy as i64) as u32;
+            let k = (z0 as u32 + dz).min(d.z - 1);
+            let Some(s) = self.sample_at(i, j, k) else {
+                continue;
+            };
+            total += w;
+            for (o, t) in out.iter_mut().zip(&self.transfer[s]) {
+                o.iter_mut()
+                    .zip(t)
+                    .for_each(|(o, &t)| *o += w * f64::from(t));
+            }
+        }
+        if total <= 0.0 {
+            return None;
+        }
+        Some(out.map(|c| c.map(|v| v / total)))
+    }
+
     /// The outgoing RGB radiance of sample `s` under incident light `light` (SH per channel).
     pub fn shade(&self, s: usize, light: &[[f64; COEFFS]; 3]) -> [f64; 3] {
         std::array::from_fn(|c| {

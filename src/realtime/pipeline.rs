@@ -152,6 +152,13 @@ impl<'g> Preview<'g> {
         early_depth_test: bool,
     ) -> Result<Preview<'g>> {
         let scene = &loaded.scene;
+        if scene.wants(crate::scene::Effect::EnvironmentLighting) {
+            return Err(Error::Scene(
+                "the real-time preview does not shade environment lighting yet; render the \
+                 scene on the CPU (mesobake render --method gdm)"
+                    .into(),
+            ));
+        }
         if package.dims() != loaded.material.dims() {
             return Err(Error::Scene(format!(
                 "the package holds a {} GDM but the scene's resolution is {}",

@@ -36,6 +36,7 @@ use super::accel::BoxBvh;
 use super::gdm_lookup::{GdmLookup, Lookup};
 use super::lighting::shade;
 use super::material::{ALBEDO_DEPTH, MaterialVolume};
+use crate::gi::shading::GiShading;
 use crate::grid::Dims;
 use crate::scene::{Effect, Scene};
 use crate::shell::{FaceTriangle, Shell};
@@ -119,6 +120,7 @@ pub struct GdmRenderer<'a> {
     lookup: &'a dyn GdmLookup,
     material: &'a MaterialVolume,
     refinements: u32,
+    gi: Option<&'a GiShading>,
 }
 
 impl<'a> GdmRenderer<'a> {
@@ -150,7 +152,14 @@ impl<'a> GdmRenderer<'a> {
             lookup,
             material,
             refinements,
+            gi: None,
         }
+    }
+
+    /// Also shades environment light with `gi` (baked for the same shell and grid).
+    pub fn with_gi(mut self, gi: &'a GiShading) -> Self {
+        self.gi = Some(gi);
+        self
     }
 
     /// The nearest hit along `origin + t·dir` (unit `dir`), t > 0.
@@ -301,23 +310,21 @@ impl<'a> GdmRenderer<'a> {
         let shadows = scene.wants(Effect::Shadows);
         let shadow_origin = hit.texture + n_tex * SHADOW_OFFSET;
         let p = origin + dir * hit.t;
-        Some(shade(
-            &scene.lights,
-            &scene.material,
-            p,
-            n,
-            albedo,
-            -dir,
-            |inc| {
-                if !shadows {
-                    return true;
-                }
-                match (frame * inc.direction).try_normalize() {
-                    Some(l) => self.lookup.lookup(shadow_origin, l) == Lookup::Escape,
-                    None => true,
-                }
-            },
-        ))
+        let environment = self
+            .gi
+            .map_or(DVec3::ZERO, |gi| gi.radiance(hit.prism, hit.texture));
+        Some(
+            environment
+                + shade(&scene.lights, &scene.material, p, n, albedo, -dir, |inc| {
+                    if !shadows {
+                        return true;
+                    }
+                    match (frame * inc.direction).try_normalize() {
+                        Some(l) => self.lookup.lookup(shadow_origin, l) == Lookup::Escape,
+                        None => true,
+                    }
+                }),
+        )
     }
 }
 

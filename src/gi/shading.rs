@@ -1,0 +1,132 @@
+//! Shading environment light at a GDM hit (the CPU twin of the GI shader): the incident SH
+//! of the prism's three base vertices (PRT × environment), interpolated with the hit's
+//! barycentric coordinates in texture space, dotted with the RTV interpolated at the hit.
+//!
+//! The vertex frames (tangent along +u, bitangent, normal) stand in for the prism's texture
+//! axes, which are orthonormal only where the mapping is conformal and voxels are cubic in
+//! object space; directions in the RTV are texture-space directions.
+
+use super::environment::RgbSh;
+use super::prt::{self, Visibility};
+use super::rtv::{self, Rtv, RtvStats};
+use super::sh::{self, COEFFS};
+use crate::error::{Error, Result};
+use crate::gdm::{BakeObserver, Gdm};
+use crate::limits::Limits;
+use crate::scene::{Effect, LoadedScene};
+use glam::{DVec2, DVec3};
+use serde::Serialize;
+use std::time::Instant;
+
+/// What the GI renderers need: the RTV, and the incident light per base vertex and prism.
+pub struct GiShading {
+    rtv: Rtv,
+    /// Incident SH per base-mesh vertex, in its frame.
+    incident: Vec<RgbSh>,
+    /// Per prism: its base vertices and their texture coordinates (voxel units, x and y).
+    prisms: Vec<([u32; 3], [DVec2; 3])>,
+}
+
+/// Seconds and counts of the GI bakes.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct GiReport {
+    /// Projecting the environment to SH.
+    pub environment_seconds: f64,
+    /// The macro-scale PRT (all vertices).
+    pub prt_seconds: f64,
+    /// Whether the PRT is shadowed by the base mesh.
+    pub macro_shadows: bool,
+    /// The RTV bake.
+    pub rtv: RtvStats,
+}
+
+impl GiShading {
+    /// Bakes the PRT and the RTV of `loaded` (whose scene calls for environment lighting)
+    /// over its GDM `gdm`.
+    pub fn bake(
+        loaded: &LoadedScene,
+        gdm: &Gdm,
+        limits: &Limits,
+        observer: &dyn BakeObserver,
+    ) -> Result<(GiShading, GiReport)> {
+        let scene = &loaded.scene;
+        let environment = loaded.environment.as_ref().ok_or_else(|| {
+            Error::Scene("effects call for environment_lighting but no environment is given".into())
+        })?;
+        let mut report = GiReport::default();
+        let start = Instant::now();
+        let light = environment.project();
+        report.environment_seconds = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        report.macro_shadows = scene.wants(Effect::MacroShadows);
+        let visibility = if report.macro_shadows {
+            Visibility::Shadowed {
+                samples: scene.gi.prt_samples,
+            }
+        } else {
+            Visibility::Unshadowed
+        };
+        let transfer = prt::transfer(&loaded.base, visibility)?;
+        let incident = transfer
+            .matrices
+            .iter()
+            .map(|m| prt::incident(m, &light))
+            .collect();
+        report.prt_seconds = start.elapsed().as_secs_f64();
+        let (rtv, stats) = rtv::bake(gdm, &loaded.material, scene.gi.bounces, limits, observer)?;
+        report.rtv = stats;
+        let d = gdm.dims();
+        let scale = DVec2::new(d.x as f64, d.y as f64);
+        let prisms = loaded
+            .shell
+            .prisms
+            .iter()
+            .map(|p| {
+                let vertices = loaded.base.triangles[p.triangle as usize];
+                (vertices, p.uv.map(|uv| uv * scale))
+            })
+            .collect();
+        Ok((
+            GiShading {
+                rtv,
+                incident,
+                prisms,
+            },
+            report,
+        ))
+    }
+
+    /// The environment light leaving the hit at texture point `texture` (voxel units) of
+    /// prism `prism` (RGB radiance; black where the RTV has no sample nearby).
+    pub fn radiance(&self, prism: usize, texture: DVec3) -> DVec3 {
+        let (vertices, uv) = self.prisms[prism];
+        let Some(transfer) = self.rtv.interpolate(texture) else {
+            return DVec3::ZERO;
+        };
+        let b = barycentric(uv, texture.truncate());
+        let mut out = [0.0; 3];
+        for (c, out) in out.iter_mut().enumerate() {
+            let mut light = [0.0; COEFFS];
+            for (v, w) in vertices.iter().zip(b) {
+                let inc = &self.incident[*v as usize][c];
+                light.iter_mut().zip(inc).for_each(|(l, i)| *l += w * i);
+            }
+            *out = sh::dot(&transfer[c], &light).max(0.0);
+        }
+        DVec3::from(out)
+    }
+}
+
+/// Barycentric coordinates of `p` in triangle `t` (extrapolated outside, clamped to [0, 1]
+/// and renormalized; the centroid for a degenerate triangle).
+fn barycentric(t: [DVec2; 3], p: DVec2) -> [f64; 3] {
+    let (e1, e2, q) = (t[1] - t[0], t[2] - t[0], p - t[0]);
+    let det = e1.perp_dot(e2);
+    if det.abs() < 1e-300 || !det.is_finite() {
+        return [1.0 / 3.0; 3];
+    }
+    let (b1, b2) = (q.perp_dot(e2) / det, e1.perp_dot(q) / det);
+    let b = [1.0 - b1 - b2, b1, b2].map(|v| v.clamp(0.0, 1.0));
+    let sum: f64 = b.iter().sum();
+    b.map(|v| v / sum)
+}
