@@ -79,6 +79,7 @@ fn loaded(base: BaseMesh, volume: &Volume, shell: ShellParams, scene: &str) -> L
         base_report,
         mesostructure: Mesostructure::Volume(VolumeCaster::new(volume)),
         material: MaterialVolume::from_volume(volume, DVec3::splat(0.7)),
+        environment: None,
     }
 }
 

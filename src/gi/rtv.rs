@@ -63,6 +63,9 @@ pub struct RtvStats {
     pub bounce_seconds: f64,
 }
 
+/// A traced sample: its direct transfer per channel, its bounce links, its lost rays.
+type Traced = ([[f64; COEFFS]; 3], Vec<(u32, f32)>, u64);
+
 /// Which bounce targets a sample's rays reach, with their weights (ρ·w summed per target).
 struct Links {
     start: Vec<usize>,
@@ -188,7 +191,7 @@ pub fn bake(
         })
         .collect();
     let (wx, wy) = (Wrap::new(dims.x), Wrap::new(dims.y));
-    let traced: Vec<([[f64; COEFFS]; 3], Vec<(u32, f32)>, u64)> = voxels
+    let traced: Vec<Traced> = voxels
         .par_iter()
         .zip(&surface)
         .map(|(&[i, j, k], &(n, rho))| {
