@@ -35,6 +35,7 @@ pub mod flat_preview;
 pub mod fsutil;
 pub mod gdm;
 pub mod gi;
+pub mod gi_report;
 pub mod grid;
 pub mod height_field;
 pub mod input;

@@ -410,6 +410,27 @@ enum ReportCommand {
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
     },
+    /// Global illumination on a scene with environment lighting: RTV error and time over
+    /// direction grids × bounce counts, PRT error and time over visibility sample counts
+    /// (the last grid, the most bounces and the most samples are the references): Markdown
+    /// on stdout; gi-accuracy.md and gi-accuracy.json in --out.
+    Gi {
+        /// Scene file (its effects must call for environment_lighting).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Direction grids, comma-separated; the last is the reference.
+        #[arg(long, value_delimiter = ',', default_value = "8x16,16x32,32x64")]
+        dirs: Vec<DirectionGrid>,
+        /// Bounce counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0,1,2,4,8")]
+        bounces: Vec<u32>,
+        /// PRT visibility samples per vertex, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "256,1024,4096,16384")]
+        prt_samples: Vec<usize>,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -972,6 +993,37 @@ fn run(cli: Cli) -> Result<()> {
             print!("{table}");
             eprintln!(
                 "wrote accuracy.md, accuracy.csv and accuracy.svg in {}",
+                out.display()
+            );
+            Ok(())
+        }
+        Command::Report {
+            which:
+                ReportCommand::Gi {
+                    scene,
+                    dirs,
+                    bounces,
+                    prt_samples,
+                    out,
+                },
+        } => {
+            let loaded = render_scene::load_scene(&scene, &limits)?;
+            let sweep = mesobake::gi_report::GiSweep {
+                dirs,
+                bounces,
+                prt_samples,
+            };
+            let progress = Progress::new("GI accuracy report");
+            let report = mesobake::gi_report::gi_accuracy(&loaded, &sweep, &limits, &progress)?;
+            progress.0.finish_and_clear();
+            let table = mesobake::gi_report::markdown(&report);
+            std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+            let json = serde_json::to_string_pretty(&report).expect("report serializes");
+            write_atomic(&out.join("gi-accuracy.md"), table.as_bytes())?;
+            write_atomic(&out.join("gi-accuracy.json"), json.as_bytes())?;
+            print!("{table}");
+            eprintln!(
+                "wrote gi-accuracy.md and gi-accuracy.json in {}",
                 out.display()
             );
             Ok(())

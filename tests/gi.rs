@@ -395,9 +395,8 @@ fn a_white_furnace_converges_to_the_light_with_bounces() {
 }
 
 /// A flat plane under a sky of radiance `c` above the horizon and `ground` below, with a
-/// height-field slab (half the depth) and effects `effects`, rendered by the GDM renderer.
-fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::render_scene::Rendered {
-    use mesobake::render_scene::{GdmSource, RenderMethod, render};
+/// height-field slab (half the depth) and effects `effects`, loaded.
+fn flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::LoadedScene {
     let dir = tempfile::tempdir().unwrap();
     let mut png = Vec::new();
     let mut encoder = png::Encoder::new(&mut png, 4, 4);
@@ -425,9 +424,21 @@ fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::render_s
     });
     let path = dir.path().join("scene.json");
     std::fs::write(&path, scene.to_string()).unwrap();
-    let limits = Limits::default();
-    let loaded = mesobake::render_scene::load_scene(&path, &limits).unwrap();
-    render(&loaded, RenderMethod::Gdm, GdmSource::Bake, &limits, &()).unwrap()
+    mesobake::render_scene::load_scene(&path, &Limits::default()).unwrap()
+}
+
+/// [`flat_slab`] rendered by the GDM renderer.
+fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::render_scene::Rendered {
+    use mesobake::render_scene::{GdmSource, RenderMethod, render};
+    let loaded = flat_slab(effects, c, ground);
+    render(
+        &loaded,
+        RenderMethod::Gdm,
+        GdmSource::Bake,
+        &Limits::default(),
+        &(),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -480,4 +491,38 @@ fn a_slab_under_a_constant_sky_reflects_albedo_times_radiance() {
     assert!(r.gi.is_none());
     assert!(r.image.hits() > 500);
     assert!(r.image.rgb.iter().all(|p| *p == [0.0; 3]));
+}
+
+#[test]
+fn the_gi_report_measures_against_its_references() {
+    use mesobake::gi_report::{GiSweep, gi_accuracy, markdown};
+    let loaded = flat_slab(&["environment_lighting"], 1.0, 0.2);
+    let sweep = GiSweep {
+        dirs: vec![
+            mesobake::grid::DirectionGrid::new(4, 8).unwrap(),
+            mesobake::grid::DirectionGrid::new(16, 32).unwrap(),
+        ],
+        bounces: vec![0, 2],
+        prt_samples: vec![64, 1024],
+    };
+    let report = gi_accuracy(&loaded, &sweep, &Limits::default(), &()).unwrap();
+    assert_eq!(report.rtv.len(), 4);
+    // The reference row measures zero; the coarse grid does not (its cosine rule is off).
+    let reference = &report.rtv[3];
+    assert_eq!((reference.dirs.as_str(), reference.bounces), ("16x32", 2));
+    assert_eq!(reference.relative_error, 0.0);
+    assert!(report.rtv[0].relative_error > 1e-3, "{:?}", report.rtv[0]);
+    // Nothing above a slab to bounce from: bounces change nothing.
+    assert_eq!(report.rtv[2].relative_error, report.rtv[3].relative_error);
+    // PRT rows: the rotation, then the counts in order; the boundary vertices of the open
+    // plane see below its edges, which 64 directions resolve to a few percent (measured 1.7 %).
+    assert_eq!(report.prt.len(), 3);
+    assert_eq!(report.prt[2].relative_error, 0.0);
+    let coarse = report.prt[1].relative_error;
+    assert!(coarse > 0.0 && coarse < 0.05, "{:?}", report.prt);
+    let text = markdown(&report);
+    assert!(text.contains("| 16x32 | 2 |") && text.contains("unshadowed (rotation)"));
+    // A scene without environment lighting has nothing to report.
+    let plain = flat_slab(&[], 1.0, 0.2);
+    assert!(gi_accuracy(&plain, &sweep, &Limits::default(), &()).is_err());
 }

@@ -1,0 +1,257 @@
+//! `mesobake report gi`: what the global-illumination knobs cost in time and buy in accuracy
+//! on a scene that calls for environment lighting.
+//! - **RTV**: over direction grids × bounce counts, the bake time (GDM bake, ray tracing
+//!   through the GDM, bounces) and the error of the shaded surface radiance against the
+//!   finest setting. Each sample is lit by the scene's environment as a flat, up-facing
+//!   surface would receive it (the environment rotated so that world +y is texture +z); the
+//!   error is the RMS difference over samples and channels, relative to the reference's RMS.
+//! - **PRT**: over visibility sample counts, the time for all base vertices and the relative
+//!   Frobenius error of the transfer matrices against the largest count.
+
+use crate::error::{Error, Result};
+use crate::gdm::{self, BakeObserver};
+use crate::gi::environment::RgbSh;
+use crate::gi::prt::{self, Visibility};
+use crate::gi::rtv::{self, Rtv};
+use crate::gi::sh;
+use crate::grid::DirectionGrid;
+use crate::limits::Limits;
+use crate::report::table;
+use crate::scene::LoadedScene;
+use glam::{DMat3, DVec3};
+use serde::Serialize;
+use std::time::Instant;
+
+/// The settings the report covers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GiSweep {
+    /// Direction grids of the GDM (and so of the RTV's integration); the last is the
+    /// reference.
+    pub dirs: Vec<DirectionGrid>,
+    /// Bounce counts; the largest, on the last grid, is the reference.
+    pub bounces: Vec<u32>,
+    /// PRT visibility sample counts; the largest is the reference.
+    pub prt_samples: Vec<usize>,
+}
+
+/// One RTV setting.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RtvRow {
+    /// Direction grid, `Nθ×Nφ`.
+    pub dirs: String,
+    /// Bounces.
+    pub bounces: u32,
+    /// Seconds baking the exact GDM at this grid.
+    pub gdm_seconds: f64,
+    /// Seconds tracing the samples' rays through the GDM.
+    pub trace_seconds: f64,
+    /// Seconds iterating the bounces.
+    pub bounce_seconds: f64,
+    /// Relative RMS error of the shaded radiance against the reference.
+    pub relative_error: f64,
+    /// Surface samples.
+    pub samples: usize,
+    /// Bytes of the transfer (samples × 3 channels × 16 coefficients, f32).
+    pub bytes: usize,
+}
+
+/// One PRT setting.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PrtRow {
+    /// Visibility directions per vertex (0 for the unshadowed rotation).
+    pub samples: usize,
+    /// Seconds for all vertices.
+    pub seconds: f64,
+    /// Relative Frobenius error against the reference.
+    pub relative_error: f64,
+}
+
+/// The whole report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GiAccuracy {
+    /// RTV rows.
+    pub rtv: Vec<RtvRow>,
+    /// PRT rows.
+    pub prt: Vec<PrtRow>,
+    /// Base-mesh vertices.
+    pub vertices: usize,
+}
+
+/// Runs the sweep on `loaded` (which must have an environment).
+pub fn gi_accuracy(
+    loaded: &LoadedScene,
+    sweep: &GiSweep,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<GiAccuracy> {
+    let environment = loaded.environment.as_ref().ok_or_else(|| {
+        Error::Scene("the report needs a scene that calls for environment_lighting".into())
+    })?;
+    let (Some(&reference_dirs), Some(&max_bounces), Some(&max_samples)) = (
+        sweep.dirs.last(),
+        sweep.bounces.iter().max(),
+        sweep.prt_samples.iter().max(),
+    ) else {
+        return Err(Error::InvalidParameter(
+            "the GI report needs direction grids, bounce counts and PRT sample counts".into(),
+        ));
+    };
+    // World +y becomes texture +z: a flat, up-facing surface.
+    let up = DMat3::from_cols(DVec3::X, DVec3::NEG_Z, DVec3::Y);
+    let light: RgbSh = environment
+        .project()
+        .map(|c| sh::apply(&sh::rotation_matrix(up.transpose()), &c));
+    let caster = loaded.mesostructure.caster();
+    let mut baked = Vec::new();
+    for &dirs in &sweep.dirs {
+        let start = Instant::now();
+        let g = gdm::exact::bake(caster, dirs, limits, observer)?;
+        let gdm_seconds = start.elapsed().as_secs_f64();
+        for &bounces in &sweep.bounces {
+            let (rtv, stats) = rtv::bake(&g, &loaded.material, bounces, limits, observer)?;
+            let row = RtvRow {
+                dirs: format!("{}x{}", dirs.n_theta, dirs.n_phi),
+                bounces,
+                gdm_seconds,
+                trace_seconds: stats.trace_seconds,
+                bounce_seconds: stats.bounce_seconds,
+                relative_error: 0.0,
+                samples: stats.samples,
+                bytes: stats.samples * 3 * sh::COEFFS * 4,
+            };
+            baked.push((
+                row,
+                shaded(&rtv, &light),
+                dirs == reference_dirs && bounces == max_bounces,
+            ));
+        }
+    }
+    let reference = baked
+        .iter()
+        .find(|b| b.2)
+        .map(|b| b.1.clone())
+        .expect("the sweep includes its reference");
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    let reference_rms = rms(&reference).max(f64::MIN_POSITIVE);
+    let rtv_rows = baked
+        .into_iter()
+        .map(|(mut row, values, _)| {
+            let diff: Vec<f64> = values.iter().zip(&reference).map(|(a, b)| a - b).collect();
+            row.relative_error = rms(&diff) / reference_rms;
+            row
+        })
+        .collect();
+
+    let mut prt_rows = Vec::new();
+    let mut matrices = Vec::new();
+    let mut counts: Vec<usize> = sweep.prt_samples.clone();
+    counts.sort_unstable();
+    for &samples in &counts {
+        let start = Instant::now();
+        let t = prt::transfer(&loaded.base, Visibility::Shadowed { samples })?;
+        prt_rows.push(PrtRow {
+            samples,
+            seconds: start.elapsed().as_secs_f64(),
+            relative_error: 0.0,
+        });
+        matrices.push(t.matrices);
+    }
+    let start = Instant::now();
+    prt::transfer(&loaded.base, Visibility::Unshadowed)?;
+    let unshadowed_seconds = start.elapsed().as_secs_f64();
+    let reference = &matrices[counts
+        .iter()
+        .position(|&c| c == max_samples)
+        .expect("present")];
+    let frobenius = |m: &[[[f64; 16]; 16]]| -> f64 {
+        m.iter()
+            .flatten()
+            .flatten()
+            .map(|v| v * v)
+            .sum::<f64>()
+            .sqrt()
+    };
+    let reference_norm = frobenius(reference).max(f64::MIN_POSITIVE);
+    for (row, m) in prt_rows.iter_mut().zip(&matrices) {
+        let diff: Vec<[[f64; 16]; 16]> = m
+            .iter()
+            .zip(reference)
+            .map(|(a, b)| std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] - b[i][j])))
+            .collect();
+        row.relative_error = frobenius(&diff) / reference_norm;
+    }
+    prt_rows.insert(
+        0,
+        PrtRow {
+            samples: 0,
+            seconds: unshadowed_seconds,
+            relative_error: f64::NAN,
+        },
+    );
+    Ok(GiAccuracy {
+        rtv: rtv_rows,
+        prt: prt_rows,
+        vertices: loaded.base.positions.len(),
+    })
+}
+
+/// The shaded radiance of every sample and channel under `light`.
+fn shaded(rtv: &Rtv, light: &RgbSh) -> Vec<f64> {
+    (0..rtv.voxels().len())
+        .flat_map(|s| rtv.shade(s, light))
+        .collect()
+}
+
+/// The report as Markdown tables.
+pub fn markdown(report: &GiAccuracy) -> String {
+    let rtv = table(
+        &[
+            "directions",
+            "bounces",
+            "GDM bake s",
+            "RTV trace s",
+            "bounces s",
+            "relative RMS error",
+            "samples",
+            "RTV bytes",
+        ],
+        report.rtv.iter().map(|r| {
+            vec![
+                r.dirs.clone(),
+                r.bounces.to_string(),
+                format!("{:.2}", r.gdm_seconds),
+                format!("{:.2}", r.trace_seconds),
+                format!("{:.3}", r.bounce_seconds),
+                format!("{:.4}", r.relative_error),
+                r.samples.to_string(),
+                r.bytes.to_string(),
+            ]
+        }),
+    );
+    let prt = table(
+        &[
+            "PRT samples per vertex",
+            "seconds",
+            "relative Frobenius error",
+        ],
+        report.prt.iter().map(|r| {
+            vec![
+                if r.samples == 0 {
+                    "unshadowed (rotation)".into()
+                } else {
+                    r.samples.to_string()
+                },
+                format!("{:.3}", r.seconds),
+                if r.relative_error.is_nan() {
+                    "—".into()
+                } else {
+                    format!("{:.4}", r.relative_error)
+                },
+            ]
+        }),
+    );
+    format!(
+        "### RTV\n\n{rtv}\n### Macro-scale PRT ({} vertices)\n\n{prt}",
+        report.vertices
+    )
+}
