@@ -9,6 +9,7 @@ use crate::package::Package;
 use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::Image;
+use crate::render::path_tracer::PathTracer;
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::scene::{Effect, LoadedScene, Scene};
@@ -96,11 +97,11 @@ pub fn render(
     let mut gi_report = None;
     let image = match method {
         RenderMethod::Truth if environment => {
-            return Err(Error::Scene(
-                "the ground-truth renderer does not shade environment lighting yet; \
-                 render the scene with --method gdm"
-                    .into(),
-            ));
+            let start = Instant::now();
+            let tracer = PathTracer::new(loaded, scene.gi.path_samples, scene.gi.path_depth)?;
+            let image = render_image(&scene.camera, |o, d| tracer.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
         }
         RenderMethod::Truth => {
             let start = Instant::now();

@@ -92,15 +92,21 @@ pub struct GiParams {
     pub prt_samples: usize,
     /// Width of the lat-long map a procedural sky is rendered to (height is half).
     pub sky_width: usize,
+    /// Paths per pixel of the ground truth's path tracer (1–4096).
+    pub path_samples: u32,
+    /// Most bounces of a path (1–64).
+    pub path_depth: u32,
 }
 
 impl Default for GiParams {
-    /// Four bounces, 1024 PRT directions, a 256×128 sky.
+    /// Four bounces, 1024 PRT directions, a 256×128 sky, 16 paths of at most 8 bounces.
     fn default() -> Self {
         GiParams {
             bounces: 4,
             prt_samples: 1024,
             sky_width: 256,
+            path_samples: 16,
+            path_depth: 8,
         }
     }
 }
@@ -391,9 +397,12 @@ impl Scene {
             if g.bounces > crate::gi::rtv::MAX_BOUNCES
                 || !(16..=1 << 20).contains(&g.prt_samples)
                 || !(4..=8192).contains(&g.sky_width)
+                || !(1..=4096).contains(&g.path_samples)
+                || !(1..=64).contains(&g.path_depth)
             {
                 return Err(Error::Scene(format!(
-                    "gi: bounces must be at most {}, prt_samples 16–{}, sky_width 4–8192; got {g:?}",
+                    "gi: bounces must be at most {}, prt_samples 16–{}, sky_width 4–8192, \
+                     path_samples 1–4096, path_depth 1–64; got {g:?}",
                     crate::gi::rtv::MAX_BOUNCES,
                     1 << 20
                 )));

@@ -127,8 +127,8 @@ pub fn transfer(mesh: &BaseMesh, visibility: Visibility) -> Result<Transfer> {
     Ok(Transfer { frames, matrices })
 }
 
-/// The base mesh as an occluder for visibility rays.
-struct Occluder {
+/// The base mesh as an occluder for visibility rays (opaque from both sides).
+pub struct Occluder {
     bvh: CwBvh,
     tris: Vec<Triangle>,
     /// How far above the surface rays start.
@@ -136,7 +136,8 @@ struct Occluder {
 }
 
 impl Occluder {
-    fn new(mesh: &BaseMesh) -> Occluder {
+    /// A BVH over `mesh`'s triangles.
+    pub fn new(mesh: &BaseMesh) -> Occluder {
         let (lo, hi) = mesh.bounds();
         let to_f32 = |p: DVec3| Vec3A::new(p.x as f32, p.y as f32, p.z as f32);
         let tris: Vec<Triangle> = mesh
@@ -166,7 +167,8 @@ impl Occluder {
         }
     }
 
-    fn blocked(&self, origin: DVec3, dir: DVec3) -> bool {
+    /// Whether the ray `origin + t·dir`, t > 0, meets the mesh.
+    pub fn blocked(&self, origin: DVec3, dir: DVec3) -> bool {
         if self.tris.is_empty() {
             return false;
         }

@@ -97,10 +97,16 @@ impl GiShading {
     }
 
     /// The environment light leaving the hit at texture point `texture` (voxel units) of
-    /// prism `prism` (RGB radiance; black where the RTV has no sample nearby).
-    pub fn radiance(&self, prism: usize, texture: DVec3) -> DVec3 {
+    /// prism `prism`, reached along texture direction `view` (RGB radiance). A GDM hit can
+    /// lie up to a voxel inside the solid, beyond the reach of the samples' interpolation;
+    /// the RTV is then read up to [`MAX_BACKOFF`] voxels back along the view, and the hit is
+    /// black only when no sample is found there.
+    pub fn radiance(&self, prism: usize, texture: DVec3, view: DVec3) -> DVec3 {
         let (vertices, uv) = self.prisms[prism];
-        let Some(transfer) = self.rtv.interpolate(texture) else {
+        let Some(transfer) = (0..=MAX_BACKOFF_STEPS).find_map(|step| {
+            let back = MAX_BACKOFF * f64::from(step) / f64::from(MAX_BACKOFF_STEPS);
+            self.rtv.interpolate(texture - view * back)
+        }) else {
             return DVec3::ZERO;
         };
         let b = barycentric(uv, texture.truncate());
@@ -116,6 +122,12 @@ impl GiShading {
         DVec3::from(out)
     }
 }
+
+/// How far back along the view, in voxels, a hit looks for RTV samples.
+pub const MAX_BACKOFF: f64 = 1.5;
+
+/// In how many steps of `MAX_BACKOFF`/steps.
+const MAX_BACKOFF_STEPS: u32 = 3;
 
 /// Barycentric coordinates of `p` in triangle `t` (extrapolated outside, clamped to [0, 1]
 /// and renormalized; the centroid for a degenerate triangle).

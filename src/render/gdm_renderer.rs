@@ -310,9 +310,9 @@ impl<'a> GdmRenderer<'a> {
         let shadows = scene.wants(Effect::Shadows);
         let shadow_origin = hit.texture + n_tex * SHADOW_OFFSET;
         let p = origin + dir * hit.t;
-        let environment = self
-            .gi
-            .map_or(DVec3::ZERO, |gi| gi.radiance(hit.prism, hit.texture));
+        let environment = self.gi.map_or(DVec3::ZERO, |gi| {
+            gi.radiance(hit.prism, hit.texture, hit.view)
+        });
         Some(
             environment
                 + shade(&scene.lights, &scene.material, p, n, albedo, -dir, |inc| {

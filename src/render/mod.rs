@@ -7,6 +7,7 @@ pub mod gdm_renderer;
 pub mod image;
 pub mod lighting;
 pub mod material;
+pub mod path_tracer;
 pub mod truth;
 
 use crate::scene::Camera;

@@ -214,6 +214,30 @@ impl<'a> TruthRenderer<'a> {
     /// The shaded radiance along the camera ray, or `None` for a miss.
     pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.trace(origin, dir, 0.0, f64::INFINITY)?;
+        Some(self.shade_lights(scene, &self.surface(&hit, origin, dir), dir))
+    }
+
+    /// The scene's lights shaded at surface `s`, seen along `dir`.
+    pub fn shade_lights(&self, scene: &Scene, s: &Surface, dir: DVec3) -> DVec3 {
+        let shadows = scene.wants(Effect::Shadows);
+        shade(
+            &scene.lights,
+            &scene.material,
+            s.point,
+            s.normal,
+            s.albedo,
+            -dir,
+            |inc| {
+                !shadows
+                    || self
+                        .trace(s.start, inc.direction, 0.0, inc.distance)
+                        .is_none()
+            },
+        )
+    }
+
+    /// The shading inputs at `hit` of the ray `origin + t·dir`.
+    pub fn surface(&self, hit: &TruthHit, origin: DVec3, dir: DVec3) -> Surface {
         let prism = &self.shell.prisms[hit.prism];
         let jacobian = prism
             .jacobian(hit.point)
@@ -227,24 +251,26 @@ impl<'a> TruthRenderer<'a> {
             .material
             .albedo_at(hit.texture + hit.view * ALBEDO_DEPTH);
         let back = jacobian.map_or(0.0, |j| (j * hit.view).length() * SHADOW_START);
-        let p = origin + dir * hit.t;
-        let shadow_origin = origin + dir * (hit.t - back);
-        let shadows = scene.wants(Effect::Shadows);
-        Some(shade(
-            &scene.lights,
-            &scene.material,
-            p,
-            n,
+        Surface {
+            point: origin + dir * hit.t,
+            normal: n,
             albedo,
-            -dir,
-            |inc| {
-                !shadows
-                    || self
-                        .trace(shadow_origin, inc.direction, 0.0, inc.distance)
-                        .is_none()
-            },
-        ))
+            start: origin + dir * (hit.t - back),
+        }
     }
+}
+
+/// What shading needs at a hit, in object space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// The hit point.
+    pub point: DVec3,
+    /// Unit outward normal.
+    pub normal: DVec3,
+    /// Linear albedo.
+    pub albedo: DVec3,
+    /// Where rays leaving the hit start: [`SHADOW_START`] voxels back along the arriving ray.
+    pub start: DVec3,
 }
 
 fn interpolate(a: PrismPoint, b: PrismPoint, f: f64) -> PrismPoint {
