@@ -7,6 +7,9 @@
 //!   error is the RMS difference over samples and channels, relative to the reference's RMS.
 //! - **PRT**: over visibility sample counts, the time for all base vertices and the relative
 //!   Frobenius error of the transfer matrices against the largest count.
+//! - **Images**: the path tracer at each paths-per-pixel count and the GDM renderer with the
+//!   scene's own GI settings, each against the path tracer at the largest count (PSNR of the
+//!   sRGB images, as in `report render`), on the scene's camera reduced by `image_scale`.
 
 use crate::error::{Error, Result};
 use crate::gdm::{self, BakeObserver};
@@ -14,8 +17,14 @@ use crate::gi::environment::RgbSh;
 use crate::gi::prt::{self, Visibility};
 use crate::gi::rtv::{self, Rtv};
 use crate::gi::sh;
+use crate::gi::shading::GiShading;
 use crate::grid::DirectionGrid;
 use crate::limits::Limits;
+use crate::render::gdm_lookup::RawLookup;
+use crate::render::gdm_renderer::GdmRenderer;
+use crate::render::image::compare;
+use crate::render::path_tracer::PathTracer;
+use crate::render::render_image;
 use crate::report::table;
 use crate::scene::LoadedScene;
 use glam::{DMat3, DVec3};
@@ -32,6 +41,25 @@ pub struct GiSweep {
     pub bounces: Vec<u32>,
     /// PRT visibility sample counts; the largest is the reference.
     pub prt_samples: Vec<usize>,
+    /// Path tracer paths per pixel; the largest is the reference image.
+    pub path_samples: Vec<u32>,
+    /// The camera's width and height are divided by this.
+    pub image_scale: u32,
+}
+
+/// One image against the path-traced reference.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ImageRow {
+    /// `path traced` or `GDM + RTV`.
+    pub renderer: String,
+    /// Paths per pixel (path tracer) or bounces (GDM + RTV).
+    pub samples: u32,
+    /// Seconds to render (the GDM + RTV row includes its GDM, PRT and RTV bakes).
+    pub seconds: f64,
+    /// PSNR in dB against the reference.
+    pub psnr_db: f64,
+    /// Fraction of pixels whose hit/miss differs from the reference.
+    pub mask_disagreement: f64,
 }
 
 /// One RTV setting.
@@ -73,6 +101,10 @@ pub struct GiAccuracy {
     pub rtv: Vec<RtvRow>,
     /// PRT rows.
     pub prt: Vec<PrtRow>,
+    /// Image rows.
+    pub images: Vec<ImageRow>,
+    /// Image size, width × height.
+    pub image_size: [u32; 2],
     /// Base-mesh vertices.
     pub vertices: usize,
 }
@@ -188,11 +220,79 @@ pub fn gi_accuracy(
             relative_error: f64::NAN,
         },
     );
+    let (images, image_size) = image_rows(loaded, sweep, limits, observer)?;
     Ok(GiAccuracy {
         rtv: rtv_rows,
         prt: prt_rows,
+        images,
+        image_size,
         vertices: loaded.base.positions.len(),
     })
+}
+
+/// The image part of the report.
+fn image_rows(
+    loaded: &LoadedScene,
+    sweep: &GiSweep,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<(Vec<ImageRow>, [u32; 2])> {
+    let mut scene = loaded.scene.clone();
+    let scale = sweep.image_scale.max(1);
+    scene.camera.width = (scene.camera.width / scale).max(1);
+    scene.camera.height = (scene.camera.height / scale).max(1);
+    let mut counts = sweep.path_samples.clone();
+    counts.sort_unstable();
+    let mut traced = Vec::new();
+    for &n in &counts {
+        let start = Instant::now();
+        let tracer = PathTracer::new(loaded, n, scene.gi.path_depth)?;
+        let image = render_image(&scene.camera, |o, d| tracer.radiance(&scene, o, d));
+        traced.push((n, start.elapsed().as_secs_f64(), image));
+    }
+    let Some((_, _, reference)) = traced.last() else {
+        return Err(Error::InvalidParameter(
+            "the GI report needs at least one path-tracer sample count".into(),
+        ));
+    };
+    let start = Instant::now();
+    let g = gdm::exact::bake(
+        loaded.mesostructure.caster(),
+        scene.dirs()?,
+        limits,
+        observer,
+    )?;
+    let (gi, _) = GiShading::bake(loaded, &g, limits, observer)?;
+    let lookup = RawLookup::new(&g);
+    let renderer = GdmRenderer::new(
+        &loaded.shell,
+        &lookup,
+        &loaded.material,
+        scene.gdm_refinements,
+    )
+    .with_gi(&gi);
+    let gdm_image = render_image(&scene.camera, |o, d| renderer.radiance(&scene, o, d));
+    let gdm_seconds = start.elapsed().as_secs_f64();
+    let mut rows = Vec::new();
+    for (n, seconds, image) in &traced {
+        let c = compare(image, reference)?;
+        rows.push(ImageRow {
+            renderer: "path traced".into(),
+            samples: *n,
+            seconds: *seconds,
+            psnr_db: c.psnr_db,
+            mask_disagreement: c.mask_disagreement,
+        });
+    }
+    let c = compare(&gdm_image, reference)?;
+    rows.push(ImageRow {
+        renderer: "GDM + RTV".into(),
+        samples: scene.gi.bounces,
+        seconds: gdm_seconds,
+        psnr_db: c.psnr_db,
+        mask_disagreement: c.mask_disagreement,
+    });
+    Ok((rows, [scene.camera.width, scene.camera.height]))
 }
 
 /// The shaded radiance of every sample and channel under `light`.
@@ -250,8 +350,27 @@ pub fn markdown(report: &GiAccuracy) -> String {
             ]
         }),
     );
+    let images = table(
+        &[
+            "renderer",
+            "paths per pixel / bounces",
+            "seconds",
+            "PSNR dB",
+            "mask disagreement",
+        ],
+        report.images.iter().map(|r| {
+            vec![
+                r.renderer.clone(),
+                r.samples.to_string(),
+                format!("{:.2}", r.seconds),
+                format!("{:.1}", r.psnr_db),
+                format!("{:.4}", r.mask_disagreement),
+            ]
+        }),
+    );
     format!(
-        "### RTV\n\n{rtv}\n### Macro-scale PRT ({} vertices)\n\n{prt}",
-        report.vertices
+        "### RTV\n\n{rtv}\n### Macro-scale PRT ({} vertices)\n\n{prt}\n### Images against the \
+         path tracer at its largest count ({}×{})\n\n{images}",
+        report.vertices, report.image_size[0], report.image_size[1]
     )
 }

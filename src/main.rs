@@ -427,6 +427,12 @@ enum ReportCommand {
         /// PRT visibility samples per vertex, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "256,1024,4096,16384")]
         prt_samples: Vec<usize>,
+        /// Path tracer paths per pixel, comma-separated; the largest is the reference image.
+        #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
+        path_samples: Vec<u32>,
+        /// Divide the scene camera's width and height by this for the images.
+        #[arg(long, default_value_t = 4)]
+        image_scale: u32,
         /// Output directory.
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
@@ -1004,6 +1010,8 @@ fn run(cli: Cli) -> Result<()> {
                     dirs,
                     bounces,
                     prt_samples,
+                    path_samples,
+                    image_scale,
                     out,
                 },
         } => {
@@ -1012,6 +1020,8 @@ fn run(cli: Cli) -> Result<()> {
                 dirs,
                 bounces,
                 prt_samples,
+                path_samples,
+                image_scale,
             };
             let progress = Progress::new("GI accuracy report");
             let report = mesobake::gi_report::gi_accuracy(&loaded, &sweep, &limits, &progress)?;

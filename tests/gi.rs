@@ -504,6 +504,8 @@ fn the_gi_report_measures_against_its_references() {
         ],
         bounces: vec![0, 2],
         prt_samples: vec![64, 1024],
+        path_samples: vec![1, 4],
+        image_scale: 2,
     };
     let report = gi_accuracy(&loaded, &sweep, &Limits::default(), &()).unwrap();
     assert_eq!(report.rtv.len(), 4);
@@ -520,6 +522,15 @@ fn the_gi_report_measures_against_its_references() {
     assert_eq!(report.prt[2].relative_error, 0.0);
     let coarse = report.prt[1].relative_error;
     assert!(coarse > 0.0 && coarse < 0.05, "{:?}", report.prt);
+    // The slab's paths all escape upwards: every count gives the same image.
+    assert_eq!(report.image_size, [16, 16]);
+    assert_eq!(report.images.len(), 3);
+    assert!(
+        report.images[0].psnr_db.is_infinite(),
+        "{:?}",
+        report.images
+    );
+    assert!(report.images[2].renderer == "GDM + RTV" && report.images[2].psnr_db > 30.0);
     let text = markdown(&report);
     assert!(text.contains("| 16x32 | 2 |") && text.contains("unshadowed (rotation)"));
     // A scene without environment lighting has nothing to report.
