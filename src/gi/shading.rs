@@ -126,7 +126,7 @@ impl GiShading {
 /// How far back along the view, in voxels, a hit looks for RTV samples.
 pub const MAX_BACKOFF: f64 = 1.5;
 
-/// In how many steps of `MAX_BACKOFF`/steps.
+/// The back-off is tried in this many equal steps after the hit itself.
 const MAX_BACKOFF_STEPS: u32 = 3;
 
 /// Barycentric coordinates of `p` in triangle `t` (extrapolated outside, clamped to [0, 1]
