@@ -115,11 +115,6 @@ impl Environment {
         Environment::new(width, height, texels)
     }
 
-    /// Width and height in texels.
-    pub fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
-    }
-
     /// The radiance of the texel that direction `d` (unit) falls in.
     pub fn radiance(&self, d: DVec3) -> [f64; 3] {
         let theta = d.y.clamp(-1.0, 1.0).acos();

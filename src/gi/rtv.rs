@@ -73,11 +73,6 @@ struct Links {
 }
 
 impl Rtv {
-    /// The grid.
-    pub fn dims(&self) -> Dims {
-        self.dims
-    }
-
     /// The sample voxels.
     pub fn voxels(&self) -> &[[u32; 3]] {
         &self.voxels
