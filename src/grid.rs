@@ -131,6 +131,29 @@ impl DirectionGrid {
     }
 }
 
+/// The eight voxels whose centres surround texture point `t` (voxel units) and their
+/// trilinear weights (summing to 1): x and y periodic, z clamped into the grid.
+pub fn trilinear_corners(dims: Dims, t: [f64; 3]) -> [([u32; 3], f64); 8] {
+    let f = [
+        t[0] - 0.5,
+        t[1] - 0.5,
+        (t[2] - 0.5).clamp(0.0, (dims.z - 1) as f64),
+    ];
+    let base = f.map(f64::floor);
+    let frac = [f[0] - base[0], f[1] - base[1], f[2] - base[2]];
+    let (wx, wy) = (Wrap::new(dims.x), Wrap::new(dims.y));
+    std::array::from_fn(|c| {
+        let d = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
+        let w: f64 = (0..3)
+            .map(|a| if d[a] == 1 { frac[a] } else { 1.0 - frac[a] })
+            .product();
+        let i = wx.apply(base[0] as i64 + d[0] as i64) as u32;
+        let j = wy.apply(base[1] as i64 + d[1] as i64) as u32;
+        let k = (base[2] as u32 + d[2] as u32).min(dims.z - 1);
+        ([i, j, k], w)
+    })
+}
+
 /// v = (sinθ cosφ, sinθ sinφ, cosθ).
 pub fn spherical_to_vector(theta: f64, phi: f64) -> [f64; 3] {
     let (st, ct) = theta.sin_cos();

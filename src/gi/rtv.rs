@@ -25,7 +25,7 @@
 use super::sh::{self, COEFFS};
 use crate::error::{Error, Result};
 use crate::gdm::{BakeObserver, Gdm};
-use crate::grid::{Dims, Wrap};
+use crate::grid::{Dims, Wrap, trilinear_corners};
 use crate::limits::Limits;
 use crate::render::material::MaterialVolume;
 use glam::DVec3;
@@ -93,22 +93,9 @@ impl Rtv {
     /// around it, renormalized over those that are samples (x and y periodic, z clamped);
     /// `None` where no sample has weight.
     pub fn interpolate(&self, t: DVec3) -> Option<[[f64; COEFFS]; 3]> {
-        let d = self.dims;
-        let f = t - DVec3::splat(0.5);
-        let fz = f.z.clamp(0.0, (d.z - 1) as f64);
-        let (x0, y0, z0) = (f.x.floor(), f.y.floor(), fz.floor());
-        let (ax, ay, az) = (f.x - x0, f.y - y0, fz - z0);
-        let (wx, wy) = (Wrap::new(d.x), Wrap::new(d.y));
         let mut out = [[0.0; COEFFS]; 3];
         let mut total = 0.0;
-        for c in 0..8u32 {
-            let (dx, dy, dz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
-            let w = if dx == 1 { ax } else { 1.0 - ax }
-                * if dy == 1 { ay } else { 1.0 - ay }
-                * if dz == 1 { az } else { 1.0 - az };
-            let i = wx.apply(x0 as i64 + dx as i64) as u32;
-            let j = wy.apply(y0 as i64 + dy as i64) as u32;
-            let k = (z0 as u32 + dz).min(d.z - 1);
+        for ([i, j, k], w) in trilinear_corners(self.dims, t.to_array()) {
             let Some(s) = self.sample_at(i, j, k) else {
                 continue;
             };

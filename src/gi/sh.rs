@@ -1,6 +1,7 @@
 //! Real spherical harmonics, bands 0–3 (16 coefficients), orthonormal over the unit sphere.
 //!
-//! **Convention.** Directions are unit vectors ω = (sin θ cos φ, sin θ sin φ, cos θ): θ from
+//! **Convention.** Directions are unit vectors ω = (sin θ cos φ, sin θ sin φ, cos θ)
+//! ([`crate::grid::spherical_to_vector`]): θ from
 //! +z, φ from +x towards +y (the GDM's direction convention; in texture space +z points out
 //! of the surface). Coefficient `i = l(l+1) + m` holds yₗᵐ, m = −l…l. The basis is the real
 //! one *without* the Condon–Shortley phase, so y₁ = √(3/4π)·(y, z, x):
@@ -76,12 +77,6 @@ pub fn eval(d: DVec3) -> Sh {
 /// The band l of coefficient `i`.
 pub fn band(i: usize) -> usize {
     (i as f64).sqrt() as usize
-}
-
-/// The unit vector of polar angle θ and azimuth φ.
-pub fn direction(theta: f64, phi: f64) -> DVec3 {
-    let (s, c) = theta.sin_cos();
-    DVec3::new(s * phi.cos(), s * phi.sin(), c)
 }
 
 /// Directions with weights that sum to 4π, for integrals over the sphere.

@@ -8,7 +8,7 @@
 //! Albedo is looked up in the voxel a quarter voxel past the hit along the ray (inside the
 //! solid that was hit), falling back to the scene's material albedo where the volume has none.
 
-use crate::grid::{Dims, Wrap};
+use crate::grid::{Dims, Wrap, trilinear_corners};
 use crate::volume::{Occupancy, Volume};
 use glam::{DVec3, Vec3};
 
@@ -136,24 +136,11 @@ impl MaterialVolume {
     /// where the gradient vanishes (inside solid or in empty space).
     pub fn normal_at(&self, t: DVec3) -> Option<DVec3> {
         let d = self.dims;
-        let f = t - DVec3::splat(0.5);
-        let fz = f.z.clamp(0.0, (d.z - 1) as f64);
-        let (x0, y0, z0) = (f.x.floor(), f.y.floor(), fz.floor());
-        let (ax, ay, az) = (f.x - x0, f.y - y0, fz - z0);
-        let (wx, wy) = (Wrap::new(d.x), Wrap::new(d.y));
         let mut n = DVec3::ZERO;
-        for c in 0..8u32 {
-            let (dx, dy, dz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
-            let w = if dx == 1 { ax } else { 1.0 - ax }
-                * if dy == 1 { ay } else { 1.0 - ay }
-                * if dz == 1 { az } else { 1.0 - az };
-            if w == 0.0 {
-                continue;
+        for ([i, j, k], w) in trilinear_corners(d, t.to_array()) {
+            if w != 0.0 {
+                n += self.normal[d.index(i, j, k)].as_dvec3() * w;
             }
-            let i = wx.apply(x0 as i64 + dx as i64) as u32;
-            let j = wy.apply(y0 as i64 + dy as i64) as u32;
-            let k = (z0 as u32 + dz).min(d.z - 1);
-            n += self.normal[d.index(i, j, k)].as_dvec3() * w;
         }
         n.try_normalize()
     }

@@ -133,8 +133,11 @@ impl BlobStore {
     /// no such blob exists.
     pub fn file(&self, key: &str) -> Result<Option<PathBuf>> {
         let path = self.path(key)?;
-        if self.remote.is_none() || path.is_file() {
-            return Ok(path.is_file().then_some(path));
+        if path.is_file() {
+            return Ok(Some(path));
+        }
+        if self.remote.is_none() {
+            return Ok(None);
         }
         Ok(self.get(key)?.map(|_| path))
     }

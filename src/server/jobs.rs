@@ -242,27 +242,24 @@ impl Db {
     /// The job of `spec` (same inputs and parameters), if one was ever submitted: a read, so
     /// that callers that only need a finished result (the preview) write nothing.
     pub async fn job_for(&self, spec: &JobSpec) -> Result<Option<JobView>> {
-        sqlx::query(AssertSqlSafe(format!(
-            "SELECT {VIEW_COLUMNS} FROM jobs WHERE dedup_key = $1"
-        )))
-        .bind(spec.dedup_key())
-        .fetch_optional(&self.pool)
-        .await
-        .map_err(db_error)?
-        .map(|row| view(&row))
-        .transpose()
+        self.job_where("dedup_key", &spec.dedup_key()).await
     }
 
     /// The job `id`.
     pub async fn job(&self, id: &str) -> Result<Option<JobView>> {
+        self.job_where("id", id).await
+    }
+
+    /// The job whose unique `column` (a name fixed in this file) holds `value`.
+    async fn job_where(&self, column: &'static str, value: &str) -> Result<Option<JobView>> {
         sqlx::query(AssertSqlSafe(format!(
-            "SELECT {VIEW_COLUMNS} FROM jobs WHERE id = $1"
+            "SELECT {VIEW_COLUMNS} FROM jobs WHERE {column} = $1"
         )))
-        .bind(id)
+        .bind(value)
         .fetch_optional(&self.pool)
         .await
         .map_err(db_error)?
-        .map(|r| view(&r))
+        .map(|row| view(&row))
         .transpose()
     }
 
