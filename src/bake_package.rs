@@ -123,8 +123,10 @@ pub fn bake_package(
     seconds.bake = start.elapsed().as_secs_f64();
 
     let info = bake_info(&g, params.method, params.fast, params.allow_open);
-    let (bytes, gdm) =
-        compress_and_encode(&g, input, info, params, limits, observer, &mut seconds)?;
+    let gdm = compress_gdm(&g, params, limits, observer, &mut seconds)?;
+    let start = Instant::now();
+    let bytes = Package::encode(input, info, &gdm);
+    seconds.encode = start.elapsed().as_secs_f64();
     Ok(BakedPackage {
         bytes,
         gdm,
@@ -132,27 +134,21 @@ pub fn bake_package(
     })
 }
 
-/// The stages after the bake: SVD, quantization and encoding of `g` (boundary escape
-/// convention) with `params`' rank and quantization, timed into `seconds`; `observer` may
-/// cancel them until the SVD's Gram matrix is formed.
-pub fn compress_and_encode(
+/// The SVD and quantization of `g` (boundary escape convention) with `params`' rank and
+/// quantization, timed into `seconds`; `observer` may cancel them until the SVD's Gram matrix
+/// is formed.
+pub fn compress_gdm(
     g: &Gdm,
-    input: InputInfo,
-    bake: BakeInfo,
     params: &PackageParams,
     limits: &Limits,
     observer: &dyn BakeObserver,
     seconds: &mut StageSeconds,
-) -> Result<(Vec<u8>, CompressedGdm)> {
+) -> Result<CompressedGdm> {
     let start = Instant::now();
     let gram = GramEigen::observed(&GdmRows::new(g)?, limits, observer)?;
     let gram_s = start.elapsed().as_secs_f64();
     let compressed = compress(g, &gram, params.rank, params.quantization, limits)?;
     seconds.svd = gram_s + compressed.seconds.svd;
     seconds.quantize = compressed.seconds.quantize;
-
-    let start = Instant::now();
-    let bytes = Package::encode(input, bake, &compressed);
-    seconds.encode = start.elapsed().as_secs_f64();
-    Ok((bytes, compressed))
+    Ok(compressed)
 }

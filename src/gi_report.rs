@@ -15,9 +15,9 @@ use crate::error::{Error, Result};
 use crate::gdm::{self, BakeObserver};
 use crate::gi::environment::RgbSh;
 use crate::gi::prt::{self, Visibility};
-use crate::gi::rtv::{self, Rtv};
+use crate::gi::rtv::{self, Rtv, RtvParams};
 use crate::gi::sh;
-use crate::gi::shading::GiShading;
+use crate::gi::shading::{GiShading, rtv_params};
 use crate::grid::DirectionGrid;
 use crate::limits::Limits;
 use crate::render::gdm_lookup::RawLookup;
@@ -140,7 +140,11 @@ pub fn gi_accuracy(
         let g = gdm::exact::bake(caster, dirs, limits, observer)?;
         let gdm_seconds = start.elapsed().as_secs_f64();
         for &bounces in &sweep.bounces {
-            let (rtv, stats) = rtv::bake(&g, &loaded.material, bounces, limits, observer)?;
+            let params = RtvParams {
+                bounces,
+                ..rtv_params(&loaded.scene)
+            };
+            let (rtv, stats) = rtv::bake(&g, &loaded.material, &params, limits, observer)?;
             let row = RtvRow {
                 dirs: format!("{}x{}", dirs.n_theta, dirs.n_phi),
                 bounces,
@@ -295,10 +299,10 @@ fn image_rows(
     Ok((rows, [scene.camera.width, scene.camera.height]))
 }
 
-/// The shaded radiance of every sample and channel under `light`.
+/// The shaded radiance of every sample and channel under `light`, seen from straight above.
 fn shaded(rtv: &Rtv, light: &RgbSh) -> Vec<f64> {
     (0..rtv.voxels().len())
-        .flat_map(|s| rtv.shade(s, light))
+        .flat_map(|s| rtv.shade(s, DVec3::Z, light))
         .collect()
 }
 

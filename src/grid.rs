@@ -154,6 +154,26 @@ pub fn trilinear_corners(dims: Dims, t: [f64; 3]) -> [([u32; 3], f64); 8] {
     })
 }
 
+/// The four direction bins whose centres surround unit vector `v` and their bilinear weights
+/// (summing to 1): θ clamped to the first and last bins, φ periodic. Bins as (a, b).
+pub fn bilinear_direction_corners(dirs: DirectionGrid, v: [f64; 3]) -> [([u32; 2], f64); 4] {
+    let theta = v[2].clamp(-1.0, 1.0).acos();
+    let phi = v[1].atan2(v[0]).rem_euclid(std::f64::consts::TAU);
+    let ft = (theta / std::f64::consts::PI * dirs.n_theta as f64 - 0.5)
+        .clamp(0.0, (dirs.n_theta - 1) as f64);
+    let fp = phi / std::f64::consts::TAU * dirs.n_phi as f64 - 0.5;
+    let (bt, bp) = (ft.floor(), fp.floor());
+    let (tt, tp) = (ft - bt, fp - bp);
+    let wrap = Wrap::new(dirs.n_phi);
+    std::array::from_fn(|c| {
+        let (da, db) = (c & 1, c >> 1);
+        let w = if da == 1 { tt } else { 1.0 - tt } * if db == 1 { tp } else { 1.0 - tp };
+        let a = (bt as u32 + da as u32).min(dirs.n_theta - 1);
+        let b = wrap.apply(bp as i64 + db as i64) as u32;
+        ([a, b], w)
+    })
+}
+
 /// v = (sinθ cosφ, sinθ sinφ, cosθ).
 pub fn spherical_to_vector(theta: f64, phi: f64) -> [f64; 3] {
     let (st, ct) = theta.sin_cos();

@@ -52,6 +52,7 @@ pub mod render_scene;
 pub mod report;
 pub mod samples;
 pub mod scene;
+pub mod scene_package;
 pub mod server;
 pub mod server_bench;
 pub mod shell;

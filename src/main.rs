@@ -11,10 +11,11 @@ use mesobake::gdm::{self, BakeObserver, Method};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::{Limits, parse_bytes};
 use mesobake::package::Package;
-use mesobake::preview_scene::{ScenePackageParams, preview, scene_package};
+use mesobake::preview_scene::preview;
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render_scene::{self, GdmSource, RenderMethod};
 use mesobake::samples::{self, SampleKind};
+use mesobake::scene_package::{ScenePackageParams, bake_scene_package, scene_package};
 use mesobake::{Error, Result, bench, input, npy, render_report, report, volume_format};
 use peak_alloc::PeakAlloc;
 use std::io::IsTerminal;
@@ -77,6 +78,11 @@ enum Command {
     Bake {
         #[command(flatten)]
         bake: BakeOptions,
+        /// Bake a scene's package instead of an input's: the GDM on the scene's grids and
+        /// exactly the stages its effects call for (PRT and RTV with environment lighting);
+        /// --json lists the stages run and skipped, with reasons.
+        #[arg(long, conflicts_with_all = ["input", "res", "max_rmse", "server", "method", "allow_open"])]
+        scene: Option<PathBuf>,
         /// Output package (.mbpkg).
         #[arg(long)]
         out: PathBuf,
@@ -273,9 +279,9 @@ enum Command {
 /// What to bake and how: the options shared by `gdm` and `bake`.
 #[derive(Args)]
 struct BakeOptions {
-    /// A .mbvol volume or an OBJ tile.
+    /// A .mbvol volume, an OBJ tile or a height-field PNG (required unless `bake --scene`).
     #[arg(long)]
-    input: PathBuf,
+    input: Option<PathBuf>,
     /// Grid X×Y×Z: required for OBJ tiles; for volumes it must match the volume.
     #[arg(long)]
     res: Option<Dims>,
@@ -298,6 +304,12 @@ struct BakeOptions {
 }
 
 impl BakeOptions {
+    fn input(&self) -> Result<&Path> {
+        self.input
+            .as_deref()
+            .ok_or_else(|| Error::InvalidParameter("--input FILE is required".into()))
+    }
+
     fn fast(&self) -> gdm::fast::FastParams {
         gdm::fast::FastParams {
             stride: self.stride,
@@ -547,7 +559,7 @@ fn run(cli: Cli) -> Result<()> {
             json,
         } => {
             let start = Instant::now();
-            let meso = input::load(&bake.input, bake.res, bake.allow_open, &limits)?;
+            let meso = input::load(bake.input()?, bake.res, bake.allow_open, &limits)?;
             let load_s = start.elapsed().as_secs_f64();
             let progress = Progress::new("baking GDM");
             let start = Instant::now();
@@ -578,6 +590,59 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Bake {
+            scene: Some(scene),
+            out,
+            rank,
+            quant,
+            json,
+            ..
+        } => {
+            let start = Instant::now();
+            let loaded = render_scene::load_scene(&scene, &limits)?;
+            let load_s = start.elapsed().as_secs_f64();
+            let params = ScenePackageParams {
+                rank: RankChoice::Rank(rank.unwrap_or(8)),
+                quantization: quant,
+            };
+            let dir = scene.parent().unwrap_or(Path::new("."));
+            let progress = Progress::new("baking GDM");
+            let baked = bake_scene_package(&loaded, dir, params, &limits, &progress)?;
+            progress.0.finish_and_clear();
+            let start = Instant::now();
+            write_atomic(&out, &baked.bytes)?;
+            let write_s = start.elapsed().as_secs_f64();
+            eprintln!(
+                "wrote {} ({} bytes): stages {}",
+                out.display(),
+                baked.bytes.len(),
+                baked.plan.stages.join(", ")
+            );
+            if json {
+                let mut seconds = serde_json::Map::new();
+                seconds.insert("load".into(), load_s.into());
+                for (stage, s) in &baked.seconds {
+                    seconds.insert(stage.clone(), (*s).into());
+                }
+                seconds.insert("write".into(), write_s.into());
+                let summary = serde_json::json!({
+                    "scene": scene,
+                    "output": out,
+                    "bytes": baked.bytes.len(),
+                    "stages": baked.plan,
+                    "seconds": seconds,
+                    "gdm": {
+                        "rank": baked.gdm.svd.rank,
+                        "quantization": quant,
+                        "accuracy": baked.gdm.accuracy,
+                        "svd_rmse": baked.gdm.svd.optimal_rmse(baked.gdm.svd.rank),
+                    },
+                    "gi": baked.gi,
+                });
+                println!("{summary}");
+            }
+            Ok(())
+        }
+        Command::Bake {
             bake,
             out,
             rank,
@@ -586,6 +651,7 @@ fn run(cli: Cli) -> Result<()> {
             json,
             server: Some(server),
             api_key,
+            ..
         } => {
             if max_rmse.is_some() || bake.method != Method::Exact || bake.allow_open {
                 return Err(Error::InvalidParameter(
@@ -595,7 +661,7 @@ fn run(cli: Cli) -> Result<()> {
                 ));
             }
             let client = client(&server, api_key)?;
-            let asset = client.upload(&bake.input)?;
+            let asset = client.upload(bake.input()?)?;
             let res = match bake.res {
                 Some(r) => r,
                 None => {
@@ -666,7 +732,7 @@ fn run(cli: Cli) -> Result<()> {
                 allow_open: bake.allow_open,
             };
             let progress = Progress::new("baking GDM");
-            let baked = bake_package(&bake.input, &params, &limits, &progress)?;
+            let baked = bake_package(bake.input()?, &params, &limits, &progress)?;
             progress.0.finish_and_clear();
             let start = Instant::now();
             write_atomic(&out, &baked.bytes)?;

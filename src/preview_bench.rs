@@ -5,13 +5,13 @@
 use crate::error::Result;
 use crate::gdm::BakeObserver;
 use crate::limits::Limits;
-use crate::preview_scene::{ScenePackageParams, scene_package};
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
 use crate::render::gdm_lookup::PackageLookup;
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::render_image;
 use crate::scene::{LoadedScene, Scene};
+use crate::scene_package::{ScenePackageParams, scene_package};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

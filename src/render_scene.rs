@@ -114,20 +114,17 @@ pub fn render(
         RenderMethod::Gdm => {
             let start = Instant::now();
             let (raw, raw_lookup, package_lookup);
-            let mut baked: Option<&Gdm> = None;
+            let mut gi = None;
             let lookup: &dyn GdmLookup = match source {
                 GdmSource::Bake => {
                     raw = bake_gdm(loaded, limits, observer)?;
                     raw_lookup = RawLookup::new(&raw);
-                    baked = Some(&raw);
+                    if environment {
+                        let (shading, report) = GiShading::bake(loaded, &raw, limits, observer)?;
+                        gi = Some(shading);
+                        gi_report = Some(report);
+                    }
                     &raw_lookup
-                }
-                GdmSource::Package(_) if environment => {
-                    return Err(Error::Scene(
-                        "packages hold no radiance transfer volume yet: render environment \
-                         lighting from the scene's own bake (without --package)"
-                            .into(),
-                    ));
                 }
                 GdmSource::Package(path) => {
                     let pkg = Package::read(path, limits)?;
@@ -139,15 +136,14 @@ pub fn render(
                             scene.dims()?
                         )));
                     }
+                    if environment {
+                        gi = Some(GiShading::from_package(loaded, &pkg)?);
+                    }
                     package_lookup = PackageLookup::new(&pkg);
                     &package_lookup
                 }
             };
             seconds.gdm = start.elapsed().as_secs_f64();
-            let gi = match baked {
-                Some(g) if environment => Some(GiShading::bake(loaded, g, limits, observer)?),
-                _ => None,
-            };
             let start = Instant::now();
             let mut r = GdmRenderer::new(
                 &loaded.shell,
@@ -155,9 +151,8 @@ pub fn render(
                 &loaded.material,
                 scene.gdm_refinements,
             );
-            if let Some((gi, report)) = &gi {
+            if let Some(gi) = &gi {
                 r = r.with_gi(gi);
-                gi_report = Some(*report);
             }
             let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();

@@ -96,10 +96,14 @@ pub struct GiParams {
     pub path_samples: u32,
     /// Most bounces of a path (1–64).
     pub path_depth: u32,
+    /// SVD components per RTV matrix in a package (1 to
+    /// [`crate::gi::compressed_rtv::MAX_RTV_RANK`]).
+    pub rtv_rank: usize,
 }
 
 impl Default for GiParams {
-    /// Four bounces, 1024 PRT directions, a 256×128 sky, 16 paths of at most 8 bounces.
+    /// Four bounces, 1024 PRT directions, a 256×128 sky, 16 paths of at most 8 bounces, RTV
+    /// rank 4 (the paper's).
     fn default() -> Self {
         GiParams {
             bounces: 4,
@@ -107,6 +111,7 @@ impl Default for GiParams {
             sky_width: 256,
             path_samples: 16,
             path_depth: 8,
+            rtv_rank: 4,
         }
     }
 }
@@ -320,6 +325,9 @@ pub enum Effect {
     /// The base mesh shadowing the environment light (shadowed PRT; without it, the PRT is a
     /// pure rotation).
     MacroShadows,
+    /// The material's specular lobe under the environment light: a view-dependent RTV
+    /// (without it, the RTV is Lambertian and view-independent).
+    EnvironmentGloss,
 }
 
 impl Scene {
@@ -399,14 +407,35 @@ impl Scene {
                 || !(4..=8192).contains(&g.sky_width)
                 || !(1..=4096).contains(&g.path_samples)
                 || !(1..=64).contains(&g.path_depth)
+                || !(1..=crate::gi::compressed_rtv::MAX_RTV_RANK).contains(&g.rtv_rank)
             {
                 return Err(Error::Scene(format!(
                     "gi: bounces must be at most {}, prt_samples 16–{}, sky_width 4–8192, \
-                     path_samples 1–4096, path_depth 1–64; got {g:?}",
+                     path_samples 1–4096, path_depth 1–64, rtv_rank 1–{}; got {g:?}",
                     crate::gi::rtv::MAX_BOUNCES,
-                    1 << 20
+                    1 << 20,
+                    crate::gi::compressed_rtv::MAX_RTV_RANK,
                 )));
             }
+            let m = &self.material;
+            if self.wants(Effect::EnvironmentGloss)
+                && !(m.specular.iter().all(|k| *k <= 1.0)
+                    && m.shininess <= 4.0 * crate::gi::rtv::MAX_EXPONENT)
+            {
+                return Err(Error::Scene(format!(
+                    "environment_gloss needs a specular colour of at most 1 and a shininess of \
+                     at most {}; got {:?} and {}",
+                    4.0 * crate::gi::rtv::MAX_EXPONENT,
+                    m.specular,
+                    m.shininess
+                )));
+            }
+        } else if self.wants(Effect::EnvironmentGloss) || self.wants(Effect::MacroShadows) {
+            return Err(Error::Scene(
+                "environment_gloss and macro_shadows refine environment_lighting, which the \
+                 effects do not call for"
+                    .into(),
+            ));
         }
         let m = &self.material;
         let colours_ok = (m.albedo.iter().chain(&m.specular)).all(|c| c.is_finite() && *c >= 0.0);

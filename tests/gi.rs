@@ -311,6 +311,14 @@ fn without_macro_shadows_the_transfer_is_the_rotation_into_the_frame() {
     );
 }
 
+/// A Lambertian RTV bake with `bounces` bounces.
+fn lambert(bounces: u32) -> mesobake::gi::rtv::RtvParams {
+    mesobake::gi::rtv::RtvParams {
+        bounces,
+        glossy: None,
+    }
+}
+
 /// The exact GDM (16×32 directions) and the material of `volume`, whose albedo is `rho`.
 fn gdm_and_material(
     volume: &mesobake::volume::Volume,
@@ -343,7 +351,7 @@ fn a_flat_slab_reflects_the_clamped_cosine_and_nothing_bounces() {
         mesobake::volume::Volume::from_fn(dims, &Limits::default(), |_, _, k| k < 3).unwrap();
     let rho = 0.5;
     let (g, material) = gdm_and_material(&slab, rho);
-    let (rtv, stats) = rtv::bake(&g, &material, 4, &Limits::default(), &()).unwrap();
+    let (rtv, stats) = rtv::bake(&g, &material, &lambert(4), &Limits::default(), &()).unwrap();
     // The samples are the empty layer on the slab.
     assert_eq!(stats.samples, 256);
     assert!(rtv.voxels().iter().all(|v| v[2] == 3));
@@ -356,7 +364,7 @@ fn a_flat_slab_reflects_the_clamped_cosine_and_nothing_bounces() {
     let closed = sh::clamped_cosine(DVec3::Z).map(|v| rho / PI * v);
     for s in 0..stats.samples {
         for c in 0..3 {
-            let t: Vec<f64> = rtv.transfer(s)[c].iter().map(|&v| f64::from(v)).collect();
+            let t = rtv.transfer(s, DVec3::Z)[c];
             // The 16×32 bin rule on the cosine lobe: measured error 1.2e-3 (of coefficients
             // up to 0.16); 3e-3 is the bound.
             let err = max_abs_diff(&t, &closed);
@@ -382,11 +390,12 @@ fn a_white_furnace_converges_to_the_light_with_bounces() {
     }
     let mut previous = f64::INFINITY;
     for bounces in [0, 1, 4, 64] {
-        let (rtv, stats) = rtv::bake(&g, &material, bounces, &Limits::default(), &()).unwrap();
+        let (rtv, stats) =
+            rtv::bake(&g, &material, &lambert(bounces), &Limits::default(), &()).unwrap();
         assert_eq!(stats.lost_rays, 0);
         assert!(stats.links > 0);
         let worst = (0..stats.samples)
-            .map(|s| (1.0 - rtv.shade(s, &light)[1]).abs())
+            .map(|s| (1.0 - rtv.shade(s, DVec3::Z, &light)[1]).abs())
             .fold(0.0, f64::max);
         assert!(
             worst < previous,

@@ -8,13 +8,14 @@ use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
 use mesobake::limits::Limits;
 use mesobake::package::Package;
-use mesobake::preview_scene::{ScenePackageParams, preview, scene_package};
+use mesobake::preview_scene::preview;
 use mesobake::realtime::gpu::Gpu;
 use mesobake::render::gdm_lookup::PackageLookup;
 use mesobake::render::gdm_renderer::GdmRenderer;
 use mesobake::render::image::{Image, compare};
 use mesobake::render::render_image;
 use mesobake::scene::{Effect, LoadedScene, Scene};
+use mesobake::scene_package::{ScenePackageParams, scene_package};
 use std::path::Path;
 
 /// Whether GPU tests run here; panics with the reason when no adapter exists and skipping

@@ -3,6 +3,7 @@
 //! ([`prt`]), the meso-scale radiance transfer volume ([`rtv`]), and shading with them
 //! ([`shading`]).
 
+pub mod compressed_rtv;
 pub mod environment;
 pub mod prt;
 pub mod rtv;

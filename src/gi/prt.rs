@@ -190,3 +190,25 @@ impl Occluder {
 pub fn incident(matrix: &ShMatrix, environment: &[[f64; COEFFS]; 3]) -> [[f64; COEFFS]; 3] {
     environment.map(|e| sh::apply(matrix, &e))
 }
+
+/// BLAKE3 of `mesh`'s geometry (positions, normals, texture coordinates and triangles, as
+/// little-endian bytes), lowercase hex: the identity a package records for its PRT.
+pub fn geometry_hash(mesh: &BaseMesh) -> String {
+    let mut hasher = blake3::Hasher::new();
+    for v in mesh.positions.iter().chain(&mesh.normals) {
+        for c in v.to_array() {
+            hasher.update(&c.to_le_bytes());
+        }
+    }
+    for uv in &mesh.uvs {
+        for c in uv.to_array() {
+            hasher.update(&c.to_le_bytes());
+        }
+    }
+    for t in &mesh.triangles {
+        for i in t {
+            hasher.update(&i.to_le_bytes());
+        }
+    }
+    hasher.finalize().to_hex().to_string()
+}

@@ -245,6 +245,20 @@ pub fn clamped_cosine(n: DVec3) -> Sh {
     })
 }
 
+/// Per band l, the factor Λₗ by which convolving with the normalized Phong lobe
+/// h(ω) = (s+1)/(2π)·max(ω·r, 0)^s scales a function's band-l coefficients (Funk–Hecke):
+/// ∫ h(ω)·f(ω) dω = Σ Λₗ fₗᵐ yₗᵐ(r), with Λₗ = (s+1)·∫₀¹ tˢ Pₗ(t) dt in closed form.
+/// Λ₀ = 1: the lobe integrates to one. `exponent` must be ≥ 0.
+pub fn phong_convolution(exponent: f64) -> [f64; 4] {
+    let s = exponent;
+    [
+        1.0,
+        (s + 1.0) / (s + 2.0),
+        (s + 1.0) * (3.0 / (s + 3.0) - 1.0 / (s + 1.0)) / 2.0,
+        (s + 1.0) * (5.0 / (s + 4.0) - 3.0 / (s + 2.0)) / 2.0,
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

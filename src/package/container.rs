@@ -150,6 +150,7 @@ fn check_sections(bytes: &[u8], manifest: &Manifest, manifest_offset: u64) -> Re
             || t.height == 0
             || t.depth == 0
             || (t.dimension == TextureDimension::D2 && t.depth != 1)
+            || (t.dimension == TextureDimension::Buffer && (t.height, t.depth) != (1, 1))
         {
             return Err(invalid(format!(
                 "{what} has an invalid texture shape {t:?}"

@@ -6,6 +6,8 @@ use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::gdm::Method;
 use crate::gdm::fast::FastParams;
+use crate::gi::compressed_rtv::RtvCompression;
+use crate::gi::rtv::Glossy;
 
 /// The value of [`Manifest::format`].
 pub const FORMAT_NAME: &str = "mesobake-package";
@@ -28,6 +30,9 @@ pub struct Manifest {
     pub bake: BakeInfo,
     /// The compressed GDM.
     pub gdm: GdmInfo,
+    /// The radiance transfer, present when the scene called for environment lighting.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gi: Option<GiInfo>,
     /// The binary sections, in file order.
     pub sections: Vec<Section>,
 }
@@ -81,6 +86,28 @@ pub struct GdmInfo {
     pub accuracy: Accuracy,
     /// The optimal (unquantized) rank-k RMSE, sqrt(Σ_{i>k} σᵢ² / (m·n)).
     pub svd_rmse: f64,
+}
+
+/// The radiance transfer of a package: the compressed RTV (sections `rtv.index`,
+/// `rtv.weights`, `rtv.eigen`) and the macro-scale PRT (section `prt.transfer`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GiInfo {
+    /// RTV sample voxels.
+    pub samples: u32,
+    /// Interreflection bounces baked into the RTV.
+    pub bounces: u32,
+    /// The specular lobe, when the scene called for environment gloss.
+    pub glossy: Option<Glossy>,
+    /// The RTV's SVD: rank, error and spectra.
+    pub compression: RtvCompression,
+    /// Base-mesh vertices of the PRT.
+    pub vertices: u32,
+    /// Whether the PRT includes base-mesh self-shadowing.
+    pub macro_shadows: bool,
+    /// BLAKE3 of the base mesh's geometry ([`crate::gi::prt::geometry_hash`]): the mesh the
+    /// PRT belongs to.
+    pub base_mesh: String,
 }
 
 /// Decode parameters of one factor.
@@ -138,6 +165,9 @@ pub enum TextureDimension {
     /// A 3D texture.
     #[serde(rename = "3d")]
     D3,
+    /// A storage buffer of `width` texels (`height` and `depth` are 1).
+    #[serde(rename = "buffer")]
+    Buffer,
 }
 
 /// Texel formats, named as in WebGPU: one, two or four channels of little-endian f32,
@@ -155,6 +185,7 @@ pub enum TexelFormat {
     R8unorm,
     Rg8unorm,
     Rgba8unorm,
+    R32uint,
 }
 
 impl TexelFormat {
@@ -177,7 +208,7 @@ impl TexelFormat {
     pub fn channels(self) -> u32 {
         use TexelFormat::*;
         match self {
-            R32float | R16float | R8unorm => 1,
+            R32float | R16float | R8unorm | R32uint => 1,
             Rg32float | Rg16float | Rg8unorm => 2,
             Rgba32float | Rgba16float | Rgba8unorm => 4,
         }
@@ -187,7 +218,7 @@ impl TexelFormat {
     pub fn texel_bytes(self) -> u32 {
         use TexelFormat::*;
         let per_channel = match self {
-            R32float | Rg32float | Rgba32float => 4,
+            R32float | Rg32float | Rgba32float | R32uint => 4,
             R16float | Rg16float | Rgba16float => 2,
             R8unorm | Rg8unorm | Rgba8unorm => 1,
         };

@@ -3,6 +3,7 @@
 //! reading validates everything (see `docs/package-format.md`).
 
 pub mod container;
+pub mod gi;
 pub mod manifest;
 
 use crate::compress::accuracy::{MAX_MARGIN, resolve_escapes};
@@ -77,6 +78,16 @@ fn pack(factor: &QuantizedFactor, group: usize, texture: &Texture) -> Vec<u8> {
 impl Package {
     /// Encodes a compressed GDM with its provenance into package bytes.
     pub fn encode(input: InputInfo, bake: BakeInfo, gdm: &CompressedGdm) -> Vec<u8> {
+        Package::encode_with(input, bake, gdm, None)
+    }
+
+    /// [`Package::encode`], with the radiance-transfer sections of `gi` when given.
+    pub fn encode_with(
+        input: InputInfo,
+        bake: BakeInfo,
+        gdm: &CompressedGdm,
+        gi: Option<&gi::GiPayload>,
+    ) -> Vec<u8> {
         let (dims, dirs) = (
             Dims {
                 x: bake.res[0],
@@ -113,6 +124,12 @@ impl Package {
         };
         let weights = factor_info("weights", &gdm.weights, true);
         let eigen = factor_info("eigen", &gdm.eigen, false);
+        if let Some(gi) = gi {
+            for (section, bytes) in gi::sections(gi, dims, dirs) {
+                sections.push(section);
+                payloads.push(bytes);
+            }
+        }
         let mut manifest = Manifest {
             format: FORMAT_NAME.into(),
             version: container::VERSION,
@@ -130,6 +147,7 @@ impl Package {
                 accuracy: gdm.accuracy,
                 svd_rmse: gdm.svd.optimal_rmse(gdm.svd.rank),
             },
+            gi: gi.map(|g| g.info.clone()),
             sections,
         };
         container::assemble(&mut manifest, &payloads)
@@ -186,6 +204,24 @@ impl Package {
                         )));
                     }
                     None => return Err(bad(format!("section {section:?} is missing"))),
+                }
+            }
+        }
+        if let Some(info) = &manifest.gi {
+            let rank = info.compression.rank;
+            if !(1..=crate::gi::compressed_rtv::MAX_RTV_RANK).contains(&rank) {
+                return Err(bad(format!("the RTV rank {rank} is not 1 to 4")));
+            }
+            for (name, expected) in gi::textures(info, dims, dirs) {
+                match manifest.sections.iter().find(|s| s.name == name) {
+                    Some(s) if s.texture == expected => {}
+                    Some(s) => {
+                        return Err(bad(format!(
+                            "section {name:?} has texture {:?}, expected {expected:?}",
+                            s.texture
+                        )));
+                    }
+                    None => return Err(bad(format!("section {name:?} is missing"))),
                 }
             }
         }

@@ -128,6 +128,7 @@ fn wgpu_format(f: TexelFormat) -> wgpu::TextureFormat {
         TexelFormat::R8unorm => W::R8Unorm,
         TexelFormat::Rg8unorm => W::Rg8Unorm,
         TexelFormat::Rgba8unorm => W::Rgba8Unorm,
+        TexelFormat::R32uint => W::R32Uint,
     }
 }
 

@@ -14,8 +14,8 @@ use super::db::{Db, db_error, now_ms};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
-use crate::preview_scene::ScenePackageParams;
-use crate::scene::Scene;
+use crate::scene::{Effect, Scene};
+use crate::scene_package::{Plan, ScenePackageParams};
 use serde::{Deserialize, Serialize};
 use sqlx::any::AnyRow;
 use sqlx::{AssertSqlSafe, Row};
@@ -58,10 +58,12 @@ impl JobSpec {
     }
 
     /// What the result depends on, hashed: the mesostructure, its grids and the package
-    /// parameters (not the camera, lights or base mesh, which a package does not hold).
+    /// parameters; with environment lighting also what the PRT and RTV depend on (the base
+    /// mesh, the material, the GI knobs and effects). Not the camera, lights or environment,
+    /// which a package does not hold.
     pub fn dedup_key(&self) -> String {
         let s = &self.scene;
-        let key = serde_json::json!({
+        let mut key = serde_json::json!({
             "version": 1,
             "mesostructure": s.mesostructure,
             "resolution": s.resolution,
@@ -69,46 +71,31 @@ impl JobSpec {
             "rank": self.rank,
             "quantization": self.quantization,
         });
+        if s.wants(Effect::EnvironmentLighting) {
+            let effects: Vec<Effect> = [Effect::MacroShadows, Effect::EnvironmentGloss]
+                .into_iter()
+                .filter(|e| s.wants(*e))
+                .collect();
+            key["gi"] = serde_json::json!({
+                "base_mesh": s.base_mesh,
+                "mesh_scale": s.mesh_scale,
+                "material": s.material,
+                "gi": [s.gi.bounces as usize, s.gi.prt_samples, s.gi.rtv_rank],
+                "effects": effects,
+            });
+        }
         blake3::hash(key.to_string().as_bytes())
             .to_hex()
             .to_string()
     }
 }
 
-/// A stage the planner left out, and why.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
-pub struct Skipped {
-    /// The stage.
-    pub stage: String,
-    /// Why the scene does not need it.
-    pub reason: String,
-}
-
-/// The stages a job runs, in order, and those it skips.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
-pub struct Plan {
-    /// Stages to run.
-    pub stages: Vec<String>,
-    /// Stages left out.
-    pub skipped: Vec<Skipped>,
-}
-
-/// The stages of a package bake for `scene`: the GDM and its compression always; the
-/// radiance transfer stages only when its effects call for environment lighting, which no
-/// effect does yet.
-pub fn plan(_scene: &Scene) -> Plan {
-    let stages = ["load", "bake_gdm", "compress", "store"]
-        .map(String::from)
-        .to_vec();
-    let mut skipped = Vec::new();
-    let no_environment = "the scene calls for no environment lighting".to_owned();
-    for stage in ["bake_prt", "bake_rtv"] {
-        skipped.push(Skipped {
-            stage: stage.into(),
-            reason: no_environment.clone(),
-        });
-    }
-    Plan { stages, skipped }
+/// The stages of a bake job for `spec`: the scene's ([`crate::scene_package::plan`]), then
+/// `store`.
+pub fn plan(spec: &JobSpec) -> Plan {
+    let mut plan = crate::scene_package::plan(&spec.scene);
+    plan.stages.push("store".into());
+    plan
 }
 
 /// A job as the API shows it.
@@ -198,7 +185,7 @@ impl Db {
     pub async fn submit_job(&self, spec: &JobSpec) -> Result<(JobView, bool)> {
         let key = spec.dedup_key();
         let now = now_ms();
-        let plan = serde_json::to_string(&plan(&spec.scene)).expect("plans serialize");
+        let plan = serde_json::to_string(&plan(spec)).expect("plans serialize");
         let spec_text = serde_json::to_string(spec).expect("specs serialize");
         let inserted = sqlx::query(
             "INSERT INTO jobs (id, dedup_key, spec, plan, state, stage, progress, attempts, \

@@ -66,14 +66,7 @@ pub async fn check_spec(state: &AppState, body: serde_json::Value) -> ApiResult<
         serde_json::from_value(body).map_err(|e| unprocessable(format!("job: {e}")))?;
     // Deserializing does not validate a scene; parsing its text does.
     let text = serde_json::to_string(&spec.scene).expect("scenes serialize");
-    let scene = Scene::from_json(&text)?;
-    if scene.wants(crate::scene::Effect::EnvironmentLighting) {
-        return Err(unprocessable(
-            "environment lighting (PRT and RTV) is not baked by the server yet: packages \
-             have no GI sections"
-                .into(),
-        ));
-    }
+    Scene::from_json(&text)?;
     if spec.rank == 0 || spec.rank > 64 {
         return Err(unprocessable(format!(
             "rank must be in 1..=64, got {}",

@@ -11,8 +11,8 @@ use crate::error::{Error, Result};
 use crate::gdm::BakeObserver;
 use crate::limits::Limits;
 use crate::package::Package;
-use crate::preview_scene::bake_scene_package;
 use crate::scene::{BaseMeshSource, LoadedScene, MesostructureSource, Scene};
+use crate::scene_package::bake_scene_package;
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -82,6 +82,8 @@ fn bake(
     let start = Instant::now();
     let mut scene = spec.scene.clone();
     resolve_assets(&mut scene, blobs)?;
+    // A package holds transfer, not light: the environment is not loaded.
+    scene.environment = None;
     let loaded = LoadedScene::load(scene, Path::new("/"), limits)?;
     let load = start.elapsed().as_secs_f64();
     let baked = bake_scene_package(
@@ -91,11 +93,12 @@ fn bake(
         limits,
         observer,
     )?;
-    let s = baked.seconds;
-    let timings = serde_json::json!({
-        "load": load, "bake_gdm": s.bake, "compress": s.svd + s.quantize + s.encode,
-    });
-    Ok((baked.bytes, timings))
+    let mut timings = serde_json::Map::new();
+    timings.insert("load".into(), load.into());
+    for (stage, seconds) in baked.seconds {
+        timings.insert(stage, seconds.into());
+    }
+    Ok((baked.bytes, timings.into()))
 }
 
 /// Whether a failure may go away on retry (storage, database, GPU) rather than being the

@@ -1,0 +1,325 @@
+//! The RTV as packages hold it, in the paper's layout: for each RGB channel c and light SH
+//! coefficient i (matrix m = 16·c + i), the transfer values over rows = sample voxels (x, y, z)
+//! and columns = view directions (θ, φ) at the centres of the GDM's direction bins,
+//! Mₘ[s, v] = y(v)ᵀ·A_s,c[·, i] ([`Rtv::transfer`]), are factored by a truncated SVD
+//! Mₘ ≈ Wₘ·Eₘᵀ of rank r ≤ [`MAX_RTV_RANK`] (the paper keeps 4): weights Wₘₖ(s) per sample and
+//! eigenfunctions Eₘₖ(θ, φ), both rounded to f16.
+//!
+//! **The SVD is exact and cheap.** Each row of Mₘ is a band-3 SH function of the view, so
+//! Mₘ = C·Yᵀ with C[s, j] = A_s,c[j, i] and Y[v, j] = yⱼ(v). With the thin QR factorization
+//! Y = Q·R, Mₘ = (C·Rᵀ)·Qᵀ and Q has orthonormal columns, so the singular values and right
+//! factors of Mₘ are those of K = C·Rᵀ (samples × 16), found from the 16×16 Gram matrix KᵀK
+//! in f64: E = Q·V, W = K·V. The error after f16 rounding is also exact, from the same small
+//! matrices: ‖M − W̃Ẽᵀ‖² = ‖K‖² − 2·Σₖ W̃ₖᵀ·K·(QᵀẼ)ₖ + Σₖₗ (W̃ᵀW̃)ₖₗ(ẼᵀẼ)ₖₗ.
+//!
+//! **Reading** the transfer at texture point t towards view v: each eigenfunction bilinear over
+//! the view bins ([`bilinear_direction_corners`]: θ clamped, φ periodic), the weights
+//! interpolated over the sample voxels around t ([`interpolate_samples`]), then
+//! T_c,i = Σₖ Wₘₖ·Eₘₖ(v).
+
+use super::rtv::{Rtv, interpolate_samples};
+use super::sh::{self, COEFFS, Sh};
+use crate::error::{Error, Result};
+use crate::grid::{Dims, DirectionGrid, bilinear_direction_corners};
+use crate::limits::Limits;
+use glam::DVec3;
+use half::f16;
+use nalgebra::{DMatrix, SymmetricEigen};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Most SVD components per matrix (one RGBA texel).
+pub const MAX_RTV_RANK: usize = 4;
+
+/// Matrices per RTV: 3 channels × 16 light coefficients.
+pub const MATRICES: usize = 3 * COEFFS;
+
+/// Components of one matrix at one row (a sample) or column (a view), zero past the rank.
+pub type Components = [f32; MAX_RTV_RANK];
+
+/// A compressed RTV.
+#[derive(Clone, Debug)]
+pub struct CompressedRtv {
+    dims: Dims,
+    dirs: DirectionGrid,
+    rank: usize,
+    sample_of: Vec<u32>,
+    /// Index s·[`MATRICES`] + m.
+    weights: Vec<Components>,
+    /// Index m·views + a·Nφ + b.
+    eigen: Vec<Components>,
+}
+
+/// What compressing an RTV kept and cost.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RtvCompression {
+    /// Components kept per matrix.
+    pub rank: usize,
+    /// RMS difference between the transfer values at the bin centres and their f16
+    /// reconstruction, over all samples, views, channels and light coefficients.
+    pub rmse: f64,
+    /// `rmse` over the RMS of the transfer values.
+    pub relative_rmse: f64,
+    /// The optimal rank-r RMSE before rounding, sqrt(Σ_{k>r} σₖ² / entries).
+    pub svd_rmse: f64,
+    /// Per matrix m = 16·c + i, its singular values, descending (at most 16 are non-zero).
+    pub spectra: Vec<Vec<f64>>,
+}
+
+impl CompressedRtv {
+    /// Compresses `rtv` sampled on the view grid `dirs` to `rank` components per matrix;
+    /// returns it with its measured error and the seconds taken.
+    pub fn compress(
+        rtv: &Rtv,
+        dirs: DirectionGrid,
+        rank: usize,
+        limits: &Limits,
+    ) -> Result<(CompressedRtv, RtvCompression, f64)> {
+        if !(1..=MAX_RTV_RANK).contains(&rank) {
+            return Err(Error::InvalidParameter(format!(
+                "the RTV rank must be 1 to {MAX_RTV_RANK}, got {rank}"
+            )));
+        }
+        let start = Instant::now();
+        let samples = rtv.voxels().len();
+        let views = dirs.count();
+        limits.check(
+            "compressed RTV",
+            (samples * MATRICES + views * MATRICES) as u64,
+            (MAX_RTV_RANK * 4 + COEFFS * 8) as u64,
+        )?;
+        let y = DMatrix::from_fn(views, COEFFS, |v, j| {
+            sh::eval(DVec3::from(dirs.vector_of(v)))[j]
+        });
+        let qr = y.qr();
+        let (q, r) = (qr.q(), qr.r());
+        let factored: Vec<Factored> = (0..MATRICES)
+            .into_par_iter()
+            .map(|m| factor(rtv, m, &q, &r, rank))
+            .collect();
+        let mut weights = vec![[0.0; MAX_RTV_RANK]; samples * MATRICES];
+        let mut eigen = vec![[0.0; MAX_RTV_RANK]; views * MATRICES];
+        let (mut total, mut error, mut optimal) = (0.0, 0.0, 0.0);
+        let mut spectra = Vec::with_capacity(MATRICES);
+        for (m, f) in factored.into_iter().enumerate() {
+            for (s, w) in f.weights.iter().enumerate() {
+                weights[s * MATRICES + m] = *w;
+            }
+            eigen[m * views..][..views].copy_from_slice(&f.eigen);
+            total += f.norm2;
+            error += f.error2;
+            optimal += f.spectrum.iter().skip(rank).map(|s| s * s).sum::<f64>();
+            spectra.push(f.spectrum);
+        }
+        let entries = (samples * views * MATRICES).max(1) as f64;
+        let stats = RtvCompression {
+            rank,
+            rmse: (error.max(0.0) / entries).sqrt(),
+            relative_rmse: (error.max(0.0) / total.max(f64::MIN_POSITIVE)).sqrt(),
+            svd_rmse: (optimal / entries).sqrt(),
+            spectra,
+        };
+        let compressed = CompressedRtv {
+            dims: rtv.dims(),
+            dirs,
+            rank,
+            sample_of: rtv.sample_map().to_vec(),
+            weights,
+            eigen,
+        };
+        Ok((compressed, stats, start.elapsed().as_secs_f64()))
+    }
+
+    /// Assembles a compressed RTV from its parts (as a package stores them), checking that
+    /// they fit together: the sample map covers the grid and names samples in range, and
+    /// every component is finite.
+    pub fn from_parts(
+        dims: Dims,
+        dirs: DirectionGrid,
+        rank: usize,
+        sample_of: Vec<u32>,
+        weights: Vec<Components>,
+        eigen: Vec<Components>,
+    ) -> Result<CompressedRtv> {
+        let bad = |what: String| Err(Error::Package(format!("RTV: {what}")));
+        if !(1..=MAX_RTV_RANK).contains(&rank) {
+            return bad(format!("rank {rank} is not 1 to {MAX_RTV_RANK}"));
+        }
+        if sample_of.len() as u64 != dims.voxel_count() {
+            return bad(format!(
+                "the sample map has {} entries for {dims} voxels",
+                sample_of.len()
+            ));
+        }
+        if weights.len() % MATRICES != 0 || eigen.len() != dirs.count() * MATRICES {
+            return bad("the weights or eigenfunctions have the wrong length".into());
+        }
+        let samples = weights.len() / MATRICES;
+        if let Some(s) = sample_of
+            .iter()
+            .find(|&&s| s != super::rtv::NO_SAMPLE && s as usize >= samples)
+        {
+            return bad(format!("the sample map names sample {s} of {samples}"));
+        }
+        if weights
+            .iter()
+            .chain(&eigen)
+            .flatten()
+            .any(|v| !v.is_finite())
+        {
+            return bad("a weight or eigenfunction value is not finite".into());
+        }
+        Ok(CompressedRtv {
+            dims,
+            dirs,
+            rank,
+            sample_of,
+            weights,
+            eigen,
+        })
+    }
+
+    /// The voxel grid.
+    pub fn dims(&self) -> Dims {
+        self.dims
+    }
+
+    /// The view grid of the eigenfunctions.
+    pub fn dirs(&self) -> DirectionGrid {
+        self.dirs
+    }
+
+    /// Components per matrix.
+    pub fn rank(&self) -> usize {
+        self.rank
+    }
+
+    /// Per voxel (x fastest), its sample index or [`super::rtv::NO_SAMPLE`].
+    pub fn sample_map(&self) -> &[u32] {
+        &self.sample_of
+    }
+
+    /// The weights, index s·[`MATRICES`] + m.
+    pub fn weights(&self) -> &[Components] {
+        &self.weights
+    }
+
+    /// The eigenfunctions, index m·views + a·Nφ + b.
+    pub fn eigen(&self) -> &[Components] {
+        &self.eigen
+    }
+
+    /// Every eigenfunction at view `view` (unit, texture space), bilinear over the bins.
+    fn eigen_at(&self, view: DVec3) -> Vec<[f64; MAX_RTV_RANK]> {
+        let views = self.dirs.count();
+        let corners = bilinear_direction_corners(self.dirs, view.to_array());
+        (0..MATRICES)
+            .map(|m| {
+                let mut e = [0.0; MAX_RTV_RANK];
+                for ([a, b], w) in corners {
+                    let stored = &self.eigen[m * views + (a * self.dirs.n_phi + b) as usize];
+                    e.iter_mut()
+                        .zip(stored)
+                        .for_each(|(e, &s)| *e += w * f64::from(s));
+                }
+                e
+            })
+            .collect()
+    }
+
+    /// The transfer of sample `s` given the eigenfunctions at the view.
+    fn transfer_with(&self, s: usize, eigen: &[[f64; MAX_RTV_RANK]]) -> [Sh; 3] {
+        let w = &self.weights[s * MATRICES..][..MATRICES];
+        std::array::from_fn(|c| {
+            std::array::from_fn(|i| {
+                let m = c * COEFFS + i;
+                w[m].iter()
+                    .zip(&eigen[m])
+                    .map(|(&w, e)| f64::from(w) * e)
+                    .sum()
+            })
+        })
+    }
+
+    /// The transfer vector of sample `s` towards `view`: per channel, 16 light weights.
+    pub fn transfer(&self, s: usize, view: DVec3) -> [Sh; 3] {
+        self.transfer_with(s, &self.eigen_at(view))
+    }
+
+    /// The transfer vector towards `view` at texture point `t` (voxel units).
+    pub fn interpolate(&self, t: DVec3, view: DVec3) -> Option<[Sh; 3]> {
+        let eigen = self.eigen_at(view);
+        interpolate_samples(self.dims, &self.sample_of, t, |s| {
+            self.transfer_with(s, &eigen)
+        })
+    }
+}
+
+/// One matrix's factors, rounded to f16, with its squared norm and squared error.
+struct Factored {
+    weights: Vec<Components>,
+    eigen: Vec<Components>,
+    spectrum: Vec<f64>,
+    norm2: f64,
+    error2: f64,
+}
+
+/// Factors matrix `m` of `rtv` (see the module doc) given the thin QR of the view basis.
+fn factor(rtv: &Rtv, m: usize, q: &DMatrix<f64>, r: &DMatrix<f64>, rank: usize) -> Factored {
+    let (c, i) = (m / COEFFS, m % COEFFS);
+    let samples = rtv.voxels().len();
+    let p = r.nrows();
+    let coefficients =
+        DMatrix::from_fn(samples, COEFFS, |s, j| f64::from(rtv.matrices(s)[c][j][i]));
+    let k = coefficients * r.transpose();
+    let gram = k.transpose() * &k;
+    let eigen = SymmetricEigen::new(gram.clone());
+    let mut order: Vec<usize> = (0..p).collect();
+    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
+    let spectrum: Vec<f64> = order
+        .iter()
+        .map(|&o| eigen.eigenvalues[o].max(0.0).sqrt())
+        .collect();
+    let kept = rank.min(p);
+    let mut v = DMatrix::from_fn(p, kept, |row, col| eigen.eigenvectors[(row, order[col])]);
+    // A deterministic sign: each eigenfunction's largest entry is positive.
+    let mut e = q * &v;
+    for col in 0..kept {
+        let column = e.column(col);
+        let largest = column
+            .iter()
+            .fold(0.0f64, |a, &x| if x.abs() > a.abs() { x } else { a });
+        if largest < 0.0 {
+            e.column_mut(col).neg_mut();
+            v.column_mut(col).neg_mut();
+        }
+    }
+    let w = &k * &v;
+    let round = |x: f64| f16::from_f64(x).to_f64();
+    let w = w.map(round);
+    let e = e.map(round);
+    let cross: f64 = (&k * (q.transpose() * &e)).component_mul(&w).sum();
+    let norm2 = gram.trace();
+    let error2 = norm2 - 2.0 * cross
+        + (w.transpose() * &w)
+            .component_mul(&(e.transpose() * &e))
+            .sum();
+    let pad = |mat: &DMatrix<f64>, row: usize| -> Components {
+        std::array::from_fn(|col| {
+            if col < kept {
+                mat[(row, col)] as f32
+            } else {
+                0.0
+            }
+        })
+    };
+    Factored {
+        weights: (0..samples).map(|s| pad(&w, s)).collect(),
+        eigen: (0..q.nrows()).map(|v| pad(&e, v)).collect(),
+        spectrum,
+        norm2,
+        error2,
+    }
+}
