@@ -3,7 +3,8 @@
 //! and columns = view directions (θ, φ) at the centres of the GDM's direction bins,
 //! Mₘ[s, v] = y(v)ᵀ·A_s,c[·, i] ([`Rtv::transfer`]), are factored by a truncated SVD
 //! Mₘ ≈ Wₘ·Eₘᵀ of rank r ≤ [`MAX_RTV_RANK`] (the paper keeps 4): weights Wₘₖ(s) per sample and
-//! eigenfunctions Eₘₖ(θ, φ), both rounded to f16.
+//! eigenfunctions Eₘₖ(θ, φ), both rounded to f16. Fewer components are stored when the rest
+//! vanish in every matrix (a Lambertian RTV is view-independent: rank 1).
 //!
 //! **The SVD is exact and cheap.** Each row of Mₘ is a band-3 SH function of the view, so
 //! Mₘ = C·Yᵀ with C[s, j] = A_s,c[j, i] and Y[v, j] = yⱼ(v). With the thin QR factorization
@@ -31,6 +32,10 @@ use std::time::Instant;
 
 /// Most SVD components per matrix (one RGBA texel).
 pub const MAX_RTV_RANK: usize = 4;
+
+/// Singular values below this fraction of the largest are treated as zero when choosing
+/// how many components to store.
+const NEGLIGIBLE: f64 = 1e-6;
 
 /// Matrices per RTV: 3 channels × 16 light coefficients.
 pub const MATRICES: usize = 3 * COEFFS;
@@ -99,15 +104,36 @@ impl CompressedRtv {
             .into_par_iter()
             .map(|m| factor(rtv, m, &q, &r, rank))
             .collect();
+        // Components whose singular values vanish in every matrix are not stored (a
+        // Lambertian RTV is view-independent: rank 1).
+        let largest = factored
+            .iter()
+            .filter_map(|f| f.spectrum.first())
+            .fold(0.0f64, |a, &b| a.max(b));
+        let rank = (1..=rank)
+            .rev()
+            .find(|&k| {
+                factored.iter().any(|f| {
+                    f.spectrum
+                        .get(k - 1)
+                        .is_some_and(|&s| s > NEGLIGIBLE * largest)
+                })
+            })
+            .unwrap_or(1);
         let mut weights = vec![[0.0; MAX_RTV_RANK]; samples * MATRICES];
         let mut eigen = vec![[0.0; MAX_RTV_RANK]; views * MATRICES];
         let (mut total, mut error, mut optimal) = (0.0, 0.0, 0.0);
         let mut spectra = Vec::with_capacity(MATRICES);
+        let keep = |c: &Components| -> Components {
+            std::array::from_fn(|k| if k < rank { c[k] } else { 0.0 })
+        };
         for (m, f) in factored.into_iter().enumerate() {
             for (s, w) in f.weights.iter().enumerate() {
-                weights[s * MATRICES + m] = *w;
+                weights[s * MATRICES + m] = keep(w);
             }
-            eigen[m * views..][..views].copy_from_slice(&f.eigen);
+            for (e, f) in eigen[m * views..][..views].iter_mut().zip(&f.eigen) {
+                *e = keep(f);
+            }
             total += f.norm2;
             error += f.error2;
             optimal += f.spectrum.iter().skip(rank).map(|s| s * s).sum::<f64>();

@@ -5,6 +5,7 @@
 use super::Package;
 use super::manifest::{GiInfo, Section, TexelFormat, Texture, TextureDimension};
 use crate::base_mesh::BaseMesh;
+use crate::compress::quantize::Quantization;
 use crate::error::{Error, Result};
 use crate::gi::compressed_rtv::{CompressedRtv, MATRICES, MAX_RTV_RANK};
 use crate::gi::prt::geometry_hash;
@@ -44,15 +45,16 @@ pub(super) fn textures(
         height,
         depth,
     };
-    use TexelFormat::{R32float, R32uint, Rgba16float};
+    use TexelFormat::{R32float, R32uint};
     use TextureDimension::{Buffer, D3};
+    let components = TexelFormat::of(Quantization::F16, info.compression.rank);
     [
         (RTV_INDEX, texture(D3, R32uint, dims.x, dims.y, dims.z)),
         (
             RTV_WEIGHTS,
             texture(
                 Buffer,
-                Rgba16float,
+                components,
                 info.samples.saturating_mul(MATRICES as u32),
                 1,
                 1,
@@ -60,7 +62,7 @@ pub(super) fn textures(
         ),
         (
             RTV_EIGEN,
-            texture(D3, Rgba16float, dirs.n_phi, dirs.n_theta, MATRICES as u32),
+            texture(D3, components, dirs.n_phi, dirs.n_theta, MATRICES as u32),
         ),
         (
             PRT_TRANSFER,
@@ -77,10 +79,11 @@ pub(super) fn textures(
 
 /// The GI sections of `gi` with their bytes, in file order.
 pub(super) fn sections(gi: &GiPayload, dims: Dims, dirs: DirectionGrid) -> Vec<(Section, Vec<u8>)> {
+    let channels = TexelFormat::of(Quantization::F16, gi.rtv.rank()).channels() as usize;
     let halves = |values: &[[f32; MAX_RTV_RANK]]| -> Vec<u8> {
         values
             .iter()
-            .flatten()
+            .flat_map(|c| &c[..channels])
             .flat_map(|&v| f16::from_f32(v).to_le_bytes())
             .collect()
     };
@@ -137,12 +140,18 @@ impl Package {
             )));
         }
         let section = |name| self.section(name).expect("validated by parse");
+        let rank = info.compression.rank;
+        let channels = TexelFormat::of(Quantization::F16, rank).channels() as usize;
         let halves = |bytes: &[u8]| -> Vec<[f32; MAX_RTV_RANK]> {
             bytes
-                .chunks_exact(2 * MAX_RTV_RANK)
+                .chunks_exact(2 * channels)
                 .map(|texel| {
                     std::array::from_fn(|c| {
-                        f16::from_le_bytes([texel[2 * c], texel[2 * c + 1]]).to_f32()
+                        if c < rank {
+                            f16::from_le_bytes([texel[2 * c], texel[2 * c + 1]]).to_f32()
+                        } else {
+                            0.0
+                        }
                     })
                 })
                 .collect()
@@ -154,7 +163,7 @@ impl Package {
         let rtv = CompressedRtv::from_parts(
             self.dims(),
             self.dirs(),
-            info.compression.rank,
+            rank,
             sample_of,
             halves(section(RTV_WEIGHTS)),
             halves(section(RTV_EIGEN)),
