@@ -741,7 +741,7 @@ fn the_rtv_svd_is_the_dense_svd_and_reports_its_error_exactly() {
     let (rtv, stats) = rtv::bake(&g, &material, &params, &Limits::default(), &()).unwrap();
     let dirs = g.dirs();
     let views = dirs.count();
-    for rank in [1, 4] {
+    for rank in [1, 4, 16] {
         let (c, report, _) = CompressedRtv::compress(&rtv, dirs, rank, &Limits::default()).unwrap();
         assert_eq!(report.rank, rank);
         let (mut error2, mut norm2, mut entries) = (0.0, 0.0, 0.0);
@@ -767,8 +767,8 @@ fn the_rtv_svd_is_the_dense_svd_and_reports_its_error_exactly() {
             // The stored factors reconstruct the matrix with the reported error.
             for s in 0..stats.samples {
                 for v in 0..views {
-                    let w = &c.weights()[s * MATRICES + m];
-                    let e = &c.eigen()[m * views + v];
+                    let w = &c.weights()[(s * MATRICES + m) * rank..][..rank];
+                    let e = &c.eigen()[(m * views + v) * rank..][..rank];
                     let approx: f64 = w.iter().zip(e).map(|(w, e)| f64::from(w * e)).sum();
                     error2 += (dense[(s, v)] - approx).powi(2);
                     norm2 += dense[(s, v)].powi(2);
@@ -783,8 +783,10 @@ fn the_rtv_svd_is_the_dense_svd_and_reports_its_error_exactly() {
             report.rmse
         );
         assert!(((error2 / norm2).sqrt() - report.relative_rmse).abs() < 1e-9);
-        // Eckart–Young: never below the optimum; f16 adds little (measured 0.1 % at rank 4).
+        // Eckart–Young: never below the optimum.
         assert!(report.rmse >= report.svd_rmse * (1.0 - 1e-9));
-        assert!(report.rmse <= report.svd_rmse * 1.05 + 1e-4 * (norm2 / entries).sqrt());
+        // f16 rounding alone, at rank 16 (exact otherwise): measured 3.2e-4 of the RMS value.
+        let rms = (norm2 / entries).sqrt();
+        assert!(report.rmse <= report.svd_rmse * 1.05 + 1e-3 * rms);
     }
 }

@@ -2,7 +2,8 @@
 //! coefficient i (matrix m = 16·c + i), the transfer values over rows = sample voxels (x, y, z)
 //! and columns = view directions (θ, φ) at the centres of the GDM's direction bins,
 //! Mₘ[s, v] = y(v)ᵀ·A_s,c[·, i] ([`Rtv::transfer`]), are factored by a truncated SVD
-//! Mₘ ≈ Wₘ·Eₘᵀ of rank r ≤ [`MAX_RTV_RANK`] (the paper keeps 4): weights Wₘₖ(s) per sample and
+//! Mₘ ≈ Wₘ·Eₘᵀ of rank r ≤ [`MAX_RTV_RANK`] (the paper keeps 4; 16 is exact, the view
+//! dependence being band-3 SH): weights Wₘₖ(s) per sample and
 //! eigenfunctions Eₘₖ(θ, φ), both rounded to f16. Fewer components are stored when the rest
 //! vanish in every matrix (a Lambertian RTV is view-independent: rank 1).
 //!
@@ -30,8 +31,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
-/// Most SVD components per matrix (one RGBA texel).
-pub const MAX_RTV_RANK: usize = 4;
+/// Most SVD components per matrix: the view basis has 16 functions, so rank 16 is exact.
+pub const MAX_RTV_RANK: usize = COEFFS;
 
 /// Singular values below this fraction of the largest are treated as zero when choosing
 /// how many components to store.
@@ -40,9 +41,6 @@ const NEGLIGIBLE: f64 = 1e-6;
 /// Matrices per RTV: 3 channels × 16 light coefficients.
 pub const MATRICES: usize = 3 * COEFFS;
 
-/// Components of one matrix at one row (a sample) or column (a view), zero past the rank.
-pub type Components = [f32; MAX_RTV_RANK];
-
 /// A compressed RTV.
 #[derive(Clone, Debug)]
 pub struct CompressedRtv {
@@ -50,10 +48,10 @@ pub struct CompressedRtv {
     dirs: DirectionGrid,
     rank: usize,
     sample_of: Vec<u32>,
-    /// Index s·[`MATRICES`] + m.
-    weights: Vec<Components>,
-    /// Index m·views + a·Nφ + b.
-    eigen: Vec<Components>,
+    /// Component k of sample s, matrix m at (s·[`MATRICES`] + m)·rank + k.
+    weights: Vec<f32>,
+    /// Component k of matrix m at view bin (a, b) at (m·views + a·Nφ + b)·rank + k.
+    eigen: Vec<f32>,
 }
 
 /// What compressing an RTV kept and cost.
@@ -120,19 +118,16 @@ impl CompressedRtv {
                 })
             })
             .unwrap_or(1);
-        let mut weights = vec![[0.0; MAX_RTV_RANK]; samples * MATRICES];
-        let mut eigen = vec![[0.0; MAX_RTV_RANK]; views * MATRICES];
+        let mut weights = vec![0.0; samples * MATRICES * rank];
+        let mut eigen = vec![0.0; views * MATRICES * rank];
         let (mut total, mut error, mut optimal) = (0.0, 0.0, 0.0);
         let mut spectra = Vec::with_capacity(MATRICES);
-        let keep = |c: &Components| -> Components {
-            std::array::from_fn(|k| if k < rank { c[k] } else { 0.0 })
-        };
         for (m, f) in factored.into_iter().enumerate() {
-            for (s, w) in f.weights.iter().enumerate() {
-                weights[s * MATRICES + m] = keep(w);
+            for (s, w) in f.weights.chunks(f.kept).enumerate() {
+                weights[(s * MATRICES + m) * rank..][..rank].copy_from_slice(&w[..rank]);
             }
-            for (e, f) in eigen[m * views..][..views].iter_mut().zip(&f.eigen) {
-                *e = keep(f);
+            for (v, e) in f.eigen.chunks(f.kept).enumerate() {
+                eigen[(m * views + v) * rank..][..rank].copy_from_slice(&e[..rank]);
             }
             total += f.norm2;
             error += f.error2;
@@ -166,8 +161,8 @@ impl CompressedRtv {
         dirs: DirectionGrid,
         rank: usize,
         sample_of: Vec<u32>,
-        weights: Vec<Components>,
-        eigen: Vec<Components>,
+        weights: Vec<f32>,
+        eigen: Vec<f32>,
     ) -> Result<CompressedRtv> {
         let bad = |what: String| Err(Error::Package(format!("RTV: {what}")));
         if !(1..=MAX_RTV_RANK).contains(&rank) {
@@ -179,22 +174,17 @@ impl CompressedRtv {
                 sample_of.len()
             ));
         }
-        if weights.len() % MATRICES != 0 || eigen.len() != dirs.count() * MATRICES {
+        if weights.len() % (MATRICES * rank) != 0 || eigen.len() != dirs.count() * MATRICES * rank {
             return bad("the weights or eigenfunctions have the wrong length".into());
         }
-        let samples = weights.len() / MATRICES;
+        let samples = weights.len() / (MATRICES * rank);
         if let Some(s) = sample_of
             .iter()
             .find(|&&s| s != super::rtv::NO_SAMPLE && s as usize >= samples)
         {
             return bad(format!("the sample map names sample {s} of {samples}"));
         }
-        if weights
-            .iter()
-            .chain(&eigen)
-            .flatten()
-            .any(|v| !v.is_finite())
-        {
+        if weights.iter().chain(&eigen).any(|v| !v.is_finite()) {
             return bad("a weight or eigenfunction value is not finite".into());
         }
         Ok(CompressedRtv {
@@ -227,42 +217,44 @@ impl CompressedRtv {
         &self.sample_of
     }
 
-    /// The weights, index s·[`MATRICES`] + m.
-    pub fn weights(&self) -> &[Components] {
+    /// The weights: component k of sample s, matrix m at (s·[`MATRICES`] + m)·rank + k.
+    pub fn weights(&self) -> &[f32] {
         &self.weights
     }
 
-    /// The eigenfunctions, index m·views + a·Nφ + b.
-    pub fn eigen(&self) -> &[Components] {
+    /// The eigenfunctions: component k of matrix m at view bin (a, b) at
+    /// (m·views + a·Nφ + b)·rank + k.
+    pub fn eigen(&self) -> &[f32] {
         &self.eigen
     }
 
-    /// Every eigenfunction at view `view` (unit, texture space), bilinear over the bins.
-    fn eigen_at(&self, view: DVec3) -> Vec<[f64; MAX_RTV_RANK]> {
-        let views = self.dirs.count();
+    /// Every eigenfunction at view `view` (unit, texture space), bilinear over the bins:
+    /// component k of matrix m at m·rank + k.
+    fn eigen_at(&self, view: DVec3) -> Vec<f64> {
+        let (views, rank) = (self.dirs.count(), self.rank);
         let corners = bilinear_direction_corners(self.dirs, view.to_array());
-        (0..MATRICES)
-            .map(|m| {
-                let mut e = [0.0; MAX_RTV_RANK];
-                for ([a, b], w) in corners {
-                    let stored = &self.eigen[m * views + (a * self.dirs.n_phi + b) as usize];
-                    e.iter_mut()
-                        .zip(stored)
-                        .for_each(|(e, &s)| *e += w * f64::from(s));
-                }
-                e
-            })
-            .collect()
+        let mut out = vec![0.0; MATRICES * rank];
+        for (m, e) in out.chunks_mut(rank).enumerate() {
+            for ([a, b], w) in corners {
+                let v = m * views + (a * self.dirs.n_phi + b) as usize;
+                e.iter_mut()
+                    .zip(&self.eigen[v * rank..][..rank])
+                    .for_each(|(e, &s)| *e += w * f64::from(s));
+            }
+        }
+        out
     }
 
     /// The transfer of sample `s` given the eigenfunctions at the view.
-    fn transfer_with(&self, s: usize, eigen: &[[f64; MAX_RTV_RANK]]) -> [Sh; 3] {
-        let w = &self.weights[s * MATRICES..][..MATRICES];
+    fn transfer_with(&self, s: usize, eigen: &[f64]) -> [Sh; 3] {
+        let rank = self.rank;
+        let w = &self.weights[s * MATRICES * rank..][..MATRICES * rank];
         std::array::from_fn(|c| {
             std::array::from_fn(|i| {
                 let m = c * COEFFS + i;
-                w[m].iter()
-                    .zip(&eigen[m])
+                w[m * rank..][..rank]
+                    .iter()
+                    .zip(&eigen[m * rank..][..rank])
                     .map(|(&w, e)| f64::from(w) * e)
                     .sum()
             })
@@ -283,10 +275,12 @@ impl CompressedRtv {
     }
 }
 
-/// One matrix's factors, rounded to f16, with its squared norm and squared error.
+/// One matrix's factors, rounded to f16 (`kept` components per row, row-major), with its
+/// squared norm and squared error.
 struct Factored {
-    weights: Vec<Components>,
-    eigen: Vec<Components>,
+    kept: usize,
+    weights: Vec<f32>,
+    eigen: Vec<f32>,
     spectrum: Vec<f64>,
     norm2: f64,
     error2: f64,
@@ -332,18 +326,16 @@ fn factor(rtv: &Rtv, m: usize, q: &DMatrix<f64>, r: &DMatrix<f64>, rank: usize) 
         + (w.transpose() * &w)
             .component_mul(&(e.transpose() * &e))
             .sum();
-    let pad = |mat: &DMatrix<f64>, row: usize| -> Components {
-        std::array::from_fn(|col| {
-            if col < kept {
-                mat[(row, col)] as f32
-            } else {
-                0.0
-            }
-        })
+    let rows = |mat: &DMatrix<f64>| -> Vec<f32> {
+        (0..mat.nrows())
+            .flat_map(|r| (0..kept).map(move |c| (r, c)))
+            .map(|(r, c)| mat[(r, c)] as f32)
+            .collect()
     };
     Factored {
-        weights: (0..samples).map(|s| pad(&w, s)).collect(),
-        eigen: (0..q.nrows()).map(|v| pad(&e, v)).collect(),
+        kept,
+        weights: rows(&w),
+        eigen: rows(&e),
         spectrum,
         norm2,
         error2,

@@ -5,9 +5,8 @@
 use super::Package;
 use super::manifest::{GiInfo, Section, TexelFormat, Texture, TextureDimension};
 use crate::base_mesh::BaseMesh;
-use crate::compress::quantize::Quantization;
 use crate::error::{Error, Result};
-use crate::gi::compressed_rtv::{CompressedRtv, MATRICES, MAX_RTV_RANK};
+use crate::gi::compressed_rtv::{CompressedRtv, MATRICES};
 use crate::gi::prt::geometry_hash;
 use crate::gi::sh::{COEFFS, ShMatrix};
 use crate::grid::{Dims, DirectionGrid};
@@ -45,25 +44,23 @@ pub(super) fn textures(
         height,
         depth,
     };
-    use TexelFormat::{R32float, R32uint};
+    use TexelFormat::{R16float, R32float, R32uint};
     use TextureDimension::{Buffer, D3};
-    let components = TexelFormat::of(Quantization::F16, info.compression.rank);
+    let per_sample = (MATRICES * info.compression.rank) as u32;
+    let eigen = per_sample.saturating_mul(dirs.n_theta * dirs.n_phi);
     [
         (RTV_INDEX, texture(D3, R32uint, dims.x, dims.y, dims.z)),
         (
             RTV_WEIGHTS,
             texture(
                 Buffer,
-                components,
-                info.samples.saturating_mul(MATRICES as u32),
+                R16float,
+                info.samples.saturating_mul(per_sample),
                 1,
                 1,
             ),
         ),
-        (
-            RTV_EIGEN,
-            texture(D3, components, dirs.n_phi, dirs.n_theta, MATRICES as u32),
-        ),
+        (RTV_EIGEN, texture(Buffer, R16float, eigen, 1, 1)),
         (
             PRT_TRANSFER,
             texture(
@@ -79,11 +76,9 @@ pub(super) fn textures(
 
 /// The GI sections of `gi` with their bytes, in file order.
 pub(super) fn sections(gi: &GiPayload, dims: Dims, dirs: DirectionGrid) -> Vec<(Section, Vec<u8>)> {
-    let channels = TexelFormat::of(Quantization::F16, gi.rtv.rank()).channels() as usize;
-    let halves = |values: &[[f32; MAX_RTV_RANK]]| -> Vec<u8> {
+    let halves = |values: &[f32]| -> Vec<u8> {
         values
             .iter()
-            .flat_map(|c| &c[..channels])
             .flat_map(|&v| f16::from_f32(v).to_le_bytes())
             .collect()
     };
@@ -140,20 +135,10 @@ impl Package {
             )));
         }
         let section = |name| self.section(name).expect("validated by parse");
-        let rank = info.compression.rank;
-        let channels = TexelFormat::of(Quantization::F16, rank).channels() as usize;
-        let halves = |bytes: &[u8]| -> Vec<[f32; MAX_RTV_RANK]> {
+        let halves = |bytes: &[u8]| -> Vec<f32> {
             bytes
-                .chunks_exact(2 * channels)
-                .map(|texel| {
-                    std::array::from_fn(|c| {
-                        if c < rank {
-                            f16::from_le_bytes([texel[2 * c], texel[2 * c + 1]]).to_f32()
-                        } else {
-                            0.0
-                        }
-                    })
-                })
+                .chunks_exact(2)
+                .map(|h| f16::from_le_bytes([h[0], h[1]]).to_f32())
                 .collect()
         };
         let sample_of = section(RTV_INDEX)
@@ -163,7 +148,7 @@ impl Package {
         let rtv = CompressedRtv::from_parts(
             self.dims(),
             self.dirs(),
-            rank,
+            info.compression.rank,
             sample_of,
             halves(section(RTV_WEIGHTS)),
             halves(section(RTV_EIGEN)),

@@ -210,7 +210,10 @@ impl Package {
         if let Some(info) = &manifest.gi {
             let rank = info.compression.rank;
             if !(1..=crate::gi::compressed_rtv::MAX_RTV_RANK).contains(&rank) {
-                return Err(bad(format!("the RTV rank {rank} is not 1 to 4")));
+                return Err(bad(format!(
+                    "the RTV rank {rank} is not 1 to {}",
+                    crate::gi::compressed_rtv::MAX_RTV_RANK
+                )));
             }
             for (name, expected) in gi::textures(info, dims, dirs) {
                 match manifest.sections.iter().find(|s| s.name == name) {

@@ -1,0 +1,254 @@
+//! Global illumination end to end: scene bakes run exactly the stages the effects call for,
+//! packages carry the compressed RTV and the PRT deterministically, and shading from a package
+//! agrees with shading from the bake.
+
+mod common;
+
+use common::{each_fails_with, succeeds};
+use glam::DVec3;
+use mesobake::gi::shading::GiShading;
+use mesobake::limits::Limits;
+use mesobake::package::Package;
+use mesobake::render_scene::{bake_gdm, load_scene};
+use mesobake::scene_package::{ScenePackageParams, bake_scene_package};
+use std::path::{Path, PathBuf};
+
+/// A small GI scene (wavy plane, weave 32×32×16, 16×32 directions, overcast sky, glossy
+/// material) with `effects`, written into `dir`.
+fn write_scene(dir: &Path, effects: &[&str], segments: u32) -> PathBuf {
+    let scene = serde_json::json!({
+        "base_mesh": { "builtin": { "plane": {
+            "size": 2.0, "amplitude": 0.1, "waves": 1.0, "segments": segments } } },
+        "mesostructure": { "sample": "weave" },
+        "resolution": [32, 32, 16],
+        "directions": [16, 32],
+        "shell": { "thickness": 0.125, "tiles_per_uv": [4, 4] },
+        "material": { "albedo": [0.7, 0.6, 0.5], "specular": [0.25, 0.25, 0.25], "shininess": 24 },
+        "camera": { "eye": [0.3, 1.6, 2.4], "target": [0, 0, 0], "fov_y_degrees": 50,
+                    "width": 48, "height": 32 },
+        "environment": { "sky": { "overcast": {
+            "zenith": [1.0, 1.0, 1.1], "ground": [0.2, 0.2, 0.2] } } },
+        "effects": effects,
+    });
+    let path = dir.join(format!("scene-{segments}.json"));
+    std::fs::write(&path, scene.to_string()).unwrap();
+    path
+}
+
+const GI: &[&str] = &[
+    "silhouettes",
+    "environment_lighting",
+    "macro_shadows",
+    "environment_gloss",
+];
+
+#[test]
+fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let stages = |effects: &[&str]| {
+        let scene = write_scene(dir.path(), effects, 8);
+        let out = dir.path().join("p.mbpkg");
+        let args = [
+            "bake",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        let stdout = succeeds(&[&args[..], &["--json", "--rank", "4"]].concat()).stdout;
+        let summary: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
+        let manifest = Package::read(&out, &Limits::default())
+            .unwrap()
+            .manifest()
+            .clone();
+        (summary, manifest)
+    };
+    let names = |v: &serde_json::Value| -> Vec<String> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|s| {
+                s.as_str()
+                    .map_or_else(|| s["stage"].to_string(), String::from)
+            })
+            .collect()
+    };
+
+    let (summary, manifest) = stages(GI);
+    assert_eq!(
+        names(&summary["stages"]["stages"]),
+        [
+            "load",
+            "bake_gdm",
+            "compress",
+            "bake_prt",
+            "bake_rtv",
+            "compress_rtv",
+            "encode"
+        ]
+    );
+    assert_eq!(summary["stages"]["skipped"], serde_json::json!([]));
+    for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
+        assert!(
+            summary["seconds"][stage].as_f64().unwrap() >= 0.0,
+            "{stage}"
+        );
+    }
+    let gi = manifest
+        .gi
+        .expect("the package holds the radiance transfer");
+    assert!(gi.glossy.is_some() && gi.macro_shadows);
+    assert_eq!(summary["gi"]["rtv"]["samples"], gi.samples);
+
+    // Lambertian, unshadowed: the same stages, with the parts not called for skipped.
+    let (summary, manifest) = stages(&["silhouettes", "environment_lighting"]);
+    let skipped = &summary["stages"]["skipped"];
+    assert_eq!(
+        skipped,
+        &serde_json::json!([
+            { "stage": "prt_visibility",
+              "reason": "the scene calls for no macro_shadows: the PRT is a pure rotation" },
+            { "stage": "rtv_gloss",
+              "reason": "the scene calls for no environment_gloss: the RTV is Lambertian" },
+        ])
+    );
+    let gi = manifest.gi.unwrap();
+    assert!(gi.glossy.is_none() && !gi.macro_shadows);
+    assert_eq!(
+        gi.compression.rank, 1,
+        "a Lambertian RTV is view-independent"
+    );
+
+    // No environment lighting: no radiance-transfer stage runs and the package has none.
+    let (summary, manifest) = stages(&["silhouettes", "shadows"]);
+    assert_eq!(
+        names(&summary["stages"]["stages"]),
+        ["load", "bake_gdm", "compress", "encode"]
+    );
+    for (s, stage) in summary["stages"]["skipped"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(["bake_prt", "bake_rtv", "compress_rtv"])
+    {
+        assert_eq!(s["stage"], stage);
+        assert_eq!(s["reason"], "the scene calls for no environment_lighting");
+        assert!(summary["seconds"].get(stage).is_none());
+    }
+    assert!(manifest.gi.is_none());
+    assert!(manifest.sections.iter().all(|s| s.name.starts_with("gdm.")));
+    assert!(summary["gi"].is_null());
+}
+
+#[test]
+fn gi_packages_are_deterministic_and_shade_like_the_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let limits = Limits::default();
+    let path = write_scene(dir.path(), GI, 8);
+    // Every RTV component (rank 16 is exact): what is left is f16 and the bilinear
+    // interpolation of the eigenfunctions between view bins.
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    json["gi"] = serde_json::json!({ "rtv_rank": 16 });
+    std::fs::write(&path, json.to_string()).unwrap();
+    let loaded = load_scene(&path, &limits).unwrap();
+    let params = ScenePackageParams::default();
+    let bake = || {
+        bake_scene_package(&loaded, dir.path(), params, &limits, &())
+            .unwrap()
+            .bytes
+    };
+    let bytes = bake();
+    assert_eq!(bytes, bake(), "identical scenes give identical packages");
+    let package = Package::parse(bytes).unwrap();
+    let gi = package.manifest().gi.clone().unwrap();
+    assert_eq!(gi.compression.rank, 16);
+
+    // Shading from the package against shading from the exact bake, at texture points all
+    // over the tile and views above the surface: the difference is the rank-4 SVD and f16.
+    let exact = GiShading::bake(
+        &loaded,
+        &bake_gdm(&loaded, &limits, &()).unwrap(),
+        &limits,
+        &(),
+    )
+    .unwrap()
+    .0;
+    let packaged = GiShading::from_package(&loaded, &package).unwrap();
+    let (mut diff2, mut norm2, mut hits) = (0.0, 0.0, 0);
+    for i in 0..32 {
+        for j in 0..32 {
+            for view in [
+                DVec3::new(0.0, 0.0, -1.0),
+                DVec3::new(0.5, 0.2, -0.8).normalize(),
+                DVec3::new(-0.3, 0.6, -0.6).normalize(),
+            ] {
+                let t = DVec3::new(i as f64 + 0.5, j as f64 + 0.5, 8.3);
+                let (a, b) = (exact.radiance(0, t, view), packaged.radiance(0, t, view));
+                diff2 += (a - b).length_squared();
+                norm2 += a.length_squared();
+                hits += usize::from(a != DVec3::ZERO);
+            }
+        }
+    }
+    assert!(hits > 1000, "{hits} lit points");
+    let relative = (diff2 / norm2).sqrt();
+    // Measured 2.1e-2, nearly all of it the bilinear interpolation between view bins (the
+    // f16 transfer error the manifest reports is 3e-4); 3e-2 is the bound.
+    assert!(relative < 3e-2, "{relative}");
+    assert!(gi.compression.relative_rmse < 1e-3, "{:?}", gi.compression);
+
+    // The PRT belongs to its base mesh.
+    let other = load_scene(&write_scene(dir.path(), GI, 9), &limits).unwrap();
+    let err = GiShading::from_package(&other, &package).err().unwrap();
+    assert!(err.to_string().contains("another base mesh"), "{err}");
+    // A package without radiance transfer says how to make one.
+    let plain = write_scene(dir.path(), &["silhouettes"], 8);
+    let plain = load_scene(&plain, &limits).unwrap();
+    let bytes = bake_scene_package(&plain, dir.path(), params, &limits, &())
+        .unwrap()
+        .bytes;
+    let err = GiShading::from_package(&loaded, &Package::parse(bytes).unwrap())
+        .err()
+        .unwrap();
+    assert!(err.to_string().contains("--scene"), "{err}");
+}
+
+#[test]
+fn scene_bakes_refuse_bad_knobs_with_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), GI, 8);
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+    json["gi"] = serde_json::json!({ "rtv_rank": 17 });
+    let bad_rank = dir.path().join("bad-rank.json");
+    std::fs::write(&bad_rank, json.to_string()).unwrap();
+    json["gi"] = serde_json::json!({});
+    json["effects"] = serde_json::json!(["environment_gloss"]);
+    let gloss_alone = dir.path().join("gloss-alone.json");
+    std::fs::write(&gloss_alone, json.to_string()).unwrap();
+    let out = dir.path().join("p.mbpkg");
+    let (scene, out) = (scene.to_str().unwrap(), out.to_str().unwrap());
+    each_fails_with(&[
+        (
+            vec!["bake", "--scene", bad_rank.to_str().unwrap(), "--out", out],
+            "rtv_rank 1–16",
+        ),
+        (
+            vec![
+                "bake",
+                "--scene",
+                gloss_alone.to_str().unwrap(),
+                "--out",
+                out,
+            ],
+            "environment_gloss and macro_shadows refine environment_lighting",
+        ),
+        (
+            vec!["bake", "--scene", scene, "--out", out, "--max-rmse", "0.1"],
+            "cannot be used with",
+        ),
+        (vec!["bake", "--out", out], "--input FILE is required"),
+    ]);
+    assert!(!Path::new(out).exists(), "nothing is written on failure");
+}
