@@ -165,7 +165,7 @@ fn gi_packages_are_deterministic_and_shade_like_the_bake() {
     assert_eq!(gi.compression.rank, 16);
 
     // Shading from the package against shading from the exact bake, at texture points all
-    // over the tile and views above the surface: the difference is the rank-4 SVD and f16.
+    // over the tile and views above the surface.
     let exact = GiShading::bake(
         &loaded,
         &bake_gdm(&loaded, &limits, &()).unwrap(),

@@ -334,14 +334,14 @@ async fn malformed_requests_get_a_4xx_with_a_message() {
         let r = client.get(s.url(path)).send().await.unwrap();
         assert!(r.status().is_client_error(), "{path}: {}", r.status());
     }
-    // A scene the server cannot bake all of is refused, not baked without its effect.
+    // A scene whose effects contradict each other is refused with the scene's own message.
     let gi_job = serde_json::json!({ "scene": {
         "base_mesh": { "builtin": { "plane": {} } },
         "mesostructure": { "sample": "bark" },
         "shell": { "thickness": 0.1, "tiles_per_uv": [2, 2] },
         "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 8, "height": 8 },
         "environment": { "sky": { "overcast": { "zenith": [1, 1, 1], "ground": [0.2, 0.2, 0.2] } } },
-        "effects": ["environment_lighting"]
+        "effects": ["environment_gloss"]
     } });
     let r = client
         .post(s.url("/api/v1/jobs"))
@@ -350,7 +350,12 @@ async fn malformed_requests_get_a_4xx_with_a_message() {
         .await
         .unwrap();
     assert_eq!(r.status(), 422);
-    assert!(r.text().await.unwrap().contains("environment lighting"));
+    assert!(
+        r.text()
+            .await
+            .unwrap()
+            .contains("refine environment_lighting")
+    );
     let r = client
         .post(s.url("/api/v1/jobs/..%2F..%2Fx/cancel"))
         .send()

@@ -203,6 +203,71 @@ async fn jobs_bake_once_report_progress_and_reuse_results() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let url = &database_urls(dir.path(), "gi").await[0];
+    let data = tempfile::tempdir().unwrap();
+    let s = TestServer::start(url, data.path(), 1 << 24).await;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&s.state, 1, &stop);
+    let mut scene = json!({
+        "base_mesh": { "builtin": { "plane": { "size": 2.0, "segments": 8 } } },
+        "mesostructure": { "sample": "weave" },
+        "resolution": [16, 16, 8],
+        "directions": [8, 16],
+        "shell": { "thickness": 0.1, "tiles_per_uv": [4, 4] },
+        "material": { "albedo": [0.7, 0.7, 0.7], "specular": [0.2, 0.2, 0.2], "shininess": 16 },
+        "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 64, "height": 64 },
+        "environment": { "exr": "sky.exr" },
+        "effects": ["environment_lighting", "macro_shadows", "environment_gloss"]
+    });
+    let (status, queued) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
+    assert_eq!(status, 202, "{queued}");
+    assert_eq!(
+        queued["plan"]["stages"],
+        json!([
+            "load",
+            "bake_gdm",
+            "compress",
+            "bake_prt",
+            "bake_rtv",
+            "compress_rtv",
+            "encode",
+            "store"
+        ])
+    );
+    let id = queued["id"].as_str().unwrap().to_owned();
+    let done = wait_for(&s, &id, |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
+        assert!(done["timings"][stage].as_f64().is_some(), "{stage}: {done}");
+    }
+    let digest = done["package_digest"].as_str().unwrap();
+    let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let package = Package::parse(bytes.to_vec()).unwrap();
+    let gi = package.manifest().gi.clone().expect("radiance transfer");
+    assert!(gi.macro_shadows && gi.glossy.is_some(), "{gi:?}");
+    // The environment is not in the package, so another one shares the job; a change of
+    // material changes the RTV, so it does not.
+    scene["environment"] =
+        json!({ "sky": { "overcast": { "zenith": [1, 1, 1], "ground": [0, 0, 0] } } });
+    let (_, same) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
+    assert_eq!(same["id"], id.as_str());
+    scene["material"]["albedo"] = json!([0.5, 0.5, 0.5]);
+    let (_, other) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
+    assert_ne!(other["id"], id.as_str());
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cancellation_stops_a_running_bake() {
     let dir = tempfile::tempdir().unwrap();
     for url in database_urls(dir.path(), "cancel").await {
