@@ -5,6 +5,10 @@
 //!   finest setting. Each sample is lit by the scene's environment as a flat, up-facing
 //!   surface would receive it (the environment rotated so that world +y is texture +z); the
 //!   error is the RMS difference over samples and channels, relative to the reference's RMS.
+//! - **RTV compression**: over SVD ranks, on the scene's own grids and knobs, the stored
+//!   bytes, the seconds, the transfer's relative RMSE at the view-bin centres (as the manifest
+//!   reports it) and the relative RMS error of the radiance the compressed RTV sends under the
+//!   same flat-surface light towards every view bin above the surface.
 //! - **PRT**: over visibility sample counts, the time for all base vertices and the relative
 //!   Frobenius error of the transfer matrices against the largest count.
 //! - **Images**: the path tracer at each paths-per-pixel count and the GDM renderer with the
@@ -13,6 +17,7 @@
 
 use crate::error::{Error, Result};
 use crate::gdm::{self, BakeObserver};
+use crate::gi::compressed_rtv::CompressedRtv;
 use crate::gi::environment::RgbSh;
 use crate::gi::prt::{self, Visibility};
 use crate::gi::rtv::{self, Rtv, RtvParams};
@@ -43,6 +48,8 @@ pub struct GiSweep {
     pub prt_samples: Vec<usize>,
     /// Path tracer paths per pixel; the largest is the reference image.
     pub path_samples: Vec<u32>,
+    /// RTV SVD ranks (1–16).
+    pub rtv_ranks: Vec<usize>,
     /// The camera's width and height are divided by this.
     pub image_scale: u32,
 }
@@ -83,6 +90,21 @@ pub struct RtvRow {
     pub bytes: usize,
 }
 
+/// One RTV compression rank.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CompressionRow {
+    /// Components stored per matrix.
+    pub rank: usize,
+    /// Bytes of the RTV sections (index, weights, eigenfunctions).
+    pub bytes: usize,
+    /// Seconds of the SVD and rounding.
+    pub seconds: f64,
+    /// The transfer's relative RMSE at the view-bin centres.
+    pub transfer_relative_rmse: f64,
+    /// Relative RMS error of the shaded radiance over samples, upper view bins and channels.
+    pub radiance_relative_error: f64,
+}
+
 /// One PRT setting.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PrtRow {
@@ -99,6 +121,8 @@ pub struct PrtRow {
 pub struct GiAccuracy {
     /// RTV rows.
     pub rtv: Vec<RtvRow>,
+    /// RTV compression rows.
+    pub compression: Vec<CompressionRow>,
     /// PRT rows.
     pub prt: Vec<PrtRow>,
     /// Image rows.
@@ -178,6 +202,7 @@ pub fn gi_accuracy(
         })
         .collect();
 
+    let compression = compression_rows(loaded, &sweep.rtv_ranks, &light, limits, observer)?;
     let mut prt_rows = Vec::new();
     let mut matrices = Vec::new();
     let mut counts: Vec<usize> = sweep.prt_samples.clone();
@@ -227,11 +252,69 @@ pub fn gi_accuracy(
     let (images, image_size) = image_rows(loaded, sweep, limits, observer)?;
     Ok(GiAccuracy {
         rtv: rtv_rows,
+        compression,
         prt: prt_rows,
         images,
         image_size,
         vertices: loaded.base.positions.len(),
     })
+}
+
+/// The compression part of the report: the scene's RTV compressed at each rank.
+fn compression_rows(
+    loaded: &LoadedScene,
+    ranks: &[usize],
+    light: &RgbSh,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Vec<CompressionRow>> {
+    let dirs = loaded.scene.dirs()?;
+    let g = gdm::exact::bake(loaded.mesostructure.caster(), dirs, limits, observer)?;
+    let (rtv, _) = rtv::bake(
+        &g,
+        &loaded.material,
+        &rtv_params(&loaded.scene),
+        limits,
+        observer,
+    )?;
+    let views: Vec<DVec3> = (0..dirs.count())
+        .map(|v| DVec3::from(dirs.vector_of(v)))
+        .filter(|v| v.z > 0.0)
+        .collect();
+    let radiance = |transfer: &dyn Fn(usize, DVec3) -> [sh::Sh; 3]| -> Vec<f64> {
+        (0..rtv.voxels().len())
+            .flat_map(|s| views.iter().map(move |&v| (s, v)))
+            .flat_map(|(s, v)| {
+                let t = transfer(s, v);
+                (0..3).map(move |c| sh::dot(&t[c], &light[c]))
+            })
+            .collect()
+    };
+    let exact = radiance(&|s, v| rtv.transfer(s, v));
+    let norm = exact
+        .iter()
+        .map(|x| x * x)
+        .sum::<f64>()
+        .max(f64::MIN_POSITIVE);
+    ranks
+        .iter()
+        .map(|&rank| {
+            let (c, report, seconds) = CompressedRtv::compress(&rtv, dirs, rank, limits)?;
+            let approx = radiance(&|s, v| c.transfer(s, v));
+            let error: f64 = exact
+                .iter()
+                .zip(&approx)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum();
+            Ok(CompressionRow {
+                rank: report.rank,
+                bytes: 4 * c.sample_map().len() + 2 * (c.weights().len() + c.eigen().len()),
+                seconds,
+                transfer_relative_rmse: report.relative_rmse,
+                radiance_relative_error: (error / norm).sqrt(),
+            })
+        })
+        .collect()
 }
 
 /// The image part of the report.
@@ -332,6 +415,24 @@ pub fn markdown(report: &GiAccuracy) -> String {
             ]
         }),
     );
+    let compression = table(
+        &[
+            "rank",
+            "bytes",
+            "seconds",
+            "transfer relative RMSE",
+            "radiance relative error",
+        ],
+        report.compression.iter().map(|r| {
+            vec![
+                r.rank.to_string(),
+                r.bytes.to_string(),
+                format!("{:.3}", r.seconds),
+                format!("{:.5}", r.transfer_relative_rmse),
+                format!("{:.5}", r.radiance_relative_error),
+            ]
+        }),
+    );
     let prt = table(
         &[
             "PRT samples per vertex",
@@ -373,7 +474,8 @@ pub fn markdown(report: &GiAccuracy) -> String {
         }),
     );
     format!(
-        "### RTV\n\n{rtv}\n### Macro-scale PRT ({} vertices)\n\n{prt}\n### Images against the \
+        "### RTV\n\n{rtv}\n### RTV compression (the scene's grids and knobs)\n\n\
+         {compression}\n### Macro-scale PRT ({} vertices)\n\n{prt}\n### Images against the \
          path tracer at its largest count ({}×{})\n\n{images}",
         report.vertices, report.image_size[0], report.image_size[1]
     )

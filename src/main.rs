@@ -442,6 +442,9 @@ enum ReportCommand {
         /// Path tracer paths per pixel, comma-separated; the largest is the reference image.
         #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
         path_samples: Vec<u32>,
+        /// RTV SVD ranks (1–16), comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
+        rtv_ranks: Vec<usize>,
         /// Divide the scene camera's width and height by this for the images.
         #[arg(long, default_value_t = 4)]
         image_scale: u32,
@@ -1077,6 +1080,7 @@ fn run(cli: Cli) -> Result<()> {
                     bounces,
                     prt_samples,
                     path_samples,
+                    rtv_ranks,
                     image_scale,
                     out,
                 },
@@ -1087,6 +1091,7 @@ fn run(cli: Cli) -> Result<()> {
                 bounces,
                 prt_samples,
                 path_samples,
+                rtv_ranks,
                 image_scale,
             };
             let progress = Progress::new("GI accuracy report");

@@ -519,6 +519,7 @@ fn the_gi_report_measures_against_its_references() {
         bounces: vec![0, 2],
         prt_samples: vec![64, 1024],
         path_samples: vec![1, 4],
+        rtv_ranks: vec![1, 16],
         image_scale: 2,
     };
     let report = gi_accuracy(&loaded, &sweep, &Limits::default(), &()).unwrap();
@@ -545,6 +546,18 @@ fn the_gi_report_measures_against_its_references() {
         report.images
     );
     assert!(report.images[2].renderer == "GDM + RTV" && report.images[2].psnr_db > 30.0);
+    // A Lambertian RTV is rank 1: asking for 16 stores 1, and only f16 rounding remains
+    // (measured 1.5e-4).
+    let ranks: Vec<usize> = report.compression.iter().map(|r| r.rank).collect();
+    assert_eq!(ranks, [1, 1]);
+    assert!(
+        report
+            .compression
+            .iter()
+            .all(|r| r.radiance_relative_error < 1e-3 && r.bytes > 0),
+        "{:?}",
+        report.compression
+    );
     let text = markdown(&report);
     assert!(text.contains("| 16x32 | 2 |") && text.contains("unshadowed (rotation)"));
     // A scene without environment lighting has nothing to report.
