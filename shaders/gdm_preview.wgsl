@@ -1,8 +1,8 @@
 // The GDM real-time pipeline: the per-pixel algorithm of `src/render/gdm_renderer.rs`, step
 // for step (that file's module documentation is the specification; the tests hold the two
 // to PSNR ≥ 35 dB). This file is completed by one shadow file (`shadows_on.wgsl` or
-// `shadows_off.wgsl`) and by the constant REFINEMENTS, chosen from the scene's effects and
-// knobs (`src/preview/variant.rs`).
+// `shadows_off.wgsl`), one environment file (`gi_on.wgsl` or `gi_off.wgsl`) and by the
+// constant REFINEMENTS, chosen from the scene's effects and knobs (`src/realtime/variant.rs`).
 
 const PI: f32 = 3.141592653589793;
 const TAU: f32 = 6.283185307179586;
@@ -467,7 +467,8 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     let n_tex = normalize_or(n_raw, -view_tex);
     let n_obj = normalize_or(frame[0].xyz * n_tex.x + frame[1].xyz * n_tex.y + frame[2].xyz * n_tex.z, -dir);
     let base = albedo_at(t_hit + view_tex * ALBEDO_DEPTH);
-    let radiance = shade(p_hit, n_obj, base, -dir, frame, t_hit + n_tex * SHADOW_OFFSET);
+    let radiance = environment_light(pi, t_hit, view_tex)
+        + shade(p_hit, n_obj, base, -dir, frame, t_hit + n_tex * SHADOW_OFFSET);
 
     var out: FragmentOut;
     out.radiance = vec4<f32>(radiance, 1.0);

@@ -54,18 +54,12 @@ fn every_sample_scene_previews() {
         let scene_path = dir.path().join(name);
         std::fs::write(&scene_path, scene.to_string()).unwrap();
         let out = dir.path().join(name.replace(".json", ".png"));
-        let effects = scene["effects"].as_array().unwrap();
-        if effects.contains(&"environment_lighting".into()) {
-            // Not on the GPU yet: refused with a message, and rendered on the CPU instead.
-            let o = common::mesobake(&[
-                "preview",
-                "--scene",
-                scene_path.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-            ]);
-            assert!(!o.status.success());
-            assert!(String::from_utf8_lossy(&o.stderr).contains("environment lighting"));
+        let environment = scene["effects"]
+            .as_array()
+            .unwrap()
+            .contains(&"environment_lighting".into());
+        if environment {
+            // The CPU renders the same scene's GI from its own bake.
             let o = succeeds(&[
                 "render",
                 "--scene",
@@ -79,7 +73,6 @@ fn every_sample_scene_previews() {
             let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
             assert!(json["gi"]["rtv"]["samples"].as_u64().unwrap() > 0, "{json}");
             assert!(json["hit_pixels"].as_u64().unwrap() > 0, "{json}");
-            continue;
         }
         let o = succeeds(&[
             "preview",
@@ -109,6 +102,12 @@ fn every_sample_scene_previews() {
                 .as_array()
                 .unwrap()
                 .contains(&"shadows".into())
+        );
+        assert_eq!(p["variant"]["environment"], environment);
+        assert_eq!(
+            p["memory"]["environment"].as_u64().unwrap() > 0,
+            environment,
+            "{name}: {p}"
         );
         // Rank 8 in f16 over a 16×16×8 grid and 8×16 directions: weight maps 16·16·16 texels
         // of 2 × rgba16float, eigenmaps 8·8 texels of 2 × rgba16float.

@@ -6,6 +6,7 @@
 
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
+use mesobake::gi::shading::GiShading;
 use mesobake::limits::Limits;
 use mesobake::package::Package;
 use mesobake::preview_scene::preview;
@@ -46,15 +47,23 @@ fn package(loaded: &LoadedScene, rank: usize, quantization: Quantization) -> Pac
     scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap()
 }
 
+/// The CPU twin: the GDM software renderer on the package (with its RTV and PRT when the
+/// scene calls for environment lighting).
 fn cpu_image(loaded: &LoadedScene, package: &Package) -> Image {
     let lookup = PackageLookup::new(package);
     let scene = &loaded.scene;
-    let r = GdmRenderer::new(
+    let gi = scene
+        .wants(Effect::EnvironmentLighting)
+        .then(|| GiShading::from_package(loaded, package).unwrap());
+    let mut r = GdmRenderer::new(
         &loaded.shell,
         &lookup,
         &loaded.material,
         scene.gdm_refinements,
     );
+    if let Some(gi) = &gi {
+        r = r.with_gi(gi);
+    }
     render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
 }
 
@@ -98,6 +107,47 @@ fn torus_chain_matches_the_cpu_gdm_renderer() {
 }
 
 #[test]
+fn the_environment_variant_matches_its_cpu_twin() {
+    if !gpu_or_skip() {
+        return;
+    }
+    // The sample GI scene (weave under a clear sky, macro shadows) with the glossy lobe and
+    // the paper's rank 4, so that the RTV is view-dependent; and a Lambertian rank-1 RTV.
+    for (gloss, rank) in [(true, 4), (false, 4)] {
+        let loaded = load("scenes/plane-weave-sky.json", |s| {
+            s.camera.width = 160;
+            s.camera.height = 120;
+            s.resolution = [32, 32, 16];
+            s.gi.rtv_rank = rank;
+            if gloss {
+                s.effects.push(Effect::EnvironmentGloss);
+                s.material.specular = [0.3, 0.3, 0.3];
+                s.material.shininess = 24.0;
+            }
+        });
+        let p = package(&loaded, 8, Quantization::F16);
+        let stored = p.manifest().gi.as_ref().unwrap().compression.rank;
+        assert_eq!(stored, if gloss { 4 } else { 1 });
+        agreement(
+            &loaded,
+            &p,
+            &format!("plane-weave-sky, gloss {gloss}, RTV rank {stored}"),
+        );
+        // The sky alone lights the scene (it has no other light), and lights it well.
+        let cpu = cpu_image(&loaded, &p);
+        let lit: Vec<f32> = cpu
+            .rgb
+            .iter()
+            .zip(&cpu.mask)
+            .filter(|(_, hit)| **hit)
+            .map(|(c, _)| c[1])
+            .collect();
+        let mean = lit.iter().sum::<f32>() / lit.len().max(1) as f32;
+        assert!(mean > 0.05, "mean green radiance {mean}");
+    }
+}
+
+#[test]
 fn plane_weave_matches_with_refinements_and_partial_groups() {
     if !gpu_or_skip() {
         return;
@@ -125,10 +175,10 @@ fn plane_weave_matches_with_refinements_and_partial_groups() {
 }
 
 /// Every shader variant a scene can choose passes naga's validation, and only the shadow
-/// variants contain the shadow query.
+/// variants contain the shadow query, only the environment variants the RTV.
 #[test]
-fn every_shader_variant_validates_and_shadow_code_exists_only_where_called_for() {
-    use mesobake::realtime::variant::{SHADOW_QUERY_FN, ShaderVariant};
+fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for() {
+    use mesobake::realtime::variant::{GI_BINDING, SHADOW_QUERY_FN, ShaderVariant};
     let mut count = 0;
     for variant in ShaderVariant::all() {
         let module = naga::front::wgsl::parse_str(&variant.source()).unwrap_or_else(|e| {
@@ -149,9 +199,14 @@ fn every_shader_variant_validates_and_shadow_code_exists_only_where_called_for()
             .iter()
             .any(|(_, f)| f.name.as_deref() == Some(SHADOW_QUERY_FN));
         assert_eq!(has_shadow_query, variant.shadows, "{}", variant.name());
+        let has_rtv = module
+            .global_variables
+            .iter()
+            .any(|(_, g)| g.name.as_deref() == Some(GI_BINDING));
+        assert_eq!(has_rtv, variant.environment, "{}", variant.name());
         count += 1;
     }
-    assert_eq!(count, 36);
+    assert_eq!(count, 72);
 }
 
 /// A scene without shadows builds the pipeline of the variant without shadow code; with

@@ -5,8 +5,8 @@
 
 use super::gpu::{AdapterDescription, Gpu};
 use super::resources::{
-    GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_material, upload_package,
-    upload_shell,
+    GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
+    upload_material, upload_package, upload_shell,
 };
 use super::variant::ShaderVariant;
 use crate::error::{Error, Result};
@@ -95,6 +95,7 @@ pub struct Preview<'g> {
     package: GpuPackage,
     material: GpuMaterial,
     shell: GpuShell,
+    environment: Option<GpuEnvironment>,
     colour: wgpu::Texture,
     depth: wgpu::TextureView,
     readback: wgpu::Buffer,
@@ -141,8 +142,17 @@ fn texture(dimension: wgpu::TextureViewDimension) -> wgpu::BindingType {
     }
 }
 
+fn uint_texture(dimension: wgpu::TextureViewDimension) -> wgpu::BindingType {
+    wgpu::BindingType::Texture {
+        sample_type: wgpu::TextureSampleType::Uint,
+        view_dimension: dimension,
+        multisampled: false,
+    }
+}
+
 impl<'g> Preview<'g> {
-    /// Uploads `loaded`'s shell and material and `package`'s GDM, and builds the pipeline of
+    /// Uploads `loaded`'s shell and material and `package`'s GDM (and, for environment
+    /// lighting, its RTV and PRT with the scene's environment), and builds the pipeline of
     /// the scene's shader variant (with the early depth test where `early_depth_test` allows
     /// it and the adapter has it). The package's grid must be the scene's.
     pub fn new(
@@ -152,13 +162,6 @@ impl<'g> Preview<'g> {
         early_depth_test: bool,
     ) -> Result<Preview<'g>> {
         let scene = &loaded.scene;
-        if scene.wants(crate::scene::Effect::EnvironmentLighting) {
-            return Err(Error::Scene(
-                "the real-time preview does not shade environment lighting yet; render the \
-                 scene on the CPU (mesobake render --method gdm)"
-                    .into(),
-            ));
-        }
         if package.dims() != loaded.material.dims() {
             return Err(Error::Scene(format!(
                 "the package holds a {} GDM but the scene's resolution is {}",
@@ -207,14 +210,36 @@ impl<'g> Preview<'g> {
                 layout_entry(1, frag, texture(wgpu::TextureViewDimension::D3)),
             ],
         });
+        let environment_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("environment"),
+            entries: &[
+                layout_entry(0, frag, uniform()),
+                layout_entry(1, frag, uint_texture(wgpu::TextureViewDimension::D3)),
+                layout_entry(2, frag, storage()),
+                layout_entry(3, frag, storage()),
+                layout_entry(4, frag, storage()),
+                layout_entry(5, frag, storage()),
+            ],
+        });
         let prisms = prepare_prisms(&loaded.shell, package.dims());
-        let (gpu_package, material, shell) = gpu.checked("uploading the scene", || {
-            Ok::<_, Error>((
-                upload_package(gpu, &package_layout, package)?,
-                upload_material(gpu, &material_layout, &loaded.material)?,
-                upload_shell(gpu, &prisms, DVec3::from(scene.camera.eye))?,
-            ))
-        })??;
+        let (gpu_package, material, shell, environment) =
+            gpu.checked("uploading the scene", || {
+                Ok::<_, Error>((
+                    upload_package(gpu, &package_layout, package)?,
+                    upload_material(gpu, &material_layout, &loaded.material)?,
+                    upload_shell(gpu, &prisms, DVec3::from(scene.camera.eye))?,
+                    if variant.environment {
+                        Some(upload_environment(
+                            gpu,
+                            &environment_layout,
+                            loaded,
+                            package,
+                        )?)
+                    } else {
+                        None
+                    },
+                ))
+            })??;
         let corners = prisms.iter().flat_map(|p| {
             p.faces[0]
                 .triangle
@@ -283,6 +308,7 @@ impl<'g> Preview<'g> {
                         Some(&scene_layout),
                         Some(&package_layout),
                         Some(&material_layout),
+                        variant.environment.then_some(&environment_layout),
                     ],
                     immediate_size: 0,
                 });
@@ -361,6 +387,7 @@ impl<'g> Preview<'g> {
             geometry: shell.bytes
                 + (lights.len() * std::mem::size_of::<LightRecord>()
                     + std::mem::size_of::<ViewUniform>()) as u64,
+            environment: environment.as_ref().map_or(0, |e| e.bytes),
             targets: pixels * (COLOUR_TEXEL as u64 + 4) + readback.size(),
         };
         Ok(Preview {
@@ -371,6 +398,7 @@ impl<'g> Preview<'g> {
             package: gpu_package,
             material,
             shell,
+            environment,
             colour,
             depth,
             readback,
@@ -427,6 +455,9 @@ impl<'g> Preview<'g> {
             pass.set_bind_group(0, &self.scene_group, &[]);
             pass.set_bind_group(1, &self.package.bind_group, &[]);
             pass.set_bind_group(2, &self.material.bind_group, &[]);
+            if let Some(environment) = &self.environment {
+                pass.set_bind_group(3, &environment.bind_group, &[]);
+            }
             pass.set_vertex_buffer(0, self.shell.vertices.slice(..));
             pass.draw(0..self.shell.vertex_count, 0..1);
         }

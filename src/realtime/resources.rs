@@ -25,6 +25,8 @@ pub struct GpuMemory {
     pub material: u64,
     /// Shell: vertex buffer and per-prism data.
     pub geometry: u64,
+    /// Environment lighting: the RTV, the incident light per vertex, per-prism triangles.
+    pub environment: u64,
     /// Colour, depth and read-back targets.
     pub targets: u64,
 }
@@ -32,7 +34,7 @@ pub struct GpuMemory {
 impl GpuMemory {
     /// The sum.
     pub fn total(&self) -> u64 {
-        self.package + self.material + self.geometry + self.targets
+        self.package + self.material + self.geometry + self.environment + self.targets
     }
 }
 
@@ -61,6 +63,167 @@ pub struct GpuMaterial {
     pub bind_group: wgpu::BindGroup,
     /// Bytes uploaded.
     pub bytes: u64,
+}
+
+/// The environment lighting on the GPU (group 3 of the environment variants).
+pub struct GpuEnvironment {
+    /// Group 3 of the pipeline.
+    pub bind_group: wgpu::BindGroup,
+    /// Bytes uploaded.
+    pub bytes: u64,
+}
+
+/// The RTV's grids (`GiParams` in `shaders/gi_on.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GiParams {
+    dims: [u32; 4],
+    dirs: [u32; 4],
+}
+
+/// A prism's base triangle (`GiPrism` in `shaders/gi_on.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct GiPrismRecord {
+    vertices: [u32; 4],
+    uv01: [f32; 4],
+    uv2: [f32; 4],
+}
+
+/// Uploads what the environment variant reads: `package`'s RTV sections as they are (after
+/// checking them and its PRT against `loaded`'s base mesh), the incident light at each base
+/// vertex (the package's PRT times `loaded`'s environment, in SH) and each prism's base
+/// triangle in texture space.
+pub fn upload_environment(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    loaded: &crate::scene::LoadedScene,
+    package: &Package,
+) -> Result<GpuEnvironment> {
+    use crate::package::gi::{RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
+    let (rtv, prt) = package.gi(&loaded.base)?;
+    let environment = loaded.environment.as_ref().ok_or_else(|| {
+        Error::Scene("effects call for environment_lighting but no environment is given".into())
+    })?;
+    let light = environment.project();
+    let incident: Vec<f32> = prt
+        .iter()
+        .flat_map(|m| crate::gi::prt::incident(m, &light))
+        .flatten()
+        .map(|v| v as f32)
+        .collect();
+    let (dims, dirs) = (package.dims(), package.dirs());
+    let scale = glam::DVec2::new(dims.x as f64, dims.y as f64);
+    let prisms: Vec<GiPrismRecord> = loaded
+        .shell
+        .prisms
+        .iter()
+        .map(|p| {
+            let v = loaded.base.triangles[p.triangle as usize];
+            let uv = p.uv.map(|uv| (uv * scale).as_vec2());
+            GiPrismRecord {
+                vertices: [v[0], v[1], v[2], 0],
+                uv01: [uv[0].x, uv[0].y, uv[1].x, uv[1].y],
+                uv2: [uv[2].x, uv[2].y, 0.0, 0.0],
+            }
+        })
+        .collect();
+    let params = GiParams {
+        dims: [
+            dims.x,
+            dims.y,
+            dims.z,
+            (rtv.weights().len() / rtv.rank() / 48) as u32,
+        ],
+        dirs: [dirs.n_theta, dirs.n_phi, rtv.rank() as u32, 0],
+    };
+    let section = |name| package.section(name).expect("checked by Package::gi");
+    let max = gpu.device.limits().max_storage_buffer_binding_size;
+    let storage = |label: &str, bytes: &[u8]| -> Result<wgpu::Buffer> {
+        if bytes.len() as u64 > max {
+            return Err(Error::Gpu(format!(
+                "{label}: {} bytes exceed this adapter's storage buffer limit of {max} bytes",
+                bytes.len()
+            )));
+        }
+        // A binding may not be empty.
+        let padded;
+        let contents = if bytes.is_empty() {
+            padded = [0u8; 4];
+            &padded[..]
+        } else {
+            bytes
+        };
+        Ok(gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            }))
+    };
+    let weights = storage("RTV weights", section(RTV_WEIGHTS))?;
+    let eigen = storage("RTV eigenfunctions", section(RTV_EIGEN))?;
+    let incident_buffer = storage("incident light", bytemuck::cast_slice(&incident))?;
+    let prism_buffer = storage("prism triangles", bytemuck::cast_slice(&prisms))?;
+    let index = Slabs::new(
+        gpu,
+        "RTV sample index",
+        wgpu::TextureDimension::D3,
+        TexelFormat::R32uint,
+        extent(dims.x, dims.y, dims.z),
+    )?;
+    index.write(
+        gpu,
+        section(RTV_INDEX),
+        wgpu::Origin3d::ZERO,
+        dims.y,
+        dims.z,
+    );
+    let uniform = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("RTV grids"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    let index_view = index.view();
+    let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("environment"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&index_view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: weights.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: eigen.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: incident_buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: prism_buffer.as_entire_binding(),
+            },
+        ],
+    });
+    let bytes = index.bytes()
+        + [&weights, &eigen, &incident_buffer, &prism_buffer, &uniform]
+            .iter()
+            .map(|b| b.size())
+            .sum::<u64>();
+    Ok(GpuEnvironment { bind_group, bytes })
 }
 
 /// The shell on the GPU: 24 vertices (8 face triangles) per prism, and the prisms.

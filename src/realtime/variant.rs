@@ -8,6 +8,8 @@ use serde::Serialize;
 const PIPELINE: &str = include_str!("../../shaders/gdm_preview.wgsl");
 const SHADOWS_ON: &str = include_str!("../../shaders/shadows_on.wgsl");
 const SHADOWS_OFF: &str = include_str!("../../shaders/shadows_off.wgsl");
+const GI_ON: &str = include_str!("../../shaders/gi_on.wgsl");
+const GI_OFF: &str = include_str!("../../shaders/gi_off.wgsl");
 
 /// The fragment entry point as `shaders/gdm_preview.wgsl` declares it.
 const FRAGMENT_ENTRY: &str = "@fragment\nfn fs_main";
@@ -15,11 +17,16 @@ const FRAGMENT_ENTRY: &str = "@fragment\nfn fs_main";
 /// The name of the function that only the shadow variant contains.
 pub const SHADOW_QUERY_FN: &str = "shadow_query";
 
+/// A binding that only the environment-lighting variant declares.
+pub const GI_BINDING: &str = "rtv_weights";
+
 /// One variant of the preview's shader.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 pub struct ShaderVariant {
     /// Shadow queries along the lights (the scene's `shadows` effect).
     pub shadows: bool,
+    /// Environment light through the PRT and the RTV (the scene's `environment_lighting`).
+    pub environment: bool,
     /// GDM refinement queries per hit (the scene's `gdm_refinements`), unrolled as a constant.
     pub refinements: u32,
     /// Declares the fragment depth conservative (`greater_equal`: a hit lies behind the face
@@ -33,6 +40,7 @@ impl ShaderVariant {
     pub fn for_scene(scene: &Scene, early_depth_test: bool) -> ShaderVariant {
         ShaderVariant {
             shadows: scene.wants(Effect::Shadows),
+            environment: scene.wants(Effect::EnvironmentLighting),
             refinements: scene.gdm_refinements,
             early_depth_test,
         }
@@ -40,10 +48,12 @@ impl ShaderVariant {
 
     /// Every variant a valid scene can ask for.
     pub fn all() -> impl Iterator<Item = ShaderVariant> {
-        [false, true].into_iter().flat_map(|shadows| {
+        let flags = [(false, false), (false, true), (true, false), (true, true)];
+        flags.into_iter().flat_map(|(shadows, environment)| {
             (0..=MAX_GDM_REFINEMENTS).flat_map(move |refinements| {
                 [false, true].map(|early_depth_test| ShaderVariant {
                     shadows,
+                    environment,
                     refinements,
                     early_depth_test,
                 })
@@ -51,11 +61,12 @@ impl ShaderVariant {
         })
     }
 
-    /// A short name, e.g. `shadows+refine2+earlyz`.
+    /// A short name, e.g. `shadows+env+refine2+earlyz`.
     pub fn name(&self) -> String {
         format!(
-            "{}+refine{}{}",
+            "{}{}+refine{}{}",
             if self.shadows { "shadows" } else { "noshadows" },
+            if self.environment { "+env" } else { "" },
             self.refinements,
             if self.early_depth_test { "+earlyz" } else { "" }
         )
@@ -77,9 +88,10 @@ impl ShaderVariant {
             PIPELINE.to_owned()
         };
         format!(
-            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{pipeline}\n{shadows}",
+            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{pipeline}\n{shadows}\n{}",
             self.name(),
-            self.refinements
+            self.refinements,
+            if self.environment { GI_ON } else { GI_OFF }
         )
     }
 }
