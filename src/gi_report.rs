@@ -86,7 +86,7 @@ pub struct RtvRow {
     pub relative_error: f64,
     /// Surface samples.
     pub samples: usize,
-    /// Bytes of the transfer (samples × 3 channels × 16 coefficients, f32).
+    /// Bytes of the uncompressed transfer (per sample and channel a 16×16 f32 matrix).
     pub bytes: usize,
 }
 
@@ -177,7 +177,7 @@ pub fn gi_accuracy(
                 bounce_seconds: stats.bounce_seconds,
                 relative_error: 0.0,
                 samples: stats.samples,
-                bytes: stats.samples * 3 * sh::COEFFS * 4,
+                bytes: stats.samples * 3 * sh::COEFFS * sh::COEFFS * 4,
             };
             baked.push((
                 row,
@@ -400,7 +400,7 @@ pub fn markdown(report: &GiAccuracy) -> String {
             "bounces s",
             "relative RMS error",
             "samples",
-            "RTV bytes",
+            "RTV bytes (uncompressed)",
         ],
         report.rtv.iter().map(|r| {
             vec![
