@@ -174,7 +174,9 @@ impl CompressedRtv {
                 sample_of.len()
             ));
         }
-        if weights.len() % (MATRICES * rank) != 0 || eigen.len() != dirs.count() * MATRICES * rank {
+        if !weights.len().is_multiple_of(MATRICES * rank)
+            || eigen.len() != dirs.count() * MATRICES * rank
+        {
             return bad("the weights or eigenfunctions have the wrong length".into());
         }
         let samples = weights.len() / (MATRICES * rank);
