@@ -69,6 +69,18 @@ async fn job(s: &TestServer, id: &str) -> Value {
         .unwrap()
 }
 
+/// The package of succeeded job `done`, downloaded and parsed.
+async fn fetch_package(s: &TestServer, done: &Value) -> Package {
+    let digest = done["package_digest"].as_str().unwrap();
+    let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    Package::parse(bytes.to_vec()).unwrap()
+}
+
 async fn wait_for(s: &TestServer, id: &str, until: impl Fn(&Value) -> bool) -> Value {
     let start = Instant::now();
     loop {
@@ -125,14 +137,7 @@ async fn jobs_bake_once_report_progress_and_reuse_results() {
             done["timings"]["bake_gdm"].as_f64().unwrap() > 0.0,
             "{done}"
         );
-        let digest = done["package_digest"].as_str().unwrap();
-        let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
-            .await
-            .unwrap()
-            .bytes()
-            .await
-            .unwrap();
-        let package = Package::parse(bytes.to_vec()).unwrap();
+        let package = fetch_package(&s, &done).await;
         assert_eq!(package.dims(), Dims::new(16, 16, 8).unwrap());
         assert_eq!(package.manifest().gdm.rank, 4);
         // Identical inputs: the same job, not a second bake; a different camera changes
@@ -245,14 +250,7 @@ async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
     for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
         assert!(done["timings"][stage].as_f64().is_some(), "{stage}: {done}");
     }
-    let digest = done["package_digest"].as_str().unwrap();
-    let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
-        .await
-        .unwrap()
-        .bytes()
-        .await
-        .unwrap();
-    let package = Package::parse(bytes.to_vec()).unwrap();
+    let package = fetch_package(&s, &done).await;
     let gi = package.manifest().gi.clone().expect("radiance transfer");
     assert!(gi.macro_shadows && gi.glossy.is_some(), "{gi:?}");
     // The environment is not in the package, so another one shares the job; a change of
