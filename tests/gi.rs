@@ -411,6 +411,18 @@ fn a_white_furnace_converges_to_the_light_with_bounces() {
 /// A flat plane under a sky of radiance `c` above the horizon and `ground` below, with a
 /// height-field slab (half the depth) and effects `effects`, loaded.
 fn flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::LoadedScene {
+    let material =
+        serde_json::json!({ "albedo": [0.5, 0.25, 1.0], "specular": [0, 0, 0], "shininess": 1 });
+    flat_slab_with(effects, c, ground, material)
+}
+
+/// [`flat_slab`] with another `material`.
+fn flat_slab_with(
+    effects: &[&str],
+    c: f64,
+    ground: f64,
+    material: serde_json::Value,
+) -> mesobake::scene::LoadedScene {
     let dir = tempfile::tempdir().unwrap();
     let mut png = Vec::new();
     let mut encoder = png::Encoder::new(&mut png, 4, 4);
@@ -428,7 +440,7 @@ fn flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::LoadedSc
         "resolution": [16, 16, 8],
         "directions": [16, 32],
         "shell": { "thickness": 0.1, "tiles_per_uv": [4, 4] },
-        "material": { "albedo": [0.5, 0.25, 1.0], "specular": [0, 0, 0], "shininess": 1 },
+        "material": material,
         "camera": { "eye": [0.2, 2.5, 0.3], "target": [0, 0, 0], "fov_y_degrees": 40, "width": 32, "height": 32 },
         "environment": { "sky": { "clear": {
             "sun_direction": [0, 1, 0], "sun_radiance": [c, c, c], "sun_radius_degrees": 1.0,
@@ -591,6 +603,40 @@ fn the_path_tracer_reflects_albedo_times_radiance_on_a_slab_without_sh_truncatio
                         "{ground}: {rgb:?}"
                     );
                 }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
+    use mesobake::render_scene::{GdmSource, RenderMethod, render};
+    // A grey material (ρ = 0.5, k_s = 0.3) makes both lobes weigh ρ + k_s, and a narrow lobe
+    // (Blinn–Phong 400: Phong 100) about the mirror of a near-vertical view lies wholly above
+    // the horizon (its mass below is under 1e-20): every path brings (ρ + k_s)·c, no variance.
+    let c = 0.8;
+    let material = serde_json::json!({
+        "albedo": [0.5, 0.5, 0.5], "specular": [0.3, 0.3, 0.3], "shininess": 400 });
+    for (effects, expected) in [
+        (&["environment_lighting", "environment_gloss"][..], 0.8 * c),
+        (&["environment_lighting"][..], 0.5 * c),
+    ] {
+        let loaded = flat_slab_with(effects, c, 0.0, material.clone());
+        let r = render(
+            &loaded,
+            RenderMethod::Truth,
+            GdmSource::Bake,
+            &Limits::default(),
+            &(),
+        )
+        .unwrap();
+        assert!(r.image.hits() > 500);
+        for (rgb, _) in r.image.rgb.iter().zip(&r.image.mask).filter(|(_, h)| **h) {
+            for v in rgb {
+                assert!(
+                    (f64::from(*v) - expected).abs() < 1e-6,
+                    "{effects:?}: {rgb:?}"
+                );
             }
         }
     }

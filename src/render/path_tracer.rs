@@ -4,11 +4,15 @@
 //! base mesh (opaque) and otherwise brings the environment map's radiance in its direction
 //! (the full-resolution map, not its SH projection).
 //!
-//! At each hit the incident light is estimated with `samples` cosine-distributed directions
-//! (so each estimate is albedo × the sampled radiance: ρ/π·∫L cos dω has pdf cos/π), each
-//! followed as one path of at most `depth` bounces, every surface Lambertian with the
-//! material volume's albedo. Local lights are shaded as the ground truth does. The random
-//! numbers are seeded from the camera ray, so images are reproducible.
+//! At each hit the reflected light is estimated with `samples` paths of at most `depth`
+//! bounces. Every surface reflects as the RTV models it ([`crate::gi::rtv`]): Lambert with the
+//! material volume's albedo ρ, plus, when the scene calls for `environment_gloss`, the
+//! normalized Phong lobe k_s·(s+1)/(2π)·cos^s α about the mirror direction (s = shininess/4,
+//! no cosine at the light, nothing from below the surface). Each bounce picks one lobe, the
+//! diffuse one with probability P = ρ̄/(ρ̄ + k̄_s) (channel means), and samples its own density:
+//! cosine-distributed directions (weight ρ/P) or the Phong lobe (weight k_s/(1 − P)), so a
+//! grey material has no variance from the choice. Local lights are shaded as the ground truth
+//! does. The random numbers are seeded from the camera ray, so images are reproducible.
 
 use super::truth::{Surface, TruthRenderer};
 use crate::error::{Error, Result};
@@ -18,6 +22,13 @@ use crate::scene::{Effect, LoadedScene, Scene};
 use glam::DVec3;
 use std::f64::consts::TAU;
 
+/// The glossy lobe of the environment light's BRDF.
+#[derive(Clone, Copy, Debug)]
+struct Gloss {
+    specular: DVec3,
+    exponent: f64,
+}
+
 /// The path tracer over one loaded scene.
 pub struct PathTracer<'a> {
     truth: TruthRenderer<'a>,
@@ -25,6 +36,7 @@ pub struct PathTracer<'a> {
     environment: &'a Environment,
     samples: u32,
     depth: u32,
+    gloss: Option<Gloss>,
 }
 
 impl<'a> PathTracer<'a> {
@@ -49,6 +61,12 @@ impl<'a> PathTracer<'a> {
             environment,
             samples,
             depth,
+            gloss: crate::gi::shading::rtv_params(&loaded.scene)
+                .glossy
+                .map(|g| Gloss {
+                    specular: DVec3::from(g.specular),
+                    exponent: g.exponent,
+                }),
         })
     }
 
@@ -63,24 +81,60 @@ impl<'a> PathTracer<'a> {
         let mut rng = Rng::from_ray(origin, dir);
         let mut sum = DVec3::ZERO;
         for _ in 0..self.samples {
-            sum += self.incident(&surface, &mut rng, 1);
+            sum += self.reflected(&surface, dir, &mut rng, 1);
         }
-        Some(local + surface.albedo * sum / f64::from(self.samples))
+        Some(local + sum / f64::from(self.samples))
     }
 
-    /// One sample of the light arriving at `from` along a cosine-distributed direction.
-    fn incident(&self, from: &Surface, rng: &mut Rng, depth: u32) -> DVec3 {
-        let w = cosine_direction(from.normal, rng);
-        match self.truth.trace(from.start, w, 0.0, f64::INFINITY) {
-            Some(hit) if depth < self.depth => {
-                let next = self.truth.surface(&hit, from.start, w);
-                next.albedo * self.incident(&next, rng, depth + 1)
+    /// One sample of the environment light that `at`, reached along `arriving`, reflects
+    /// back along it.
+    fn reflected(&self, at: &Surface, arriving: DVec3, rng: &mut Rng, depth: u32) -> DVec3 {
+        let (w, weight) = match self.gloss {
+            Some(g) if rng.uniform() >= diffuse_probability(at.albedo, g.specular) => {
+                let p = diffuse_probability(at.albedo, g.specular);
+                let mirror = arriving - 2.0 * arriving.dot(at.normal) * at.normal;
+                let w = phong_direction(mirror, g.exponent, rng);
+                if w.dot(at.normal) <= 0.0 {
+                    return DVec3::ZERO;
+                }
+                (w, g.specular / (1.0 - p))
             }
-            Some(_) => DVec3::ZERO,
-            None if self.base.blocked(from.start, w) => DVec3::ZERO,
-            None => DVec3::from(self.environment.radiance(w)),
+            Some(g) => {
+                let p = diffuse_probability(at.albedo, g.specular);
+                (cosine_direction(at.normal, rng), at.albedo / p)
+            }
+            None => (cosine_direction(at.normal, rng), at.albedo),
+        };
+        if weight == DVec3::ZERO {
+            return DVec3::ZERO;
         }
+        weight
+            * match self.truth.trace(at.start, w, 0.0, f64::INFINITY) {
+                Some(hit) if depth < self.depth => {
+                    let next = self.truth.surface(&hit, at.start, w);
+                    self.reflected(&next, w, rng, depth + 1)
+                }
+                Some(_) => DVec3::ZERO,
+                None if self.base.blocked(at.start, w) => DVec3::ZERO,
+                None => DVec3::from(self.environment.radiance(w)),
+            }
     }
+}
+
+/// The probability of following the diffuse lobe: its share of the channel-mean reflectance.
+fn diffuse_probability(albedo: DVec3, specular: DVec3) -> f64 {
+    let (d, s) = (albedo.element_sum(), specular.element_sum());
+    if d + s > 0.0 { d / (d + s) } else { 1.0 }
+}
+
+/// A direction around unit `axis` with density (s+1)/(2π)·cos^s α (the normalized Phong lobe).
+fn phong_direction(axis: DVec3, exponent: f64, rng: &mut Rng) -> DVec3 {
+    let (u1, u2) = (rng.uniform(), rng.uniform());
+    let cos = (1.0 - u1).powf(1.0 / (exponent + 1.0));
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = TAU * u2;
+    let (t, b) = axis.any_orthonormal_pair();
+    (t * (sin * phi.cos()) + b * (sin * phi.sin()) + axis * cos).normalize()
 }
 
 /// A direction around unit `n` with density cos θ / π.
