@@ -259,6 +259,24 @@ async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
         json!({ "sky": { "overcast": { "zenith": [1, 1, 1], "ground": [0, 0, 0] } } });
     let (_, same) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
     assert_eq!(same["id"], id.as_str());
+    // The preview renders the package under the scene's sky; an EXR environment, which the
+    // server cannot take, is refused before any job is queued.
+    let preview = |scene: &Value| {
+        reqwest::Client::new()
+            .post(s.url("/api/v1/preview"))
+            .json(&json!({ "scene": scene, "rank": 4 }))
+            .send()
+    };
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() != Ok("1") {
+        let r = preview(&scene).await.unwrap();
+        assert_eq!(r.status(), 200);
+        assert_eq!(r.headers()["content-type"], "image/png");
+    }
+    let mut exr = scene.clone();
+    exr["environment"] = json!({ "exr": "sky.exr" });
+    let r = preview(&exr).await.unwrap();
+    assert_eq!(r.status(), 422);
+    assert!(r.text().await.unwrap().contains("EXR"));
     scene["material"]["albedo"] = json!([0.5, 0.5, 0.5]);
     let (_, other) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
     assert_ne!(other["id"], id.as_str());

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::package::Package;
 use crate::preview_scene::preview;
 use crate::realtime::gpu::Gpu;
-use crate::scene::{LoadedScene, Scene};
+use crate::scene::{Effect, EnvironmentSource, LoadedScene, Scene};
 use axum::Json;
 use axum::extract::State;
 use axum::http::{StatusCode, header};
@@ -75,6 +75,16 @@ pub async fn render(
 ) -> ApiResult<Response> {
     let spec = check_spec(&state, body).await?;
     let camera = spec.scene.camera;
+    let lit_by_exr = matches!(spec.scene.environment, Some(EnvironmentSource::Exr(_)))
+        && spec.scene.wants(Effect::EnvironmentLighting);
+    if lit_by_exr {
+        return Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "previews light environment-lit scenes with the built-in skies only: the server \
+             takes no EXR environment uploads (bake jobs do not need the environment)"
+                .to_owned(),
+        ));
+    }
     if camera.width > MAX_PREVIEW_SIDE || camera.height > MAX_PREVIEW_SIDE {
         return Err(ApiError::new(
             StatusCode::UNPROCESSABLE_ENTITY,
