@@ -631,7 +631,7 @@ fn run(cli: Cli) -> Result<()> {
                     "scene": scene,
                     "output": out,
                     "bytes": baked.bytes.len(),
-                    "stages": baked.plan,
+                    "plan": baked.plan,
                     "seconds": seconds,
                     "gdm": {
                         "rank": baked.gdm.svd.rank,

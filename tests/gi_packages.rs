@@ -67,16 +67,13 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
         v.as_array()
             .unwrap()
             .iter()
-            .map(|s| {
-                s.as_str()
-                    .map_or_else(|| s["stage"].to_string(), String::from)
-            })
+            .map(|s| s.as_str().unwrap().to_owned())
             .collect()
     };
 
     let (summary, manifest) = stages(GI);
     assert_eq!(
-        names(&summary["stages"]["stages"]),
+        names(&summary["plan"]["stages"]),
         [
             "load",
             "bake_gdm",
@@ -87,7 +84,7 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
             "encode"
         ]
     );
-    assert_eq!(summary["stages"]["skipped"], serde_json::json!([]));
+    assert_eq!(summary["plan"]["skipped"], serde_json::json!([]));
     for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
         assert!(
             summary["seconds"][stage].as_f64().unwrap() >= 0.0,
@@ -102,7 +99,7 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
 
     // Lambertian, unshadowed: the same stages, with the parts not called for skipped.
     let (summary, manifest) = stages(&["silhouettes", "environment_lighting"]);
-    let skipped = &summary["stages"]["skipped"];
+    let skipped = &summary["plan"]["skipped"];
     assert_eq!(
         skipped,
         &serde_json::json!([
@@ -122,15 +119,14 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
     // No environment lighting: no radiance-transfer stage runs and the package has none.
     let (summary, manifest) = stages(&["silhouettes", "shadows"]);
     assert_eq!(
-        names(&summary["stages"]["stages"]),
+        names(&summary["plan"]["stages"]),
         ["load", "bake_gdm", "compress", "encode"]
     );
-    for (s, stage) in summary["stages"]["skipped"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .zip(["bake_prt", "bake_rtv", "compress_rtv"])
-    {
+    for (s, stage) in summary["plan"]["skipped"].as_array().unwrap().iter().zip([
+        "bake_prt",
+        "bake_rtv",
+        "compress_rtv",
+    ]) {
         assert_eq!(s["stage"], stage);
         assert_eq!(s["reason"], "the scene calls for no environment_lighting");
         assert!(summary["seconds"].get(stage).is_none());
