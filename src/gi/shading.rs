@@ -123,6 +123,16 @@ impl GiShading {
         })
     }
 
+    /// Incident SH per base-mesh vertex (per channel, in the vertex frame).
+    pub fn incident(&self) -> &[RgbSh] {
+        &self.incident
+    }
+
+    /// Per prism: its base vertices and their texture coordinates (voxel units, x and y).
+    pub fn prisms(&self) -> &[([u32; 3], [DVec2; 3])] {
+        &self.prisms
+    }
+
     /// The environment light leaving the hit at texture point `texture` (voxel units) of
     /// prism `prism`, reached along texture direction `view` (RGB radiance). A GDM hit can
     /// lie up to a voxel inside the solid, beyond the reach of the samples' interpolation;

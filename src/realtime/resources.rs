@@ -101,26 +101,20 @@ pub fn upload_environment(
     package: &Package,
 ) -> Result<GpuEnvironment> {
     use crate::package::gi::{RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
-    let (rtv, prt) = package.gi(&loaded.base)?;
-    let environment = loaded.environment.as_ref().ok_or_else(|| {
-        Error::Scene("effects call for environment_lighting but no environment is given".into())
-    })?;
-    let light = environment.project();
-    let incident: Vec<f32> = prt
+    // The CPU twin's own tables: the same incident light and triangles on both sides.
+    let shading = crate::gi::shading::GiShading::from_package(loaded, package)?;
+    let incident: Vec<f32> = shading
+        .incident()
         .iter()
-        .flat_map(|m| crate::gi::prt::incident(m, &light))
         .flatten()
-        .map(|v| v as f32)
+        .flatten()
+        .map(|&v| v as f32)
         .collect();
-    let (dims, dirs) = (package.dims(), package.dirs());
-    let scale = glam::DVec2::new(dims.x as f64, dims.y as f64);
-    let prisms: Vec<GiPrismRecord> = loaded
-        .shell
-        .prisms
+    let prisms: Vec<GiPrismRecord> = shading
+        .prisms()
         .iter()
-        .map(|p| {
-            let v = loaded.base.triangles[p.triangle as usize];
-            let uv = p.uv.map(|uv| (uv * scale).as_vec2());
+        .map(|(v, uv)| {
+            let uv = uv.map(|uv| uv.as_vec2());
             GiPrismRecord {
                 vertices: [v[0], v[1], v[2], 0],
                 uv01: [uv[0].x, uv[0].y, uv[1].x, uv[1].y],
@@ -128,16 +122,17 @@ pub fn upload_environment(
             }
         })
         .collect();
+    let (dims, dirs) = (package.dims(), package.dirs());
+    let info = package
+        .manifest()
+        .gi
+        .as_ref()
+        .expect("checked by from_package");
     let params = GiParams {
-        dims: [
-            dims.x,
-            dims.y,
-            dims.z,
-            (rtv.weights().len() / rtv.rank() / 48) as u32,
-        ],
-        dirs: [dirs.n_theta, dirs.n_phi, rtv.rank() as u32, 0],
+        dims: [dims.x, dims.y, dims.z, info.samples],
+        dirs: [dirs.n_theta, dirs.n_phi, info.compression.rank as u32, 0],
     };
-    let section = |name| package.section(name).expect("checked by Package::gi");
+    let section = |name| package.section(name).expect("checked by Package::parse");
     let max = gpu.device.limits().max_storage_buffer_binding_size;
     let storage = |label: &str, bytes: &[u8]| -> Result<wgpu::Buffer> {
         if bytes.len() as u64 > max {
