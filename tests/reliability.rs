@@ -158,22 +158,36 @@ async fn two_hundred_jobs_survive_a_worker_killed_mid_bake() {
     let doomed = worker(url, data.path());
     let _survivor = worker(url, data.path());
     let pid = doomed.0.id();
-    // Kill the first worker while it holds a running job, after some jobs are done.
+    // Kill the first worker while it holds a running job, after some jobs are done. It is
+    // stopped (SIGSTOP) before its jobs are counted, so that it cannot finish the job it
+    // holds between the count and the kill; it resumes when it held none.
+    let signal = |name: &str| {
+        // The shell's builtin: no procps needed.
+        let status = Command::new("sh")
+            .args(["-c", &format!("kill {name} {pid}")])
+            .status()
+            .unwrap();
+        assert!(status.success(), "kill {name} {pid}");
+    };
     let start = Instant::now();
     loop {
         let done: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM jobs WHERE state = 'succeeded'")
             .fetch_one(&s.state.db.pool)
             .await
             .unwrap();
-        let holding: i64 = sqlx::query_scalar(
-            "SELECT COUNT(*) FROM jobs WHERE state = 'running' AND lease_owner LIKE $1",
-        )
-        .bind(format!("%-{pid}-%"))
-        .fetch_one(&s.state.db.pool)
-        .await
-        .unwrap();
-        if done >= 20 && holding > 0 {
-            break;
+        if done >= 20 {
+            signal("-STOP");
+            let holding: i64 = sqlx::query_scalar(
+                "SELECT COUNT(*) FROM jobs WHERE state = 'running' AND lease_owner LIKE $1",
+            )
+            .bind(format!("%-{pid}-%"))
+            .fetch_one(&s.state.db.pool)
+            .await
+            .unwrap();
+            if holding > 0 {
+                break;
+            }
+            signal("-CONT");
         }
         assert!(
             start.elapsed() < Duration::from_secs(120),
