@@ -71,6 +71,8 @@ fn error_within_one_percent_of_optimal() {
         (3000, 64, 0.85, 1e-2, 2),
         (5000, 24, 0.5, 0.0, 3),
         (64, 64, 0.9, 1e-4, 4),
+        // Row blocks of 2048 and 5: the last one is shorter than the basis (k + 8).
+        (2053, 32, 0.8, 1e-3, 5),
     ] {
         let data = test_matrix(m, n, decay, eps, seed);
         let full = full_spectrum(&data, n);
@@ -120,10 +122,11 @@ fn zero_constant_and_rank_deficient() {
     }
 
     let low = test_matrix(500, 30, 1.0, 0.0, 5); // full rank 30 …
-    let mut rank3 = vec![0.0f32; 500 * 30];
+    // 4100 rows: row blocks of 2048, 2048 and 4, the last shorter than the basis.
+    let mut rank3 = vec![0.0f32; 4100 * 30];
     let mut r = noise(6);
     let (u, v): (Vec<[f64; 3]>, Vec<[f64; 3]>) = (
-        (0..500).map(|_| [r(), r(), r()]).collect(),
+        (0..4100).map(|_| [r(), r(), r()]).collect(),
         (0..30).map(|_| [r(), r(), r()]).collect(),
     );
     for (i, x) in rank3.iter_mut().enumerate() {

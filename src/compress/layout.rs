@@ -1,6 +1,6 @@
 //! The paper's matrix layouts of baked data, read as [`RowSource`]s without a copy.
 
-use super::svd::RowSource;
+use super::svd::{BlockOrder, RowSource};
 use crate::error::{Error, Result};
 use crate::gdm::{EscapeConvention, Gdm};
 
@@ -33,16 +33,14 @@ impl RowSource for GdmRows<'_> {
         (self.gdm.dirs().n_theta * self.gdm.dims().z) as usize
     }
 
-    fn read_rows(&self, start: usize, out: &mut [f32]) {
+    fn read_block(&self, start: usize, out: &mut [f32]) -> BlockOrder {
         let (d, dirs) = (self.gdm.dims(), self.gdm.dirs());
         let (layer, z) = ((d.x * d.y) as usize, d.z as usize);
         let (n, n_phi) = (self.cols(), dirs.n_phi as usize);
         let data = self.gdm.data();
         let count = out.len() / n;
-        // Gather column by column (runs of rows sharing one φ are contiguous in every
-        // column's source), then transpose in tiles: scattering straight into row-major
-        // order would touch a new cache line per value.
-        let mut columns = vec![0.0f32; count * n];
+        // Column by column: runs of rows sharing one φ are contiguous in every column's
+        // source, while row-major order would touch a new cache line per value.
         let mut r = start;
         while r < start + count {
             let (b, texel) = (r / layer, r % layer);
@@ -51,20 +49,11 @@ impl RowSource for GdmRows<'_> {
                 for k in 0..z {
                     let c = a * z + k;
                     let src = &data[((a * n_phi + b) * z + k) * layer + texel..][..run];
-                    columns[c * count + r - start..][..run].copy_from_slice(src);
+                    out[c * count + r - start..][..run].copy_from_slice(src);
                 }
             }
             r += run;
         }
-        const TILE: usize = 32;
-        for c0 in (0..n).step_by(TILE) {
-            for t0 in (0..count).step_by(TILE) {
-                for c in c0..(c0 + TILE).min(n) {
-                    for t in t0..(t0 + TILE).min(count) {
-                        out[t * n + c] = columns[c * count + t];
-                    }
-                }
-            }
-        }
+        BlockOrder::ColumnMajor
     }
 }

@@ -9,11 +9,13 @@
 //!    optimal error of every rank, sqrt(Σ_{i>k} σᵢ²) (Eckart–Young), which chooses the rank
 //!    for a target RMSE and is reported.
 //! 3. **Refinement**: with V the top k + 8 eigenvectors (oversampled), Q = qr(A·V) (A·V in
-//!    f32, since only its span matters; QR in f64 Householder) and the small SVD
+//!    f32, since only its span matters; QR in f64) and the small SVD
 //!    B = QᵀA = U_B Σ V_Bᵀ (B in f64), whose top k components give
 //!    A ≈ (Q U_B Σ)·V_Bᵀ. Projecting A onto span(A·V) recovers the accuracy that squaring the
 //!    singular values in an f32 G loses, so small singular values and rank-deficient matrices
-//!    come out right to f32 rounding.
+//!    come out right to f32 rounding. One more read of A suffices: the QR is a TSQR (each
+//!    row block's Householder QR Q_b·R_b, then one of the stacked R_b), so every block forms
+//!    its A_b·V, Q_b and Q_bᵀ·A_b as soon as it is read.
 //!
 //! The weight factor W = Q U_B Σ carries the singular values; the eigen factor E = V_B has
 //! orthonormal columns. Singular values below 10⁻⁶ σ₁ (f32 data carries no information there)
@@ -25,15 +27,58 @@ use crate::limits::Limits;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
-/// A matrix read a block of rows at a time (row-major f32), so that layouts over large
-/// arrays need no transposed copy.
+/// A matrix read a block of rows at a time (f32), so that layouts over large arrays need no
+/// transposed copy.
 pub trait RowSource: Sync {
     /// Number of rows m.
     fn rows(&self) -> usize;
     /// Number of columns n.
     fn cols(&self) -> usize;
+    /// Writes rows `start..start + out.len() / cols` into `out` in whichever order this source
+    /// gathers fastest, and says which.
+    fn read_block(&self, start: usize, out: &mut [f32]) -> BlockOrder;
     /// Writes rows `start..start + out.len() / cols` into `out`, row-major.
-    fn read_rows(&self, start: usize, out: &mut [f32]);
+    fn read_rows(&self, start: usize, out: &mut [f32]) {
+        let (n, count) = (self.cols(), out.len() / self.cols());
+        let mut block = vec![0.0f32; out.len()];
+        match self.read_block(start, &mut block) {
+            BlockOrder::RowMajor => out.copy_from_slice(&block),
+            BlockOrder::ColumnMajor => transpose(&block, n, count, out),
+        }
+    }
+}
+
+/// The order of a block of rows as a [`RowSource`] wrote it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BlockOrder {
+    /// Row after row.
+    RowMajor,
+    /// Column after column (each column holds the block's rows).
+    ColumnMajor,
+}
+
+impl BlockOrder {
+    /// (row stride, column stride) of a `count` × `cols` block in this order.
+    pub fn strides(self, count: usize, cols: usize) -> (usize, usize) {
+        match self {
+            BlockOrder::RowMajor => (cols, 1),
+            BlockOrder::ColumnMajor => (1, count),
+        }
+    }
+}
+
+/// Writes the transpose of `src` (row-major `rows` × `cols`) into `out`, in cache tiles.
+fn transpose(src: &[f32], rows: usize, cols: usize, out: &mut [f32]) {
+    const TILE: usize = 32;
+    for r0 in (0..rows).step_by(TILE) {
+        for c0 in (0..cols).step_by(TILE) {
+            for r in r0..(r0 + TILE).min(rows) {
+                for c in c0..(c0 + TILE).min(cols) {
+                    out[c * rows + r] = src[r * cols + c];
+                }
+            }
+        }
+    }
 }
 
 /// A dense row-major matrix as a [`RowSource`].
@@ -63,8 +108,9 @@ impl RowSource for DenseRows<'_> {
     fn cols(&self) -> usize {
         self.cols
     }
-    fn read_rows(&self, start: usize, out: &mut [f32]) {
+    fn read_block(&self, start: usize, out: &mut [f32]) -> BlockOrder {
         out.copy_from_slice(&self.data[start * self.cols..][..out.len()]);
+        BlockOrder::RowMajor
     }
 }
 
@@ -262,36 +308,25 @@ impl GramEigen {
         let v_k: Vec<f32> = (0..n * k)
             .map(|x| self.vectors[(x / k, self.order[x % k])] as f32)
             .collect();
-        // Y = A·V_k (m × k) in f32: only its span matters, and the f64 QR below
-        // orthonormalizes it; then Q, its orthonormal basis.
-        let mut y = vec![0.0f64; m * k];
-        y.par_chunks_mut(block * k)
-            .enumerate()
-            .for_each(|(b, out)| {
-                let count = out.len() / k;
-                let rows = read_block(a, b * block, count);
-                let mut y_b = vec![0.0f32; count * k];
-                gemm(count, n, k, (&rows, n, 1), (&v_k, k, 1), (&mut y_b, k, 1));
-                out.iter_mut().zip(y_b).for_each(|(o, v)| *o = v as f64);
-            });
-        let q = DMatrix::from_row_slice(m, k, &y).qr().q();
-        // B = QᵀA (k × n), block by block in order.
-        let parts: Vec<Vec<f64>> = blocks(m, block)
+        let parts: Vec<BlockProjection> = blocks(m, block)
             .into_par_iter()
-            .map(|(start, count)| {
-                let rows = read_block_f64(a, start, count);
-                let mut out = vec![0.0f64; k * n];
-                // Q is column-major m × k: Q_bᵀ (k × count) has row stride m.
-                let qb = &q.as_slice()[start..];
-                gemm(k, count, n, (qb, m, 1), (&rows, n, 1), (&mut out, n, 1));
-                out
-            })
+            .map(|(start, count)| BlockProjection::new(a, start, count, &v_k, k))
             .collect();
-        let b_sum = parts.into_iter().fold(vec![0.0f64; k * n], |mut acc, p| {
-            acc.iter_mut().zip(p).for_each(|(x, y)| *x += y);
-            acc
-        });
-        let b = DMatrix::from_row_slice(k, n, &b_sum);
+        // TSQR: the blocks' R factors stacked, factored again, give Q = diag(Q_b)·Q_top.
+        let mut r_all = DMatrix::<f64>::zeros(parts.iter().map(|p| p.r.nrows()).sum(), k);
+        let mut offsets = Vec::with_capacity(parts.len());
+        let mut row = 0;
+        for p in &parts {
+            r_all.rows_mut(row, p.r.nrows()).copy_from(&p.r);
+            offsets.push(row);
+            row += p.r.nrows();
+        }
+        let q_top = r_all.qr().q();
+        // B = QᵀA = Σ_b Q_top,bᵀ·(Q_bᵀ·A_b), summed in block order.
+        let mut b = DMatrix::<f64>::zeros(k, n);
+        for (p, &o) in parts.iter().zip(&offsets) {
+            b += q_top.rows(o, p.r.nrows()).transpose() * &p.qt_a;
+        }
         let svd = b.svd(true, true);
         let (u_b, v_bt) = (svd.u.expect("requested"), svd.v_t.expect("requested"));
         let mut idx: Vec<usize> = (0..svd.singular_values.len()).collect();
@@ -306,17 +341,54 @@ impl GramEigen {
         let scaled_u = DMatrix::from_fn(u_b.nrows(), k, |r, c| {
             u_b[(r, idx[c])] * svd.singular_values[idx[c]]
         });
-        let w = &q * scaled_u;
+        // W = Q·U_B·Σ, block by block: W_b = Q_b·(Q_top,b·U_B·Σ).
         result.rank = k;
-        result.weights = (0..m)
-            .flat_map(|r| (0..k).map(move |c| (r, c)))
-            .map(|(r, c)| w[(r, c)] as f32)
+        result.weights = parts
+            .iter()
+            .zip(&offsets)
+            .flat_map(|(p, &o)| {
+                let w = &p.q * (q_top.rows(o, p.r.nrows()) * &scaled_u);
+                (0..w.nrows())
+                    .flat_map(move |r| (0..k).map(move |c| (r, c)))
+                    .map(move |(r, c)| w[(r, c)] as f32)
+                    .collect::<Vec<f32>>()
+            })
             .collect();
         result.eigen = (0..n)
             .flat_map(|r| (0..k).map(move |c| (r, c)))
             .map(|(r, c)| v_bt[(idx[c], r)] as f32)
             .collect();
         Ok(result)
+    }
+}
+
+/// One row block's share of the projection step, from a single read of the block.
+struct BlockProjection {
+    /// Q_b (count × min(count, k)): orthonormal basis of the block's rows of A·V.
+    q: DMatrix<f64>,
+    /// R_b with Q_b·R_b = A_b·V.
+    r: DMatrix<f64>,
+    /// Q_bᵀ·A_b (min(count, k) × n).
+    qt_a: DMatrix<f64>,
+}
+
+impl BlockProjection {
+    /// Y_b = A_b·V (f32: only its span matters), its thin QR in f64 (Householder), and
+    /// Q_bᵀ·A_b in f64.
+    fn new(a: &dyn RowSource, start: usize, count: usize, v: &[f32], k: usize) -> Self {
+        let n = a.cols();
+        let (rows, (rs, cs)) = read_block(a, start, count);
+        let mut y = vec![0.0f32; count * k];
+        gemm(count, n, k, (&rows, rs, cs), (v, k, 1), (&mut y, k, 1));
+        let qr = DMatrix::from_row_iterator(count, k, y.into_iter().map(f64::from)).qr();
+        let (q, r) = (qr.q(), qr.r());
+        let rows: Vec<f64> = rows.into_iter().map(f64::from).collect();
+        let mut qt_a = vec![0.0f64; q.ncols() * n];
+        // Q_b is column-major: Q_bᵀ (min(count, k) × count) has row stride `count`.
+        let qt = (q.as_slice(), count, 1);
+        gemm(q.ncols(), count, n, qt, (&rows, rs, cs), (&mut qt_a, n, 1));
+        let qt_a = DMatrix::from_row_slice(q.ncols(), n, &qt_a);
+        BlockProjection { q, r, qt_a }
     }
 }
 
@@ -327,19 +399,11 @@ fn blocks(m: usize, block: usize) -> Vec<(usize, usize)> {
         .collect()
 }
 
-/// Reads a block of rows, row-major f32.
-fn read_block(a: &dyn RowSource, start: usize, count: usize) -> Vec<f32> {
+/// A block of rows as read, with its (row, column) strides.
+fn read_block(a: &dyn RowSource, start: usize, count: usize) -> (Vec<f32>, (usize, usize)) {
     let mut buf = vec![0.0f32; count * a.cols()];
-    a.read_rows(start, &mut buf);
-    buf
-}
-
-/// Reads a block of rows, row-major f64.
-fn read_block_f64(a: &dyn RowSource, start: usize, count: usize) -> Vec<f64> {
-    read_block(a, start, count)
-        .into_iter()
-        .map(f64::from)
-        .collect()
+    let strides = a.read_block(start, &mut buf).strides(count, a.cols());
+    (buf, strides)
 }
 
 /// A strided matrix operand: (data, row stride, column stride).
@@ -463,7 +527,10 @@ fn gram_matrix(
             if observer.cancelled() {
                 return Err(Error::Cancelled);
             }
-            let rows = read_block(a, start, count);
+            // Row-major: the panel products below pack row-major blocks fastest (measured on
+            // W1: a column-major block made this pass 1.5× slower).
+            let mut rows = vec![0.0f32; count * n];
+            a.read_rows(start, &mut rows);
             let mut g = vec![0.0f32; n * n];
             for (p, &(p0, pw)) in panels.iter().enumerate() {
                 for &(q0, qw) in &panels[p..] {
