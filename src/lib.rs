@@ -27,6 +27,7 @@ pub mod base_mesh;
 pub mod bench;
 pub mod client;
 pub mod compress;
+pub mod counting_alloc;
 pub mod empty_space;
 pub mod error;
 pub mod explicit;

@@ -6,6 +6,7 @@ use mesobake::bake_package::{PackageParams, bake_package};
 use mesobake::client::Client;
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
+use mesobake::counting_alloc::CountingAlloc;
 use mesobake::fsutil::write_atomic;
 use mesobake::gdm::{self, BakeObserver, Method};
 use mesobake::grid::{Dims, DirectionGrid};
@@ -17,14 +18,13 @@ use mesobake::render_scene::{self, GdmSource, RenderMethod};
 use mesobake::samples::{self, SampleKind};
 use mesobake::scene_package::{ScenePackageParams, bake_scene_package, scene_package};
 use mesobake::{Error, Result, bench, input, npy, render_report, report, volume_format};
-use peak_alloc::PeakAlloc;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
 #[global_allocator]
-static ALLOCATOR: PeakAlloc = PeakAlloc;
+static ALLOCATOR: CountingAlloc = CountingAlloc::new();
 
 #[derive(Parser)]
 #[command(
@@ -510,20 +510,6 @@ impl BakeObserver for Progress {
     fn progress(&self, done: u64, total: u64) {
         self.0.set_length(total);
         self.0.set_position(done);
-    }
-}
-
-struct AllocatorProbe;
-
-impl bench::MemoryProbe for AllocatorProbe {
-    fn reset_peak(&self) {
-        ALLOCATOR.reset_peak_usage();
-    }
-    fn peak_bytes(&self) -> u64 {
-        ALLOCATOR.peak_usage() as u64
-    }
-    fn current_bytes(&self) -> u64 {
-        ALLOCATOR.current_usage() as u64
     }
 }
 
@@ -1150,7 +1136,7 @@ fn run(cli: Cli) -> Result<()> {
                 rayon::current_num_threads(),
                 std::env::consts::ARCH
             );
-            let rows = bench::run(&AllocatorProbe, &limits)?;
+            let rows = bench::run(&ALLOCATOR, &limits)?;
             print!("{}", bench::markdown(&rows));
             if json {
                 println!(

@@ -75,6 +75,7 @@ fn sweep_direction(
 ) {
     let dims = caster.dims();
     let inside = caster.centres_inside();
+    let solid = inside.solid_layer_range();
     // Voxel grids walk one ray template per direction, 64 samples at a time.
     let template =
         (caster.is_voxel_grid() && template::supports(dims)).then(|| Template::new(dims, v));
@@ -137,8 +138,8 @@ fn sweep_direction(
         match &template {
             Some(tpl) => {
                 // The steps inside this layer's slab, then the rest of the ray.
-                let all = tpl.steps_within(dims, k, f64::INFINITY);
-                let slab = tpl.steps_within(dims, k, t_step);
+                let all = tpl.steps_within(solid, k, f64::INFINITY);
+                let slab = tpl.steps_within(solid, k, t_step);
                 let beyond = &all[slab.len()..];
                 for j in 0..dims.y {
                     let out = &mut rest[(j * dims.x) as usize..][..dims.x as usize];

@@ -163,6 +163,8 @@ impl BinnedTriangles {
     pub(crate) fn bake_direction(&self, inside: &Occupancy, v: [f64; 3], volume: &mut [f32]) {
         let dims = self.dims;
         let template = Template::new(dims, v);
+        // Rays can only meet triangles in layers that hold some.
+        let solid = self.occupied.solid_layer_range();
         let dir = Vec3A::new(v[0] as f32, v[1] as f32, v[2] as f32);
         let (x, y) = (dims.x as i64, dims.y as i64);
         let nx = dims.x as usize;
@@ -185,7 +187,7 @@ impl BinnedTriangles {
         };
         let mut best = [f32::INFINITY; 64];
         for k in 0..dims.z {
-            let steps = template.steps_within(dims, k, f64::INFINITY);
+            let steps = template.steps_within(solid, k, f64::INFINITY);
             for j in 0..dims.y {
                 let out = &mut volume[(k as usize * dims.y as usize + j as usize) * nx..][..nx];
                 for w in 0..nx.div_ceil(64) {

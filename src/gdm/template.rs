@@ -98,6 +98,8 @@ fn build_template(dims: Dims, v: [f64; 3]) -> Vec<Step> {
 /// The template of one direction, walked one sample at a time.
 pub(crate) struct Template {
     steps: Vec<Step>,
+    /// Whether the direction points up (+z).
+    up: bool,
 }
 
 impl Template {
@@ -105,16 +107,29 @@ impl Template {
     pub(crate) fn new(dims: Dims, v: [f64; 3]) -> Self {
         Template {
             steps: build_template(dims, v),
+            up: v[2] > 0.0,
         }
     }
 
-    /// The steps a ray from layer `k` takes inside the volume up to distance `max_t`.
-    pub(crate) fn steps_within(&self, dims: Dims, k: u32, max_t: f64) -> &[Step] {
-        let k = k as i32;
+    /// The steps a ray from layer `k` takes up to distance `max_t` while it can still meet
+    /// solid: it stops on leaving `solid`, the lowest and highest layers holding any (`None`:
+    /// the volume is empty), in its direction of travel. Rays left pending escape.
+    pub(crate) fn steps_within(&self, solid: Option<(u32, u32)>, k: u32, max_t: f64) -> &[Step] {
+        let Some((lo, hi)) = solid else {
+            return &[];
+        };
+        let (k, lo, hi) = (k as i32, lo as i32, hi as i32);
+        let beyond = |s: &Step| {
+            if self.up {
+                k + s.dk > hi
+            } else {
+                k + s.dk < lo
+            }
+        };
         let end = self
             .steps
             .iter()
-            .position(|s| k + s.dk < 0 || k + s.dk >= dims.z as i32 || s.t as f64 > max_t)
+            .position(|s| beyond(s) || s.t as f64 > max_t)
             .unwrap_or(self.steps.len());
         &self.steps[..end]
     }
@@ -227,9 +242,10 @@ pub fn check_memory(dims: Dims, dirs: DirectionGrid, limits: &Limits) -> Result<
 pub(crate) fn bake_direction(occ: &Occupancy, v: [f64; 3], volume: &mut [f32]) {
     let dims = occ.dims();
     let template = Template::new(dims, v);
+    let solid = occ.solid_layer_range();
     let nx = dims.x as usize;
     for k in 0..dims.z {
-        let steps = template.steps_within(dims, k, f64::INFINITY);
+        let steps = template.steps_within(solid, k, f64::INFINITY);
         for j in 0..dims.y {
             let out = &mut volume[(k as usize * dims.y as usize + j as usize) * nx..][..nx];
             for w in 0..nx.div_ceil(64) {
