@@ -174,7 +174,8 @@ impl<'a> GdmRenderer<'a> {
                 let Some((t_in, bary)) = intersect(&face.triangle, origin, dir) else {
                     continue;
                 };
-                if nearest.is_some_and(|b| b.t <= t_in) {
+                // Fragments behind the nearest hit so far fail the depth test.
+                if nearest.or(best).is_some_and(|b| b.t <= t_in) {
                     continue;
                 }
                 if let Some(hit) = self.fragment(p, f, origin, dir, t_in, bary)
