@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 /// Pixels per side of the square tiles rendered in parallel: neighbouring rays read
 /// neighbouring texels, so tiles keep them in cache (rows of 512 pixels did not).
-const TILE: u32 = 8;
+const TILE: u32 = 16;
 
 /// Renders an image by calling `radiance(origin, direction)` for every pixel's camera ray
 /// (square tiles in parallel); `None` is a miss.
