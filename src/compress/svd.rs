@@ -528,7 +528,7 @@ fn gram_matrix(
                 return Err(Error::Cancelled);
             }
             // Row-major: the panel products below pack row-major blocks fastest (measured on
-            // W1: a column-major block made this pass 1.5× slower).
+            // W1: column-major blocks made this pass 1.5–1.9× slower).
             let mut rows = vec![0.0f32; count * n];
             a.read_rows(start, &mut rows);
             let mut g = vec![0.0f32; n * n];
