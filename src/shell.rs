@@ -162,6 +162,23 @@ impl Prism {
         uv.extend(q.w)
     }
 
+    /// The prism coordinates of texture coordinate `t` (tile units, w): barycentric
+    /// coordinates of (s, t) over the prism's UV triangle, and w. `None` where the UV
+    /// triangle has no area.
+    pub fn point_at_texture(&self, t: DVec3) -> Option<PrismPoint> {
+        let (e1, e2) = (self.uv[1] - self.uv[0], self.uv[2] - self.uv[0]);
+        let det = e1.perp_dot(e2);
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let r = t.truncate() - self.uv[0];
+        let (b1, b2) = (r.perp_dot(e2) / det, e1.perp_dot(r) / det);
+        Some(PrismPoint {
+            bary: [1.0 - b1 - b2, b1, b2],
+            w: t.z,
+        })
+    }
+
     /// The Jacobian ∂P/∂(texture) at `q`: columns ∂P/∂s, ∂P/∂t (tile units) and ∂P/∂w.
     /// `None` where the UV triangle has no area.
     pub fn jacobian(&self, q: PrismPoint) -> Option<DMat3> {

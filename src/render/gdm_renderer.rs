@@ -34,24 +34,71 @@
 
 use super::accel::BoxBvh;
 use super::gdm_lookup::{GdmLookup, Lookup};
-use super::lighting::shade;
+use super::lighting::{SHADOW_OFFSET, shade};
 use super::material::{ALBEDO_DEPTH, MaterialVolume};
+use super::truth::{TruthRenderer, light_start};
 use crate::gi::shading::GiShading;
 use crate::grid::Dims;
 use crate::scene::{Effect, Scene};
 use crate::shell::{FaceTriangle, Shell};
 use glam::{DMat3, DVec3};
 
-/// Where the shadow query starts, in voxels from the hit along the texture normal: clear of
-/// the interpolation footprint of the samples inside the surface that was hit (measured on the
-/// torus + chain scene against the ground truth: 0.5 voxel loses 0.5 dB, 1.5 gains nothing).
-pub const SHADOW_OFFSET: f64 = 1.0;
-
 /// How far short of the previous estimate, in voxels, a refinement query is made: close enough
 /// that the neighbouring samples agree on the remaining distance, far enough to stay in front
 /// of the surface (measured on the torus + chain and flat chain scenes: 0.5 and 2 are 0.1 dB
 /// worse).
 pub const REFINEMENT_BACKOFF: f64 = 1.0;
+
+/// Parts of the per-pixel algorithm that a reference run replaces by their exact
+/// counterparts, computed by the ground truth, to measure what each approximation costs (the
+/// error budget of `mesobake report render`). None of them is part of the real-time
+/// algorithm; all off is the paper's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ExactParts {
+    /// The GDM query: the mesostructure cast exactly along the fragment's straight
+    /// texture-space segment, instead of the interpolated GDM.
+    pub query: bool,
+    /// The shading frame: the exact Jacobian of the prism mapping at the hit, instead of the
+    /// prism's mean frame (for the normal and, in local shadows, the light direction).
+    pub frame: bool,
+    /// The shadows: the ground truth's shadow rays from the hit through the whole shell
+    /// (curved, base mesh included), instead of the local GDM query along the light.
+    pub shadows: bool,
+}
+
+impl ExactParts {
+    /// Every combination worth a row: none, each part alone, all three.
+    pub const BUDGET: [ExactParts; 5] = [
+        ExactParts::parts(false, false, false),
+        ExactParts::parts(true, false, false),
+        ExactParts::parts(false, true, false),
+        ExactParts::parts(false, false, true),
+        ExactParts::parts(true, true, true),
+    ];
+
+    const fn parts(query: bool, frame: bool, shadows: bool) -> ExactParts {
+        ExactParts {
+            query,
+            frame,
+            shadows,
+        }
+    }
+
+    /// A short label: `none`, or the exact parts joined by `+`.
+    pub fn label(&self) -> String {
+        let names = [
+            (self.query, "query"),
+            (self.frame, "frame"),
+            (self.shadows, "shadows"),
+        ];
+        let on: Vec<&str> = names.iter().filter(|n| n.0).map(|n| n.1).collect();
+        if on.is_empty() {
+            "none".into()
+        } else {
+            on.join("+")
+        }
+    }
+}
 
 /// A face triangle with its texture coordinates in voxel units and its plane.
 #[derive(Clone, Copy, Debug)]
@@ -121,6 +168,8 @@ pub struct GdmRenderer<'a> {
     material: &'a MaterialVolume,
     refinements: u32,
     gi: Option<&'a GiShading>,
+    /// The parts replaced by exact ones, and the ground truth that computes them.
+    exact: Option<(ExactParts, &'a TruthRenderer<'a>)>,
 }
 
 impl<'a> GdmRenderer<'a> {
@@ -153,6 +202,7 @@ impl<'a> GdmRenderer<'a> {
             material,
             refinements,
             gi: None,
+            exact: None,
         }
     }
 
@@ -160,6 +210,20 @@ impl<'a> GdmRenderer<'a> {
     pub fn with_gi(mut self, gi: &'a GiShading) -> Self {
         self.gi = Some(gi);
         self
+    }
+
+    /// Replaces `parts` of the algorithm by their exact counterparts from `truth` (over the
+    /// same shell and mesostructure): a reference run, not the real-time algorithm.
+    pub fn with_exact(mut self, parts: ExactParts, truth: &'a TruthRenderer<'a>) -> Self {
+        self.exact = Some((parts, truth));
+        self
+    }
+
+    /// The ground truth for the exact parts `select` picks, if any is on.
+    fn exact_part(&self, select: impl Fn(&ExactParts) -> bool) -> Option<&'a TruthRenderer<'a>> {
+        self.exact
+            .filter(|(parts, _)| select(parts))
+            .map(|(_, truth)| truth)
     }
 
     /// The nearest hit along `origin + t·dir` (unit `dir`), t > 0.
@@ -278,6 +342,10 @@ impl<'a> GdmRenderer<'a> {
     /// Steps 3–5 on the texture-space segment from `start` along `view` of length `d_t`: the
     /// hit distance, or `None` when the ray leaves the segment first.
     fn segment_hit(&self, start: DVec3, view: DVec3, d_t: f64) -> Option<f64> {
+        if let Some(truth) = self.exact_part(|p| p.query) {
+            let z = self.lookup.dims().z as f64;
+            return truth.cast(start.with_z(start.z.clamp(0.0, z)), view, d_t);
+        }
         let mut travelled = advance_to_samples(start, view, self.lookup.dims().z as f64, d_t);
         let mut answer = self.lookup.lookup(start + view * travelled, view);
         for _ in 0..self.refinements {
@@ -302,7 +370,13 @@ impl<'a> GdmRenderer<'a> {
     /// Step 6: the shaded radiance along the camera ray, or `None` for a miss.
     pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.trace(origin, dir)?;
-        let frame = self.prisms[hit.prism].frame;
+        let jacobian = self
+            .exact_part(|p| p.frame || p.shadows)
+            .and_then(|truth| truth.jacobian(hit.prism, hit.texture));
+        let frame = match jacobian {
+            Some(j) if self.exact_part(|p| p.frame).is_some() => j.inverse(),
+            _ => self.prisms[hit.prism].frame,
+        };
         let n_tex = self.material.normal_at(hit.texture).unwrap_or(-hit.view);
         let n = (frame.transpose() * n_tex).try_normalize().unwrap_or(-dir);
         let albedo = self
@@ -319,6 +393,10 @@ impl<'a> GdmRenderer<'a> {
                 + shade(&scene.lights, &scene.material, p, n, albedo, -dir, |inc| {
                     if !shadows {
                         return true;
+                    }
+                    if let Some(truth) = self.exact_part(|p| p.shadows) {
+                        let start = light_start(jacobian.unwrap_or(frame.inverse()), p, n_tex);
+                        return !truth.blocked(start, inc.direction, inc.distance);
                     }
                     match (frame * inc.direction).try_normalize() {
                         Some(l) => self.lookup.lookup(shadow_origin, l) == Lookup::Escape,

@@ -17,10 +17,12 @@
 //! Shading: the material volume's normal mapped to object space with the exact Jacobian of
 //! the prism mapping at the hit; shadows by casting a ray towards each light the same way
 //! through every prism (the whole shell, so the base mesh's other side casts shadows too),
-//! starting half a voxel before the hit along the camera ray.
+//! starting [`SHADOW_OFFSET`] voxels off the hit along the shading normal, the GDM renderer's
+//! convention (starting half a voxel back along the camera ray instead left dotted
+//! self-shadowing wherever the voxel staircase lies under a smooth normal).
 
 use super::accel::BoxBvh;
-use super::lighting::shade;
+use super::lighting::{SHADOW_OFFSET, shade};
 use super::material::{ALBEDO_DEPTH, MaterialVolume};
 use crate::gdm::caster::{Caster, Trace};
 use crate::scene::{Effect, Scene};
@@ -34,8 +36,9 @@ pub const CHORD_TOLERANCE: f64 = 0.01;
 /// Longest chord in voxels (keeps the midpoint test meaningful on long segments).
 pub const MAX_CHORD: f64 = 8.0;
 
-/// Where shadow rays start, in voxels back along the camera ray from the hit.
-pub const SHADOW_START: f64 = 0.5;
+/// Where rays into the environment (the path tracer's bounces) start, in voxels back along
+/// the arriving ray from the hit.
+pub const BOUNCE_START: f64 = 0.5;
 
 /// Tolerance of the inverse mapping's inside test, in barycentric / w units.
 const LOCATE_TOLERANCE: f64 = 1e-7;
@@ -196,11 +199,8 @@ impl<'a> TruthRenderer<'a> {
             return None;
         }
         let view = chord / len;
-        let (s, tex) = match self.caster.trace(origin.to_array(), view.to_array(), len) {
-            Trace::Inside => (0.0, origin),
-            Trace::Hit(s) => (s.min(len), origin + view * s.min(len)),
-            Trace::Escape(_) | Trace::Limit => return None,
-        };
+        let s = self.cast(origin, view, len)?;
+        let tex = origin + view * s;
         let t = t0 + s / len * (t1 - t0);
         Some(TruthHit {
             t,
@@ -209,6 +209,34 @@ impl<'a> TruthRenderer<'a> {
             texture: tex,
             view,
         })
+    }
+
+    /// The distance to the first solid point of the mesostructure along the straight
+    /// texture-space segment from `origin` (voxel units, z within the volume) along unit
+    /// `view`, of length `len`: 0 when `origin` lies in solid, `None` when the segment ends
+    /// first.
+    pub fn cast(&self, origin: DVec3, view: DVec3, len: f64) -> Option<f64> {
+        match self.caster.trace(origin.to_array(), view.to_array(), len) {
+            Trace::Inside => Some(0.0),
+            Trace::Hit(s) => Some(s.min(len)),
+            Trace::Escape(_) | Trace::Limit => None,
+        }
+    }
+
+    /// The exact Jacobian of prism `prism`'s mapping at texture point `texture` (voxel
+    /// units): it maps texture vectors in voxel units to object space. `None` where it is
+    /// singular.
+    pub fn jacobian(&self, prism: usize, texture: DVec3) -> Option<DMat3> {
+        let prism = &self.shell.prisms[prism];
+        let j = prism.jacobian(prism.point_at_texture(texture / self.scale)?)?;
+        let j = j * DMat3::from_diagonal(self.scale.recip());
+        (j.determinant() != 0.0).then_some(j)
+    }
+
+    /// Whether anything in the shell blocks the ray from `start` along unit `dir` within
+    /// `distance` (the shadow test).
+    pub fn blocked(&self, start: DVec3, dir: DVec3, distance: f64) -> bool {
+        self.trace(start, dir, 0.0, distance).is_some()
     }
 
     /// The shaded radiance along the camera ray, or `None` for a miss.
@@ -227,12 +255,7 @@ impl<'a> TruthRenderer<'a> {
             s.normal,
             s.albedo,
             -dir,
-            |inc| {
-                !shadows
-                    || self
-                        .trace(s.start, inc.direction, 0.0, inc.distance)
-                        .is_none()
-            },
+            |inc| !shadows || !self.blocked(s.light_start, inc.direction, inc.distance),
         )
     }
 
@@ -250,12 +273,14 @@ impl<'a> TruthRenderer<'a> {
         let albedo = self
             .material
             .albedo_at(hit.texture + hit.view * ALBEDO_DEPTH);
-        let back = jacobian.map_or(0.0, |j| (j * hit.view).length() * SHADOW_START);
+        let back = jacobian.map_or(0.0, |j| (j * hit.view).length() * BOUNCE_START);
+        let point = origin + dir * hit.t;
         Surface {
-            point: origin + dir * hit.t,
+            point,
             normal: n,
             albedo,
             start: origin + dir * (hit.t - back),
+            light_start: jacobian.map_or(point, |j| light_start(j, point, n_tex)),
         }
     }
 }
@@ -269,8 +294,18 @@ pub struct Surface {
     pub normal: DVec3,
     /// Linear albedo.
     pub albedo: DVec3,
-    /// Where rays leaving the hit start: [`SHADOW_START`] voxels back along the arriving ray.
+    /// Where rays leaving the hit into the environment start: [`BOUNCE_START`] voxels back
+    /// along the arriving ray.
     pub start: DVec3,
+    /// Where shadow rays towards the lights start ([`light_start`]).
+    pub light_start: DVec3,
+}
+
+/// Where shadow rays towards the lights start from a hit at object point `point` with unit
+/// texture-space shading normal `n_tex`: [`SHADOW_OFFSET`] voxels along it, mapped to object
+/// space by `jacobian` (texture voxel units → object).
+pub fn light_start(jacobian: DMat3, point: DVec3, n_tex: DVec3) -> DVec3 {
+    point + jacobian * (n_tex * SHADOW_OFFSET)
 }
 
 fn interpolate(a: PrismPoint, b: PrismPoint, f: f64) -> PrismPoint {
