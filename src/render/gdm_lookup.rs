@@ -19,7 +19,6 @@ use crate::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::package::Package;
 use glam::DVec3;
-use rayon::prelude::*;
 use std::f64::consts::{PI, TAU};
 
 /// The answer to one query.
@@ -98,52 +97,9 @@ impl QueryTaps {
     }
 }
 
-/// Texels per side of the cubic bricks a [`RawLookup`] stores each direction's volume in.
-const BRICK: usize = 4;
-
-/// One direction's X×Y×Z volume laid out in [`BRICK`]³ bricks (x fastest within a brick,
-/// then y, then z; the bricks in the same order), as GPUs tile 3D textures: the 2×2×2 spatial
-/// taps of a query then fall in one or two 64-byte cache lines instead of four (the torus +
-/// chain render took 10 % less time, docs/BENCHMARKS.md). A texel's offset is the sum of one
-/// term per axis.
-#[derive(Clone, Debug)]
-struct BrickLayout {
-    /// The offset terms of x index i, y index j and z index k.
-    x: Vec<usize>,
-    y: Vec<usize>,
-    z: Vec<usize>,
-    /// Texels per direction, the padding of partial bricks included.
-    stride: usize,
-}
-
-impl BrickLayout {
-    fn new(dims: Dims) -> BrickLayout {
-        let [bx, by, bz] = [dims.x, dims.y, dims.z].map(|n| (n as usize).div_ceil(BRICK));
-        let texels = BRICK * BRICK * BRICK;
-        let axis = |n: u32, brick_step: usize, texel_step: usize| -> Vec<usize> {
-            (0..n as usize)
-                .map(|i| i / BRICK * brick_step + i % BRICK * texel_step)
-                .collect()
-        };
-        BrickLayout {
-            x: axis(dims.x, texels, 1),
-            y: axis(dims.y, texels * bx, BRICK),
-            z: axis(dims.z, texels * bx * by, BRICK * BRICK),
-            stride: texels * bx * by * bz,
-        }
-    }
-
-    fn offset(&self, i: u32, j: u32, k: u32) -> usize {
-        self.x[i as usize] + self.y[j as usize] + self.z[k as usize]
-    }
-}
-
 /// Queries on a dense GDM as baked (either escape convention).
 pub struct RawLookup<'a> {
     gdm: &'a Gdm,
-    layout: BrickLayout,
-    /// The GDM's values in `layout`, one direction after another.
-    bricked: Vec<f32>,
     /// Per direction bin θ and layer k (index θ·Z + k): stored values at or above this are
     /// escapes (`+∞` in the infinite convention).
     escape_from: Vec<f32>,
@@ -160,27 +116,7 @@ impl<'a> RawLookup<'a> {
                 EscapeConvention::Boundary => ESCAPE_TOLERANCE * gdm.boundary_distance(k, a),
             })
             .collect();
-        let layout = BrickLayout::new(dims);
-        let mut bricked = vec![0.0; layout.stride * dirs.count()];
-        let stride = gdm.direction_stride();
-        bricked
-            .par_chunks_mut(layout.stride)
-            .zip(gdm.data().par_chunks(stride))
-            .for_each(|(dst, src)| {
-                for k in 0..dims.z {
-                    for j in 0..dims.y {
-                        for i in 0..dims.x {
-                            dst[layout.offset(i, j, k)] = src[dims.index(i, j, k)];
-                        }
-                    }
-                }
-            });
-        RawLookup {
-            gdm,
-            layout,
-            bricked,
-            escape_from,
-        }
+        RawLookup { gdm, escape_from }
     }
 }
 
@@ -191,14 +127,14 @@ impl GdmLookup for RawLookup<'_> {
 
     fn lookup(&self, t: DVec3, v: DVec3) -> Lookup {
         let g = self.gdm;
-        let (dims, data) = (g.dims(), &self.bricked);
+        let (dims, data) = (g.dims(), g.data());
         let q = QueryTaps::new(dims, g.dirs(), t, v);
-        // The 8 spatial taps: weight, offset within one direction's bricks, layer.
+        // The 8 spatial taps: weight, flat index within one direction's volume, layer.
         let spatial: [(f64, usize, u32); 8] = std::array::from_fn(|c| {
             let s = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
             let (i, j, k) = (q.x.index[s[0]], q.y.index[s[1]], q.z.index[s[2]]);
             let w = q.x.weight(s[0] as u32) * q.y.weight(s[1] as u32) * q.z.weight(s[2] as u32);
-            (w, self.layout.offset(i, j, k), k)
+            (w, dims.index(i, j, k), k)
         });
         let (mut escape, mut hit, mut sum) = (0.0, 0.0, 0.0);
         for (sa, &a) in q.theta.index.iter().enumerate() {
@@ -208,7 +144,7 @@ impl GdmLookup for RawLookup<'_> {
                 if w_dir == 0.0 {
                     continue;
                 }
-                let base = (a * g.dirs().n_phi + b) as usize * self.layout.stride;
+                let base = g.index(0, 0, 0, a, b);
                 for &(w, index, k) in &spatial {
                     let w = w * w_dir;
                     let value = data[base + index];
@@ -320,49 +256,5 @@ impl GdmLookup for PackageLookup {
         } else {
             Lookup::Hit(dist.max(0.0))
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn brick_offsets_are_distinct_and_inside_the_stride() {
-        // Dimensions that are and are not multiples of the brick size.
-        for [x, y, z] in [[8, 4, 4], [5, 7, 3], [1, 1, 9]] {
-            let dims = Dims::new(x, y, z).unwrap();
-            let layout = BrickLayout::new(dims);
-            let mut seen = vec![false; layout.stride];
-            for k in 0..dims.z {
-                for j in 0..dims.y {
-                    for i in 0..dims.x {
-                        let o = layout.offset(i, j, k);
-                        assert!(o < layout.stride, "{dims}: ({i}, {j}, {k}) → {o}");
-                        assert!(!seen[o], "{dims}: offset {o} used twice");
-                        seen[o] = true;
-                    }
-                }
-            }
-            // Padding only completes the last brick along each axis.
-            let padded = |n: u32| (n as usize).div_ceil(BRICK) * BRICK;
-            assert_eq!(
-                layout.stride,
-                padded(dims.x) * padded(dims.y) * padded(dims.z)
-            );
-        }
-    }
-
-    #[test]
-    fn x_neighbours_share_a_brick_row_and_z_neighbours_are_one_row_group_apart() {
-        let layout = BrickLayout::new(Dims::new(16, 16, 16).unwrap());
-        assert_eq!(layout.offset(1, 0, 0) - layout.offset(0, 0, 0), 1);
-        assert_eq!(layout.offset(0, 1, 0) - layout.offset(0, 0, 0), BRICK);
-        assert_eq!(
-            layout.offset(0, 0, 1) - layout.offset(0, 0, 0),
-            BRICK * BRICK
-        );
-        // The next brick along x starts after a whole brick.
-        assert_eq!(layout.offset(4, 0, 0), BRICK * BRICK * BRICK);
     }
 }
