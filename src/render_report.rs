@@ -3,8 +3,8 @@
 //! setting costs in render time. The truth is rendered once; every GDM setting is rendered
 //! from the exact GDM baked at its direction resolution ("exact") or from that GDM compressed
 //! as a package would hold it (boundary convention, rank k, quantized), and compared. The
-//! error budget then replaces the algorithm's own approximations by their exact counterparts
-//! ([`ExactParts`]) one at a time and all together, to show what each one costs.
+//! error budget then substitutes the algorithm's own approximations ([`Substitutions`]) one
+//! at a time and all together, to show what each one costs.
 
 use crate::compress::gdm::quantize;
 use crate::compress::layout::GdmRows;
@@ -15,7 +15,7 @@ use crate::gdm::{self, BakeObserver, EscapeConvention};
 use crate::grid::DirectionGrid;
 use crate::limits::Limits;
 use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
-use crate::render::gdm_renderer::{ExactParts, GdmRenderer};
+use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
 use crate::render::image::{Image, compare};
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
@@ -45,8 +45,8 @@ pub struct RenderAccuracyRow {
     pub rank: Option<usize>,
     /// GDM refinement queries per hit.
     pub refinements: u32,
-    /// The parts of the algorithm replaced by exact ones ([`ExactParts::label`]).
-    pub exact: String,
+    /// The parts of the algorithm substituted ([`Substitutions::label`]).
+    pub substituted: String,
     /// Seconds to render (acceleration structure and pixels).
     pub render_s: f64,
     /// PSNR against the truth, dB (sRGB).
@@ -65,7 +65,7 @@ pub struct RenderReport {
     /// Rows in sweep order: per direction grid, exact then each rank, each refinement count.
     pub rows: Vec<RenderAccuracyRow>,
     /// The error budget: the exact GDM on the scene's direction grid without refinements,
-    /// with each of [`ExactParts::BUDGET`] replaced by its exact counterpart.
+    /// with each of [`Substitutions::BUDGET`].
     pub budget: Vec<RenderAccuracyRow>,
 }
 
@@ -79,7 +79,7 @@ pub fn render_accuracy(
     let scene = &loaded.scene;
     let total = (1
         + sweep.dirs.len() * (1 + sweep.ranks.len()) * sweep.refinements.len()
-        + ExactParts::BUDGET.len()) as u64;
+        + Substitutions::BUDGET.len()) as u64;
     let start = Instant::now();
     let caster = loaded.mesostructure.caster();
     let truth_renderer = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
@@ -92,14 +92,14 @@ pub fn render_accuracy(
                        rank,
                        lookup: &dyn GdmLookup,
                        refinements,
-                       exact: ExactParts|
+                       subs: Substitutions|
      -> Result<RenderAccuracyRow> {
         if observer.cancelled() {
             return Err(Error::Cancelled);
         }
         let start = Instant::now();
         let r = GdmRenderer::new(&loaded.shell, lookup, &loaded.material, refinements)
-            .with_exact(exact, &truth_renderer);
+            .with_substitutions(subs, &truth_renderer);
         let image: Image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
         let render_s = start.elapsed().as_secs_f64();
         let c = compare(&truth, &image)?;
@@ -109,7 +109,7 @@ pub fn render_accuracy(
             dirs: dirs.to_string(),
             rank,
             refinements,
-            exact: exact.label(),
+            substituted: subs.label(),
             render_s,
             psnr_db: c.psnr_db,
             mean_abs_error: c.mean_abs_error,
@@ -123,7 +123,7 @@ pub fn render_accuracy(
                 rank,
                 lookup,
                 refinements,
-                ExactParts::default(),
+                Substitutions::default(),
             )?);
         }
         Ok(())
@@ -153,9 +153,9 @@ pub fn render_accuracy(
     let dirs = scene.dirs()?;
     let g = gdm::exact::bake(caster, dirs, limits, &())?;
     let lookup = RawLookup::new(&g);
-    let budget = ExactParts::BUDGET
+    let budget = Substitutions::BUDGET
         .into_iter()
-        .map(|exact| measure(dirs, None, &lookup, 0, exact))
+        .map(|subs| measure(dirs, None, &lookup, 0, subs))
         .collect::<Result<_>>()?;
     Ok(RenderReport {
         truth_s,
@@ -172,7 +172,7 @@ pub fn markdown(report: &RenderReport) -> String {
                 r.dirs.clone(),
                 r.rank.map_or("exact".into(), |k| k.to_string()),
                 r.refinements.to_string(),
-                r.exact.clone(),
+                r.substituted.clone(),
                 format!("{:.3}", r.render_s),
                 format!("{:.2}", report.truth_s / r.render_s),
                 format!("{:.2}", r.psnr_db),
@@ -185,7 +185,7 @@ pub fn markdown(report: &RenderReport) -> String {
                 "dirs",
                 "rank",
                 "refinements",
-                "exact parts",
+                "substituted",
                 "render s",
                 "truth / GDM time",
                 "PSNR dB",
@@ -196,10 +196,11 @@ pub fn markdown(report: &RenderReport) -> String {
         )
     };
     format!(
-        "Ground truth: {:.3} s.\n\n{}\nError budget: the parts of the GDM algorithm replaced by \
-         their exact counterparts (query: exact cast along the fragment's straight segment; frame: \
-         exact Jacobian at the hit; shadows: the truth's shadow rays through the whole shell). \
-         What remains with all three is the one straight texture-space segment per prism.\n\n{}",
+        "Ground truth: {:.3} s.\n\n{}\nError budget: parts of the GDM algorithm substituted \
+         (query: exact cast along the fragment's straight segment; frame: exact Jacobian at the \
+         hit; shell shadows: the GDM algorithm traced towards the light through the whole shell, \
+         as a GDM shadow map would; shadows: the truth's shadow rays). What remains with query, \
+         frame and shadows exact is the one straight texture-space segment per prism.\n\n{}",
         report.truth_s,
         table_of(&report.rows),
         table_of(&report.budget),

@@ -12,7 +12,7 @@ use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::input::Mesostructure;
 use mesobake::limits::Limits;
 use mesobake::render::gdm_lookup::RawLookup;
-use mesobake::render::gdm_renderer::{ExactParts, GdmRenderer};
+use mesobake::render::gdm_renderer::{GdmRenderer, ShadowTest, Substitutions};
 use mesobake::render::image::compare;
 use mesobake::render::material::MaterialVolume;
 use mesobake::render::render_image;
@@ -318,29 +318,79 @@ fn with_every_part_exact_the_gdm_renderer_renders_the_truth_on_a_flat_plane() {
     let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
     let s = &scene.scene;
     let truth_image = render_image(&s.camera, |o, d| truth.radiance(s, o, d));
-    let render = |exact: ExactParts| {
-        let r =
-            GdmRenderer::new(&scene.shell, &lookup, &scene.material, 0).with_exact(exact, &truth);
+    let render = |subs: Substitutions| {
+        let r = GdmRenderer::new(&scene.shell, &lookup, &scene.material, 0)
+            .with_substitutions(subs, &truth);
         compare(
             &truth_image,
             &render_image(&s.camera, |o, d| r.radiance(s, o, d)),
         )
         .unwrap()
     };
-    let all = render(ExactParts {
-        query: true,
-        frame: true,
-        shadows: true,
+    let all = render(Substitutions {
+        exact_query: true,
+        exact_frame: true,
+        shadows: ShadowTest::Exact,
     });
     // The same hits to round-off: no pixel's mask differs and colours agree to 8-bit rounding
     // (PSNR ≥ 50 dB: an RMS error below 0.8 of a level in 255).
     assert_eq!(all.mask_disagreement, 0.0, "{all:?}");
     assert!(all.psnr_db >= 50.0, "{all:?}");
-    let paper = render(ExactParts::default());
+    let paper = render(Substitutions::default());
     assert!(
         paper.psnr_db < all.psnr_db - 10.0,
         "{paper:?} against {all:?}"
     );
+}
+
+#[test]
+fn shell_shadows_see_the_base_mesh_above_where_local_shadows_cannot() {
+    // Two parallel slab planes, 0.6 apart: seen from between them, the lower slab's top lies
+    // in the shadow of the upper one under a light from above. The paper's local GDM query
+    // looks only through the lower shell and finds it lit; the GDM algorithm traced through
+    // the whole shell, like the truth's rays, finds it shadowed: ambient light only.
+    let mut base = flat_grid(4, 1.0);
+    let upper = flat_grid(4, 1.0);
+    let offset = base.positions.len() as u32;
+    base.positions.extend(
+        upper
+            .positions
+            .iter()
+            .map(|p| *p + DVec3::new(0.0, 0.6, 0.0)),
+    );
+    base.normals.extend(upper.normals);
+    base.uvs.extend(upper.uvs);
+    base.triangles
+        .extend(upper.triangles.iter().map(|t| t.map(|v| v + offset)));
+    let volume = slab(4);
+    let scene = loaded(base, &volume, shell(0.5), SLAB_SCENE);
+    let caster = scene.mesostructure.caster();
+    let g = bake(caster);
+    let lookup = RawLookup::new(&g);
+    let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
+    let radiance = |shadows: ShadowTest| {
+        let subs = Substitutions {
+            shadows,
+            ..Substitutions::default()
+        };
+        let r = GdmRenderer::new(&scene.shell, &lookup, &scene.material, 0)
+            .with_substitutions(subs, &truth);
+        // From between the planes down onto the lower slab's top (y = 0.25).
+        let eye = DVec3::new(0.5, 0.55, -0.5);
+        r.radiance(&scene.scene, eye, DVec3::new(0.1, -1.0, 0.05).normalize())
+            .expect("the lower slab is hit")
+    };
+    let (local, shell, exact) = (
+        radiance(ShadowTest::Local),
+        radiance(ShadowTest::Shell),
+        radiance(ShadowTest::Exact),
+    );
+    // Shadowed: the ambient term alone, albedo 0.7 × radiance 0.1 (to round-off).
+    let ambient = DVec3::splat(0.07);
+    assert!((shell - ambient).abs().max_element() < 1e-6, "{shell}");
+    assert!((exact - ambient).abs().max_element() < 1e-6, "{exact}");
+    // Lit: the directional light adds E·cos/π·albedo ≈ 0.6 to each channel.
+    assert!(local.min_element() > 0.3, "{local}");
 }
 
 fn torus_scene(minor: f64, thickness: f64, smoothing: u32, scale: f64) -> String {

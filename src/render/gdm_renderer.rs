@@ -49,47 +49,66 @@ use glam::{DMat3, DVec3};
 /// worse).
 pub const REFINEMENT_BACKOFF: f64 = 1.0;
 
-/// Parts of the per-pixel algorithm that a reference run replaces by their exact
-/// counterparts, computed by the ground truth, to measure what each approximation costs (the
-/// error budget of `mesobake report render`). None of them is part of the real-time
-/// algorithm; all off is the paper's.
+/// How a reference run tests shadows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct ExactParts {
-    /// The GDM query: the mesostructure cast exactly along the fragment's straight
-    /// texture-space segment, instead of the interpolated GDM.
-    pub query: bool,
-    /// The shading frame: the exact Jacobian of the prism mapping at the hit, instead of the
-    /// prism's mean frame (for the normal and, in local shadows, the light direction).
-    pub frame: bool,
-    /// The shadows: the ground truth's shadow rays from the hit through the whole shell
-    /// (curved, base mesh included), instead of the local GDM query along the light.
-    pub shadows: bool,
+#[serde(rename_all = "lowercase")]
+pub enum ShadowTest {
+    /// The paper's: one GDM query along the light in texture space (flat base assumed;
+    /// mesostructure of the same neighbourhood only).
+    #[default]
+    Local,
+    /// This renderer's own algorithm traced towards the light through the whole shell (what
+    /// a shadow map rendered with the GDM pipeline from the light computes): curvature,
+    /// distant mesostructure and the base mesh's other side included.
+    Shell,
+    /// The ground truth's shadow rays.
+    Exact,
 }
 
-impl ExactParts {
-    /// Every combination worth a row: none, each part alone, all three.
-    pub const BUDGET: [ExactParts; 5] = [
-        ExactParts::parts(false, false, false),
-        ExactParts::parts(true, false, false),
-        ExactParts::parts(false, true, false),
-        ExactParts::parts(false, false, true),
-        ExactParts::parts(true, true, true),
+/// Parts of the per-pixel algorithm that a reference run replaces, to measure what each
+/// approximation costs (the error budget of `mesobake report render`): by its exact
+/// counterpart, computed by the ground truth, or for shadows also by the GDM algorithm
+/// through the shell. None of them is part of the real-time algorithm; the default is the
+/// paper's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Substitutions {
+    /// The GDM query: the mesostructure cast exactly along the fragment's straight
+    /// texture-space segment, instead of the interpolated GDM.
+    pub exact_query: bool,
+    /// The shading frame: the exact Jacobian of the prism mapping at the hit, instead of the
+    /// prism's mean frame (for the normal and, in local shadows, the light direction).
+    pub exact_frame: bool,
+    /// The shadow test.
+    pub shadows: ShadowTest,
+}
+
+impl Substitutions {
+    /// The error budget's rows: none, each part alone (shadows both ways), all exact.
+    pub const BUDGET: [Substitutions; 6] = [
+        Substitutions::of(false, false, ShadowTest::Local),
+        Substitutions::of(true, false, ShadowTest::Local),
+        Substitutions::of(false, true, ShadowTest::Local),
+        Substitutions::of(false, false, ShadowTest::Shell),
+        Substitutions::of(false, false, ShadowTest::Exact),
+        Substitutions::of(true, true, ShadowTest::Exact),
     ];
 
-    const fn parts(query: bool, frame: bool, shadows: bool) -> ExactParts {
-        ExactParts {
-            query,
-            frame,
+    const fn of(exact_query: bool, exact_frame: bool, shadows: ShadowTest) -> Substitutions {
+        Substitutions {
+            exact_query,
+            exact_frame,
             shadows,
         }
     }
 
-    /// A short label: `none`, or the exact parts joined by `+`.
+    /// A short label: `none`, or the substituted parts joined by `+` (`query`, `frame`,
+    /// `shell shadows`, `shadows`; all but shell shadows exact).
     pub fn label(&self) -> String {
         let names = [
-            (self.query, "query"),
-            (self.frame, "frame"),
-            (self.shadows, "shadows"),
+            (self.exact_query, "query"),
+            (self.exact_frame, "frame"),
+            (self.shadows == ShadowTest::Shell, "shell shadows"),
+            (self.shadows == ShadowTest::Exact, "shadows"),
         ];
         let on: Vec<&str> = names.iter().filter(|n| n.0).map(|n| n.1).collect();
         if on.is_empty() {
@@ -168,8 +187,8 @@ pub struct GdmRenderer<'a> {
     material: &'a MaterialVolume,
     refinements: u32,
     gi: Option<&'a GiShading>,
-    /// The parts replaced by exact ones, and the ground truth that computes them.
-    exact: Option<(ExactParts, &'a TruthRenderer<'a>)>,
+    /// The substituted parts, and the ground truth that computes the exact ones.
+    substitutions: Option<(Substitutions, &'a TruthRenderer<'a>)>,
 }
 
 impl<'a> GdmRenderer<'a> {
@@ -202,7 +221,7 @@ impl<'a> GdmRenderer<'a> {
             material,
             refinements,
             gi: None,
-            exact: None,
+            substitutions: None,
         }
     }
 
@@ -212,17 +231,17 @@ impl<'a> GdmRenderer<'a> {
         self
     }
 
-    /// Replaces `parts` of the algorithm by their exact counterparts from `truth` (over the
-    /// same shell and mesostructure): a reference run, not the real-time algorithm.
-    pub fn with_exact(mut self, parts: ExactParts, truth: &'a TruthRenderer<'a>) -> Self {
-        self.exact = Some((parts, truth));
+    /// Substitutes parts of the algorithm (`truth`, over the same shell and mesostructure,
+    /// computes the exact ones): a reference run, not the real-time algorithm.
+    pub fn with_substitutions(mut self, subs: Substitutions, truth: &'a TruthRenderer<'a>) -> Self {
+        self.substitutions = Some((subs, truth));
         self
     }
 
-    /// The ground truth for the exact parts `select` picks, if any is on.
-    fn exact_part(&self, select: impl Fn(&ExactParts) -> bool) -> Option<&'a TruthRenderer<'a>> {
-        self.exact
-            .filter(|(parts, _)| select(parts))
+    /// The ground truth, when the substitutions pass `select`.
+    fn exact(&self, select: impl Fn(&Substitutions) -> bool) -> Option<&'a TruthRenderer<'a>> {
+        self.substitutions
+            .filter(|(subs, _)| select(subs))
             .map(|(_, truth)| truth)
     }
 
@@ -342,7 +361,7 @@ impl<'a> GdmRenderer<'a> {
     /// Steps 3–5 on the texture-space segment from `start` along `view` of length `d_t`: the
     /// hit distance, or `None` when the ray leaves the segment first.
     fn segment_hit(&self, start: DVec3, view: DVec3, d_t: f64) -> Option<f64> {
-        if let Some(truth) = self.exact_part(|p| p.query) {
+        if let Some(truth) = self.exact(|s| s.exact_query) {
             let z = self.lookup.dims().z as f64;
             return truth.cast(start.with_z(start.z.clamp(0.0, z)), view, d_t);
         }
@@ -370,11 +389,14 @@ impl<'a> GdmRenderer<'a> {
     /// Step 6: the shaded radiance along the camera ray, or `None` for a miss.
     pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.trace(origin, dir)?;
+        let shadow_test = self
+            .substitutions
+            .map_or(ShadowTest::Local, |(s, _)| s.shadows);
         let jacobian = self
-            .exact_part(|p| p.frame || p.shadows)
+            .exact(|s| s.exact_frame || s.shadows == ShadowTest::Exact)
             .and_then(|truth| truth.jacobian(hit.prism, hit.texture));
         let frame = match jacobian {
-            Some(j) if self.exact_part(|p| p.frame).is_some() => j.inverse(),
+            Some(j) if self.exact(|s| s.exact_frame).is_some() => j.inverse(),
             _ => self.prisms[hit.prism].frame,
         };
         let n_tex = self.material.normal_at(hit.texture).unwrap_or(-hit.view);
@@ -394,13 +416,18 @@ impl<'a> GdmRenderer<'a> {
                     if !shadows {
                         return true;
                     }
-                    if let Some(truth) = self.exact_part(|p| p.shadows) {
-                        let start = light_start(jacobian.unwrap_or(frame.inverse()), p, n_tex);
-                        return !truth.blocked(start, inc.direction, inc.distance);
-                    }
-                    match (frame * inc.direction).try_normalize() {
-                        Some(l) => self.lookup.lookup(shadow_origin, l) == Lookup::Escape,
-                        None => true,
+                    let start = || light_start(jacobian.unwrap_or(frame.inverse()), p, n_tex);
+                    match (shadow_test, self.exact(|_| true)) {
+                        (ShadowTest::Exact, Some(truth)) => {
+                            !truth.blocked(start(), inc.direction, inc.distance)
+                        }
+                        (ShadowTest::Shell, _) => self
+                            .trace(start(), inc.direction)
+                            .is_none_or(|h| h.t >= inc.distance),
+                        _ => match (frame * inc.direction).try_normalize() {
+                            Some(l) => self.lookup.lookup(shadow_origin, l) == Lookup::Escape,
+                            None => true,
+                        },
                     }
                 }),
         )
