@@ -6,7 +6,8 @@
 
 const PI: f32 = 3.141592653589793;
 const TAU: f32 = 6.283185307179586;
-// Where the shadow query starts, in voxels from the hit along the texture normal.
+// Where the shadow query starts, in voxels from the hit along the texture normal (every
+// renderer's convention: SHADOW_OFFSET in src/render/lighting.rs).
 const SHADOW_OFFSET: f32 = 1.0;
 // How far short of the previous estimate a refinement query is made, in voxels.
 const REFINEMENT_BACKOFF: f32 = 1.0;
