@@ -417,17 +417,17 @@ impl<'a> GdmRenderer<'a> {
                         return true;
                     }
                     let start = || light_start(jacobian.unwrap_or(frame.inverse()), p, n_tex);
-                    match (shadow_test, self.exact(|_| true)) {
-                        (ShadowTest::Exact, Some(truth)) => {
-                            !truth.blocked(start(), inc.direction, inc.distance)
-                        }
-                        (ShadowTest::Shell, _) => self
-                            .trace(start(), inc.direction)
-                            .is_none_or(|h| h.t >= inc.distance),
-                        _ => match (frame * inc.direction).try_normalize() {
+                    match shadow_test {
+                        ShadowTest::Local => match (frame * inc.direction).try_normalize() {
                             Some(l) => self.lookup.lookup(shadow_origin, l) == Lookup::Escape,
                             None => true,
                         },
+                        ShadowTest::Shell => self
+                            .trace(start(), inc.direction)
+                            .is_none_or(|h| h.t >= inc.distance),
+                        ShadowTest::Exact => self.exact(|_| true).is_none_or(|truth| {
+                            !truth.blocked(start(), inc.direction, inc.distance)
+                        }),
                     }
                 }),
         )
