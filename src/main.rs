@@ -400,8 +400,9 @@ enum ReportCommand {
         out: PathBuf,
     },
     /// The GDM renderer's image error against the ground truth on a scene, over direction
-    /// resolutions × (exact GDM, SVD ranks) × refinement counts, with render times: Markdown
-    /// on stdout; render-accuracy.md and render-accuracy.json in --out.
+    /// resolutions × (exact GDM, SVD ranks) × refinement counts, with render times, then its
+    /// error budget (the query, the frame and the shadows substituted one at a time and all
+    /// together): Markdown on stdout; render-accuracy.md and render-accuracy.json in --out.
     Render {
         /// Scene file.
         #[arg(long)]

@@ -61,6 +61,54 @@ fn render_both_methods_and_compare() {
 }
 
 #[test]
+fn the_render_report_ends_with_the_error_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&scene, SCENE).unwrap();
+    let out = dir.path().join("report");
+    let o = succeeds(&[
+        "report",
+        "render",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--dirs",
+        "8x16",
+        "--ranks",
+        "4",
+        "--refinements",
+        "0",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("Error budget"));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("render-accuracy.json")).unwrap()).unwrap();
+    assert_eq!(json["rows"].as_array().unwrap().len(), 2, "{json}");
+    let budget = json["budget"].as_array().unwrap();
+    let labels: Vec<&str> = budget
+        .iter()
+        .map(|r| r["substituted"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        labels,
+        [
+            "none",
+            "query",
+            "frame",
+            "shell shadows",
+            "shadows",
+            "query+frame+shadows"
+        ]
+    );
+    // The budget's first row is the sweep's exact row: the same deterministic image.
+    assert_eq!(budget[0]["psnr_db"], json["rows"][0]["psnr_db"], "{json}");
+    // Exact parts bring the image closer to the truth, not further (on this coarse torus the
+    // straight segments per prism still leave most of the error).
+    let psnr = |r: &serde_json::Value| r["psnr_db"].as_f64().unwrap();
+    assert!(psnr(&budget[5]) > psnr(&budget[0]), "{json}");
+}
+
+#[test]
 fn bad_scenes_and_images_fail_with_clear_messages() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| {
