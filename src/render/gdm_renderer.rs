@@ -50,8 +50,7 @@ use glam::{DMat3, DVec3};
 pub const REFINEMENT_BACKOFF: f64 = 1.0;
 
 /// How a reference run tests shadows.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ShadowTest {
     /// The paper's: one GDM query along the light in texture space (flat base assumed;
     /// mesostructure of the same neighbourhood only).
@@ -70,7 +69,7 @@ pub enum ShadowTest {
 /// counterpart, computed by the ground truth, or for shadows also by the GDM algorithm
 /// through the shell. None of them is part of the real-time algorithm; the default is the
 /// paper's.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Substitutions {
     /// The GDM query: the mesostructure cast exactly along the fragment's straight
     /// texture-space segment, instead of the interpolated GDM.
