@@ -96,6 +96,17 @@ fn shell(thickness: f64) -> ShellParams {
     }
 }
 
+/// The `chain` sample at 32×32×16 in 3×3 tiles on the unit flat grid under a 1/6-thick
+/// shell (cubic voxels), lit as in [`SLAB_SCENE`]: the mapping is affine, so the truth is a
+/// straight cast in texture space.
+fn flat_chain() -> LoadedScene {
+    let dims = Dims::new(32, 32, 16).unwrap();
+    let volume = samples::volume(SampleKind::Chain, dims, &Limits::default()).unwrap();
+    let mut params = shell(0.5 / 3.0);
+    params.tiles_per_uv = [3.0, 3.0];
+    loaded(flat_grid(6, 1.0), &volume, params, SLAB_SCENE)
+}
+
 /// Both renderers over a 0.5-thick shell on `base` filled with [`slab`]`(4)`, handed to
 /// `check` with the loaded scene.
 fn with_slab_renderers(
@@ -307,11 +318,7 @@ fn with_every_part_exact_the_gdm_renderer_renders_the_truth_on_a_flat_plane() {
     // algorithm's approximations is left (the error budget's last row), and the image must be
     // the truth's. The paper's algorithm on the same scene must differ visibly, or the budget
     // would measure nothing.
-    let dims = Dims::new(32, 32, 16).unwrap();
-    let volume = samples::volume(SampleKind::Chain, dims, &Limits::default()).unwrap();
-    let mut params = shell(0.5 / 3.0);
-    params.tiles_per_uv = [3.0, 3.0];
-    let scene = loaded(flat_grid(6, 1.0), &volume, params, SLAB_SCENE);
+    let scene = flat_chain();
     let caster = scene.mesostructure.caster();
     let g = bake(caster);
     let lookup = RawLookup::new(&g);
@@ -540,11 +547,7 @@ fn gdm_refinement_moves_hits_onto_the_surface() {
     // written). Without them, blends of a near and a far sample put hits in the air beside
     // silhouettes. (The tail does not improve: where the samples disagree on which surface
     // is hit, a refinement may move the hit to the other one.)
-    let dims = Dims::new(32, 32, 16).unwrap();
-    let volume = samples::volume(SampleKind::Chain, dims, &Limits::default()).unwrap();
-    let mut params = shell(0.5 / 3.0);
-    params.tiles_per_uv = [3.0, 3.0];
-    let scene = loaded(flat_grid(6, 1.0), &volume, params, SLAB_SCENE);
+    let scene = flat_chain();
     let caster = scene.mesostructure.caster();
     let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
     let g = bake(caster);
