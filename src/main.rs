@@ -13,6 +13,7 @@ use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::limits::{Limits, parse_bytes};
 use mesobake::package::Package;
 use mesobake::preview_scene::preview;
+use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render_scene::{self, GdmSource, RenderMethod};
 use mesobake::samples::{self, SampleKind};
@@ -164,6 +165,11 @@ enum Command {
         /// Print a JSON summary (seconds per stage, hit pixels, shell report) on stdout.
         #[arg(long)]
         json: bool,
+        /// For --method gdm, a reference run: parts of the algorithm replaced, comma-separated
+        /// (query, frame: exact; shell-shadows: the GDM algorithm traced to the light through
+        /// the shell; shadows: the truth's rays). See `report render`'s error budget.
+        #[arg(long, default_value = "none")]
+        substitute: Substitutions,
     },
     /// Render a scene with the real-time pipeline (WGSL shaders on wgpu, headless, on any
     /// adapter including Mesa's software Vulkan driver) from a package, or from one baked for
@@ -801,6 +807,7 @@ fn run(cli: Cli) -> Result<()> {
             package,
             out,
             json,
+            substitute,
         } => {
             let start = Instant::now();
             let loaded = render_scene::load_scene(&scene, &limits)?;
@@ -815,7 +822,9 @@ fn run(cli: Cli) -> Result<()> {
                 }
             };
             let progress = Progress::new("baking GDM (exact)");
-            let mut rendered = render_scene::render(&loaded, method, source, &limits, &progress)?;
+            let mut rendered = render_scene::render_substituted(
+                &loaded, method, source, substitute, &limits, &progress,
+            )?;
             progress.0.finish_and_clear();
             rendered.seconds.load = load_s;
             rendered.image.write(&out)?;

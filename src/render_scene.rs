@@ -7,7 +7,7 @@ use crate::gi::shading::{GiReport, GiShading};
 use crate::limits::Limits;
 use crate::package::Package;
 use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
-use crate::render::gdm_renderer::GdmRenderer;
+use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
 use crate::render::image::Image;
 use crate::render::path_tracer::PathTracer;
 use crate::render::render_image;
@@ -91,6 +91,31 @@ pub fn render(
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Rendered> {
+    render_substituted(
+        loaded,
+        method,
+        source,
+        Substitutions::default(),
+        limits,
+        observer,
+    )
+}
+
+/// Renders `loaded` with `method`, the GDM renderer with parts of its algorithm substituted
+/// (a reference run: see [`Substitutions`]); substitutions need the GDM method.
+pub fn render_substituted(
+    loaded: &LoadedScene,
+    method: RenderMethod,
+    source: GdmSource,
+    substitutions: Substitutions,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Rendered> {
+    if method == RenderMethod::Truth && substitutions != Substitutions::default() {
+        return Err(Error::InvalidParameter(
+            "substitutions apply to the GDM renderer (method gdm) only".into(),
+        ));
+    }
     let scene = &loaded.scene;
     let mut seconds = RenderSeconds::default();
     let environment = scene.wants(Effect::EnvironmentLighting);
@@ -145,12 +170,20 @@ pub fn render(
             };
             seconds.gdm = start.elapsed().as_secs_f64();
             let start = Instant::now();
+            // Only a substituted run needs the truth (and its BVH, in the render time).
+            let truth = (substitutions != Substitutions::default()).then(|| {
+                let caster = loaded.mesostructure.caster();
+                TruthRenderer::new(&loaded.shell, caster, &loaded.material)
+            });
             let mut r = GdmRenderer::new(
                 &loaded.shell,
                 lookup,
                 &loaded.material,
                 scene.gdm_refinements,
             );
+            if let Some(truth) = &truth {
+                r = r.with_substitutions(substitutions, truth);
+            }
             if let Some(gi) = &gi {
                 r = r.with_gi(gi);
             }

@@ -109,6 +109,58 @@ fn the_render_report_ends_with_the_error_budget() {
 }
 
 #[test]
+fn substituted_gdm_renders_come_closer_to_the_truth_and_bad_ones_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&scene, SCENE).unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let scene = scene.to_str().unwrap();
+    let render = |method: &str, substitute: &str, out: &str| {
+        succeeds(&[
+            "render",
+            "--scene",
+            scene,
+            "--method",
+            method,
+            "--substitute",
+            substitute,
+            "--out",
+            &path(out),
+        ]);
+    };
+    render("truth", "none", "truth.exr");
+    render("gdm", "none", "gdm.exr");
+    render("gdm", "query,frame,shadows", "exact.exr");
+    let psnr = |image: &str| {
+        let o = succeeds(&["compare", &path("truth.exr"), &path(image), "--json"]);
+        let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        c["psnr_db"].as_f64().unwrap()
+    };
+    // As in the report's budget on this scene: closer, not identical (straight segments).
+    let (paper, exact) = (psnr("gdm.exr"), psnr("exact.exr"));
+    assert!(exact > paper, "{exact} dB against {paper} dB");
+    let out = path("x.png");
+    let bad = |method: &'static str, substitute: &'static str| {
+        vec![
+            "render",
+            "--scene",
+            scene,
+            "--method",
+            method,
+            "--substitute",
+            substitute,
+            "--out",
+            &out,
+        ]
+    };
+    each_fails_with(&[
+        (bad("gdm", "query,shade"), "substitution \"shade\""),
+        (bad("gdm", "shadows,shell-shadows"), "not both"),
+        (bad("truth", "query"), "GDM renderer"),
+    ]);
+}
+
+#[test]
 fn bad_scenes_and_images_fail_with_clear_messages() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| {

@@ -37,6 +37,7 @@ use super::gdm_lookup::{GdmLookup, Lookup};
 use super::lighting::{SHADOW_OFFSET, shade};
 use super::material::{ALBEDO_DEPTH, MaterialVolume};
 use super::truth::{TruthRenderer, light_start};
+use crate::error::{Error, Result};
 use crate::gi::shading::GiShading;
 use crate::grid::Dims;
 use crate::scene::{Effect, Scene};
@@ -115,6 +116,43 @@ impl Substitutions {
         } else {
             on.join("+")
         }
+    }
+}
+
+impl std::str::FromStr for Substitutions {
+    type Err = Error;
+
+    /// Parts separated by commas: `query`, `frame`, `shell-shadows` or `shadows` (the
+    /// latter two exclusive); `none` or nothing for the paper's algorithm.
+    fn from_str(text: &str) -> Result<Substitutions> {
+        let mut subs = Substitutions::default();
+        for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let shadows = match part {
+                "none" => continue,
+                "query" => {
+                    subs.exact_query = true;
+                    continue;
+                }
+                "frame" => {
+                    subs.exact_frame = true;
+                    continue;
+                }
+                "shell-shadows" => ShadowTest::Shell,
+                "shadows" => ShadowTest::Exact,
+                _ => {
+                    return Err(Error::InvalidParameter(format!(
+                        "substitution {part:?}: expected query, frame, shell-shadows or shadows"
+                    )));
+                }
+            };
+            if subs.shadows != ShadowTest::Local && subs.shadows != shadows {
+                return Err(Error::InvalidParameter(
+                    "substitute shell-shadows or shadows, not both".into(),
+                ));
+            }
+            subs.shadows = shadows;
+        }
+        Ok(subs)
     }
 }
 
