@@ -32,6 +32,7 @@ impl HeightField {
         let decoder = png::Decoder::new_with_limits(std::io::Cursor::new(bytes), budget);
         let mut reader = decoder.read_info().map_err(|e| bad(e.to_string()))?;
         let (width, height) = (reader.info().width, reader.info().height);
+        limits.check_image("height field PNG", u64::from(width), u64::from(height))?;
         let (color, depth) = reader.output_color_type();
         if color != png::ColorType::Grayscale {
             return Err(bad(format!(
@@ -200,7 +201,10 @@ mod tests {
         );
         let e = HeightField::decode_png(&gray[..gray.len() - 20], &limits).unwrap_err();
         assert!(e.to_string().contains("height field PNG"), "{e}");
-        let tiny = Limits { memory_bytes: 8 };
+        let tiny = Limits {
+            memory_bytes: 8,
+            ..Limits::default()
+        };
         assert!(HeightField::decode_png(&gray, &tiny).is_err());
         let ok = HeightField::decode_png(&gray, &limits).unwrap();
         assert_eq!(ok.heights, vec![0.0, 64.0 / 255.0, 128.0 / 255.0, 1.0]);

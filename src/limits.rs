@@ -5,17 +5,24 @@ use crate::error::{Error, Result};
 /// Default memory limit for one allocation decided by input: 4 GiB.
 pub const DEFAULT_MEMORY_LIMIT: u64 = 4 << 30;
 
+/// Default limit on the pixels of an input image: 2²⁸ (16384 × 16384).
+pub const DEFAULT_IMAGE_PIXELS: u64 = 1 << 28;
+
 /// Limits that protect the process from input that asks for absurd sizes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Limits {
     /// Largest number of bytes a single input-sized buffer may take.
     pub memory_bytes: u64,
+    /// Most pixels an input image (PNG height field, EXR environment) may have, checked
+    /// from its header before it is decoded.
+    pub image_pixels: u64,
 }
 
 impl Default for Limits {
     fn default() -> Self {
         Limits {
             memory_bytes: DEFAULT_MEMORY_LIMIT,
+            image_pixels: DEFAULT_IMAGE_PIXELS,
         }
     }
 }
@@ -27,6 +34,7 @@ impl Limits {
         match std::env::var("MESOBAKE_MEMORY_LIMIT") {
             Ok(text) => Ok(Limits {
                 memory_bytes: parse_bytes(&text)?,
+                ..Limits::default()
             }),
             Err(_) => Ok(Limits::default()),
         }
@@ -44,6 +52,19 @@ impl Limits {
             });
         }
         Ok(needed)
+    }
+
+    /// Refuses a `width` × `height` image of `what` with more than [`Limits::image_pixels`]
+    /// pixels: called with the header's size, before anything is decoded.
+    pub fn check_image(&self, what: &str, width: u64, height: u64) -> Result<()> {
+        let pixels = width.saturating_mul(height);
+        if pixels > self.image_pixels {
+            return Err(Error::InvalidParameter(format!(
+                "{what} is {width}×{height} = {pixels} pixels, over the limit of {} pixels",
+                self.image_pixels
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -87,9 +108,24 @@ mod tests {
 
     #[test]
     fn refuses_overflowing_sizes() {
-        let limits = Limits { memory_bytes: 1000 };
+        let limits = Limits {
+            memory_bytes: 1000,
+            ..Limits::default()
+        };
         assert_eq!(limits.check("x", 250, 4).unwrap(), 1000);
         assert!(limits.check("x", 251, 4).is_err());
         assert!(limits.check("x", u64::MAX, 4).is_err());
+    }
+
+    #[test]
+    fn refuses_images_over_the_pixel_limit() {
+        let limits = Limits {
+            image_pixels: 100,
+            ..Limits::default()
+        };
+        assert!(limits.check_image("a PNG", 10, 10).is_ok());
+        let e = limits.check_image("a PNG", 16000, 16000).unwrap_err();
+        assert!(e.to_string().contains("16000×16000"), "{e}");
+        assert!(limits.check_image("a PNG", u64::MAX, 2).is_err());
     }
 }

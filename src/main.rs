@@ -215,7 +215,8 @@ enum Command {
         #[arg(long)]
         config: Option<PathBuf>,
     },
-    /// Issue an API key (printed once; the database keeps only its hash).
+    /// Issue, list and revoke API keys, in the database of the server's configuration
+    /// (`--config`, `MESOBAKE_*`).
     Keys {
         #[command(subcommand)]
         which: KeysCommand,
@@ -334,6 +335,21 @@ enum KeysCommand {
         /// A note saying whose key it is.
         #[arg(long, default_value = "")]
         label: String,
+        /// The server's configuration file (for its database).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// List the issued keys: id, scopes, label, issue time, whether revoked (never the
+    /// keys themselves).
+    List {
+        /// The server's configuration file (for its database).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Revoke the key with this id (the part after `mbk_`, as `keys list` shows it).
+    Revoke {
+        /// The key's id.
+        id: String,
         /// The server's configuration file (for its database).
         #[arg(long)]
         config: Option<PathBuf>,
@@ -484,14 +500,62 @@ fn client(server: &str, api_key: Option<String>) -> Result<Client> {
     )
 }
 
-/// Logging to stderr and a tokio runtime, for the server and the workers.
+/// A tokio runtime for the commands that talk to the server's database.
 fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Runtime::new()
+        .map_err(|e| Error::InvalidParameter(format!("starting the runtime: {e}")))
+}
+
+/// Runs the server or the workers with logging to stderr. Bakes that were abandoned at
+/// shutdown (their jobs handed back to the queue) are not waited for.
+fn run_service(service: impl Future<Output = Result<()>>) -> Result<()> {
     tracing_subscriber::fmt()
         .with_max_level(tracing::Level::INFO)
         .with_writer(std::io::stderr)
         .init();
-    tokio::runtime::Runtime::new()
-        .map_err(|e| Error::InvalidParameter(format!("starting the runtime: {e}")))
+    let runtime = runtime()?;
+    let result = runtime.block_on(service);
+    runtime.shutdown_timeout(std::time::Duration::from_millis(100));
+    result
+}
+
+/// `mesobake keys`: create, list or revoke keys in the configured database, saying which.
+fn keys(which: KeysCommand) -> Result<()> {
+    use mesobake::server::{auth::Scope, config::ServerConfig, db::Db};
+    let config = match &which {
+        KeysCommand::Create { config, .. }
+        | KeysCommand::List { config }
+        | KeysCommand::Revoke { config, .. } => ServerConfig::load(config.as_deref())?,
+    };
+    let database = config.database_url_redacted();
+    runtime()?.block_on(async {
+        let db = Db::connect(&config.database_url)
+            .await
+            .map_err(|e| Error::Database(format!("{database}: {e}")))?;
+        match which {
+            KeysCommand::Create { scopes, label, .. } => {
+                let key = db
+                    .create_api_key(&Scope::parse_list(&scopes)?, &label)
+                    .await?;
+                println!("{key}");
+                eprintln!("key written to {database}");
+            }
+            KeysCommand::List { .. } => {
+                eprintln!("keys in {database}");
+                for k in db.api_keys().await? {
+                    println!(
+                        "{}",
+                        serde_json::to_string(&k).expect("key infos serialize")
+                    );
+                }
+            }
+            KeysCommand::Revoke { id, .. } => {
+                db.revoke_api_key(&id).await?;
+                eprintln!("key {id} revoked in {database}");
+            }
+        }
+        Ok(())
+    })
 }
 
 struct Progress(ProgressBar);
@@ -524,6 +588,7 @@ fn run(cli: Cli) -> Result<()> {
     let limits = match &cli.memory_limit {
         Some(text) => Limits {
             memory_bytes: parse_bytes(text)?,
+            ..Limits::default()
         },
         None => Limits::from_env()?,
     };
@@ -856,30 +921,12 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Serve { config } => {
             let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
-            runtime()?.block_on(mesobake::server::serve(config, limits))
+            run_service(mesobake::server::serve(config, limits))
         }
-        Command::Keys {
-            which:
-                KeysCommand::Create {
-                    scopes,
-                    label,
-                    config,
-                },
-        } => {
-            let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
-            let scopes = mesobake::server::auth::Scope::parse_list(&scopes)?;
-            let runtime = tokio::runtime::Runtime::new()
-                .map_err(|e| Error::InvalidParameter(format!("starting the runtime: {e}")))?;
-            let key = runtime.block_on(async {
-                let db = mesobake::server::db::Db::connect(&config.database_url).await?;
-                db.create_api_key(&scopes, &label).await
-            })?;
-            println!("{key}");
-            Ok(())
-        }
+        Command::Keys { which } => keys(which),
         Command::Worker { config } => {
             let config = mesobake::server::config::ServerConfig::load(config.as_deref())?;
-            runtime()?.block_on(mesobake::server::work(config, limits))
+            run_service(mesobake::server::work(config, limits))
         }
         Command::Preview {
             scene,

@@ -144,6 +144,7 @@ pub fn bake_scene_package(
     let mut seconds = Vec::new();
     let mut stage = StageSeconds::default();
     let start = Instant::now();
+    observer.stage("bake_gdm");
     let mut g = bake_gdm(loaded, limits, observer)?;
     seconds.push(("bake_gdm".to_owned(), start.elapsed().as_secs_f64()));
     g.set_escape_convention(EscapeConvention::Boundary);
@@ -157,17 +158,21 @@ pub fn bake_scene_package(
         allow_open: false,
     };
     let info = bake_info(&g, Method::Exact, FastParams::default(), false);
+    observer.stage("compress");
     let gdm = compress_gdm(&g, &package_params, limits, observer, &mut stage)?;
     seconds.push(("compress".to_owned(), stage.svd + stage.quantize));
 
     let transfer = if scene.wants(Effect::EnvironmentLighting) {
         let start = Instant::now();
+        observer.stage("bake_prt");
         let prt = prt_matrices(loaded)?;
         seconds.push(("bake_prt".to_owned(), start.elapsed().as_secs_f64()));
         let start = Instant::now();
         let rtv_params = rtv_params(scene);
+        observer.stage("bake_rtv");
         let (rtv, stats) = rtv::bake(&g, &loaded.material, &rtv_params, limits, observer)?;
         seconds.push(("bake_rtv".to_owned(), start.elapsed().as_secs_f64()));
+        observer.stage("compress_rtv");
         let (compressed, compression, compress_s) =
             CompressedRtv::compress(&rtv, g.dirs(), scene.gi.rtv_rank, limits)?;
         seconds.push(("compress_rtv".to_owned(), compress_s));
@@ -191,6 +196,7 @@ pub fn bake_scene_package(
         None
     };
     let start = Instant::now();
+    observer.stage("encode");
     let payload = transfer.as_ref().map(|(info, rtv, prt, _)| GiPayload {
         info: info.clone(),
         rtv,

@@ -8,7 +8,7 @@ use crate::limits::Limits;
 use crate::samples::{self, SampleKind};
 use crate::server::config::ServerConfig;
 use crate::server::jobs::JobSpec;
-use crate::server::{AppState, open_state, router, spawn_workers};
+use crate::server::{AppState, open_state, serve_on, spawn_workers};
 use crate::volume::Volume;
 use crate::volume_format;
 use serde_json::{Value, json};
@@ -104,8 +104,7 @@ async fn run_async(database_url: Option<&str>, limits: &Limits) -> Result<String
         .await
         .map_err(|e| err("listen", e))?;
     let addr = listener.local_addr().map_err(|e| err("listen", e))?;
-    let app = router(state.clone(), config.max_upload_bytes);
-    tokio::spawn(async move { axum::serve(listener, app).await });
+    tokio::spawn(serve_on(listener, state.clone(), std::future::pending()));
     let stop = Arc::new(AtomicBool::new(false));
     spawn_workers(&state, 1, &stop);
     let base = format!("http://{addr}/api/v1");

@@ -109,7 +109,10 @@ fn gdm_over_memory_limit_is_refused() {
     let d = Dims::new(4, 4, 2).unwrap();
     let v = Volume::from_fn(d, &Limits::default(), |_, _, _| false).unwrap();
     let c = mesobake::gdm::volume_caster::VolumeCaster::new(&v);
-    let limits = Limits { memory_bytes: 1000 };
+    let limits = Limits {
+        memory_bytes: 1000,
+        ..Limits::default()
+    };
     let e = gdm::bake(
         &c,
         DirectionGrid::PAPER,

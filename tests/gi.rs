@@ -182,7 +182,10 @@ fn environment_maps_project_with_second_order_error_and_round_trip_through_exr()
     map.write_exr(&path).unwrap();
     let read = Environment::read_exr(&path, &Limits::default()).unwrap();
     assert_eq!(read, map);
-    let tiny = Limits { memory_bytes: 1000 };
+    let tiny = Limits {
+        memory_bytes: 1000,
+        ..Limits::default()
+    };
     assert!(Environment::read_exr(&path, &tiny).is_err());
     std::fs::write(&path, b"not an exr").unwrap();
     let e = Environment::read_exr(&path, &Limits::default()).unwrap_err();

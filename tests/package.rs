@@ -263,7 +263,10 @@ fn a_huge_declared_grid_fails_on_the_memory_limit_not_on_allocation() {
 #[test]
 fn reconstruction_refuses_grids_over_the_memory_limit() {
     let pkg = Package::parse(small_package()).unwrap();
-    let tiny = Limits { memory_bytes: 1024 };
+    let tiny = Limits {
+        memory_bytes: 1024,
+        ..Limits::default()
+    };
     let e = pkg.reconstruct(&tiny).unwrap_err().to_string();
     assert!(e.contains("memory limit"), "{e}");
 }

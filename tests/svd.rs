@@ -196,7 +196,10 @@ fn bad_matrices_are_refused() {
     )
     .unwrap_err();
     assert!(e.to_string().contains("RMSE"), "{e}");
-    let tiny = Limits { memory_bytes: 1000 };
+    let tiny = Limits {
+        memory_bytes: 1000,
+        ..Limits::default()
+    };
     assert!(
         truncated_svd(
             &DenseRows::new(&data, 10).unwrap(),

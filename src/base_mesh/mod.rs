@@ -706,6 +706,7 @@ mod tests {
         assert_eq!(report.triangles, 2);
         let small = Limits {
             memory_bytes: 8 * 10,
+            ..Limits::default()
         };
         assert!(matches!(
             BaseMesh::read_obj(&path, &small),

@@ -43,6 +43,9 @@ pub trait BakeObserver: Sync {
     fn cancelled(&self) -> bool {
         false
     }
+    /// A pipeline of several bakes begins its stage `name`; [`BakeObserver::progress`] then
+    /// counts that stage's work.
+    fn stage(&self, _name: &str) {}
 }
 
 /// The observer that ignores everything.

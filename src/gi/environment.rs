@@ -77,6 +77,7 @@ impl Environment {
             .first()
             .ok_or_else(|| bad("no image layer".into()))?;
         let size = header.layer_size;
+        limits.check_image("environment map", size.0 as u64, size.1 as u64)?;
         limits.check("environment texels", (size.0 * size.1) as u64, 12)?;
         let image = exr::prelude::read_first_rgba_layer_from_file(
             path,

@@ -2,7 +2,7 @@
 
 use crate::error::Error;
 use axum::Json;
-use axum::http::StatusCode;
+use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 /// An error answer.
@@ -23,6 +23,18 @@ impl ApiError {
         }
     }
 
+    /// 503 with `Retry-After: 1`: the server is busy with other requests.
+    pub fn busy(message: impl Into<String>) -> ApiError {
+        ApiError::new(StatusCode::SERVICE_UNAVAILABLE, message)
+    }
+
+    /// `e` as an answer, with the blob store's paths in its message cut down to keys.
+    pub fn scrubbed(e: Error, blobs: &super::blobs::BlobStore) -> ApiError {
+        let mut answer = ApiError::from(e);
+        answer.message = blobs.scrub(&answer.message);
+        answer
+    }
+
     /// 404 for `what`.
     pub fn not_found(what: impl std::fmt::Display) -> ApiError {
         ApiError::new(StatusCode::NOT_FOUND, format!("{what} not found"))
@@ -41,7 +53,14 @@ impl From<Error> for ApiError {
             Error::MemoryLimit { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             Error::Cancelled => StatusCode::CONFLICT,
             Error::Gpu(_) | Error::Database(_) => StatusCode::SERVICE_UNAVAILABLE,
-            Error::Io { .. } => StatusCode::INTERNAL_SERVER_ERROR,
+            Error::Io { .. } => {
+                // The path is the server's business: logged, not answered.
+                tracing::error!("{e}");
+                return ApiError::new(
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    "storage error (the server's log has the details)",
+                );
+            }
         };
         ApiError::new(status, e.to_string())
     }
@@ -58,11 +77,21 @@ impl From<tokio::task::JoinError> for ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (
+        let mut response = (
             self.status,
             Json(serde_json::json!({ "error": self.message })),
         )
-            .into_response()
+            .into_response();
+        // Busy and over-quota answers say when to come back.
+        if matches!(
+            self.status,
+            StatusCode::SERVICE_UNAVAILABLE | StatusCode::TOO_MANY_REQUESTS
+        ) {
+            response
+                .headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+        }
+        response
     }
 }
 

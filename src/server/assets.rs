@@ -3,8 +3,10 @@
 
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
-use super::blobs::{is_key, key_of};
+use super::blobs::is_key;
+use super::config::millis;
 use super::db::{AssetRow, now_ms};
+use super::json_body::body_error;
 use crate::base_mesh::BaseMesh;
 use crate::error::{Error, Result};
 use crate::height_field::HeightField;
@@ -13,10 +15,12 @@ use crate::mesh_tile::MeshTile;
 use crate::trimesh::TriMesh;
 use crate::volume_format;
 use axum::Json;
-use axum::body::Bytes;
+use axum::body::Body;
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
+use futures_util::StreamExt;
 use serde::Deserialize;
+use tokio::io::AsyncWriteExt;
 
 /// What an upload is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, utoipa::ToSchema)]
@@ -98,7 +102,36 @@ pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_
     })
 }
 
-/// Uploads an asset.
+/// Removes a temporary upload file when the upload ends early.
+struct TempFile(std::path::PathBuf);
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// Streams `body` into the temporary file `path`, returning the BLAKE3 key and length of
+/// its bytes.
+async fn stream_to_file(body: Body, path: &std::path::Path) -> ApiResult<(String, u64)> {
+    let io = |e: std::io::Error| ApiError::from(Error::io(path, e));
+    let mut file = tokio::fs::File::create(path).await.map_err(io)?;
+    let mut hasher = blake3::Hasher::new();
+    let mut len = 0u64;
+    let mut stream = body.into_data_stream();
+    while let Some(chunk) = stream.next().await {
+        let chunk = chunk.map_err(|e| body_error(&e))?;
+        hasher.update(&chunk);
+        len += chunk.len() as u64;
+        file.write_all(&chunk).await.map_err(io)?;
+    }
+    file.flush().await.map_err(io)?;
+    Ok((hasher.finalize().to_hex().to_string(), len))
+}
+
+/// Uploads an asset. The body streams to a temporary file in the blob store (hashed on the
+/// way), is validated from there and moved into place; at most `max_concurrent_uploads`
+/// run at once, others wait up to `busy_wait_ms` and then get 503.
 #[utoipa::path(
     post,
     path = "/api/v1/assets",
@@ -108,23 +141,32 @@ pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_
         (status = 201, description = "Stored", body = AssetRow),
         (status = 200, description = "The same bytes were uploaded before", body = AssetRow),
         (status = 409, description = "The same bytes were uploaded before as another kind"),
-        (status = 413, description = "Body over the configured limit"),
+        (status = 413, description = "Body over max_upload_bytes"),
         (status = 422, description = "Not a valid asset of that kind"),
+        (status = 503, description = "Too many uploads at once; Retry-After says when to retry"),
     )
 )]
 pub async fn upload(
     State(state): State<AppState>,
     Query(params): Query<UploadParams>,
-    body: Bytes,
+    body: Body,
 ) -> ApiResult<(StatusCode, Json<AssetRow>)> {
     check_name(&params.name)?;
-    if body.is_empty() {
+    let _permit = tokio::time::timeout(
+        millis(state.config.busy_wait_ms),
+        state.uploads.clone().acquire_owned(),
+    )
+    .await
+    .map_err(|_| ApiError::busy("too many uploads at once; try again shortly"))?
+    .map_err(|_| ApiError::busy("uploads are closed"))?;
+    let tmp = TempFile(state.blobs.temp_path()?);
+    let (id, len) = stream_to_file(body, &tmp.0).await?;
+    if len == 0 {
         return Err(ApiError::new(
             StatusCode::UNPROCESSABLE_ENTITY,
             "empty upload",
         ));
     }
-    let id = key_of(&body);
     if let Some(existing) = state.db.asset(&id).await? {
         if existing.kind != params.kind.name() {
             return Err(ApiError::new(
@@ -137,11 +179,12 @@ pub async fn upload(
         }
         return Ok((StatusCode::OK, Json(existing)));
     }
-    let bytes = body.len() as i64;
-    let (limits, blobs, kind) = (state.limits, state.blobs.clone(), params.kind);
+    let (limits, blobs, kind, key) = (state.limits, state.blobs.clone(), params.kind, id.clone());
     let summary = tokio::task::spawn_blocking(move || -> Result<serde_json::Value> {
-        let summary = validate(kind, &body, &limits)?;
-        blobs.put(&body)?;
+        let bytes = std::fs::read(&tmp.0).map_err(|e| Error::io(&tmp.0, e))?;
+        let summary = validate(kind, &bytes, &limits)?;
+        drop(bytes);
+        blobs.put_file(&tmp.0, &key)?;
         Ok(summary)
     })
     .await??;
@@ -149,7 +192,7 @@ pub async fn upload(
         id,
         kind: kind.name().into(),
         name: params.name,
-        bytes,
+        bytes: len as i64,
         summary,
         created_ms: now_ms(),
     };

@@ -62,7 +62,8 @@ impl BlobStore {
         blob_url: &str,
         options: &BTreeMap<String, String>,
     ) -> Result<BlobStore> {
-        let root = data_dir.join("blobs");
+        let root =
+            std::path::absolute(data_dir.join("blobs")).map_err(|e| Error::io(data_dir, e))?;
         std::fs::create_dir_all(&root).map_err(|e| Error::io(&root, e))?;
         let remote = match blob_url {
             "" if options.is_empty() => None,
@@ -129,6 +130,125 @@ impl BlobStore {
         Ok(Some(bytes))
     }
 
+    /// Stores the complete file `tmp` (from [`BlobStore::temp_path`]) as blob `key`, which
+    /// the caller computed from its bytes, moving it into place rather than copying it.
+    pub fn put_file(&self, tmp: &Path, key: &str) -> Result<()> {
+        let path = self.path(key)?;
+        if let Some(remote) = &self.remote {
+            let bytes = std::fs::read(tmp).map_err(|e| Error::io(tmp, e))?;
+            remote.put(key, &bytes)?;
+        }
+        if path.exists() {
+            std::fs::remove_file(tmp).map_err(|e| Error::io(tmp, e))?;
+            return Ok(());
+        }
+        let dir = path.parent().expect("blob paths have a parent");
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        std::fs::File::open(tmp)
+            .and_then(|f| f.sync_all())
+            .and_then(|()| std::fs::rename(tmp, &path))
+            .map_err(|e| Error::io(&path, e))
+    }
+
+    /// A fresh path for a temporary file inside the store (same file system as the blobs,
+    /// so that [`BlobStore::put_file`] renames it; named like [`write_atomic`]'s files so
+    /// that [`BlobStore::remove_leftovers`] finds it after a crash).
+    pub fn temp_path(&self) -> Result<PathBuf> {
+        let dir = self.root.join("tmp");
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        Ok(dir.join(format!(
+            ".upload.tmp{}-{}",
+            std::process::id(),
+            uuid::Uuid::new_v4().simple()
+        )))
+    }
+
+    /// Removes blob `key` (a cached preview being evicted); absent blobs are no error.
+    pub fn remove(&self, key: &str) -> Result<()> {
+        let path = self.path(key)?;
+        if let Some(remote) = &self.remote {
+            remote.delete(key)?;
+        }
+        match std::fs::remove_file(&path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(path, e)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Writes a fresh probe file, reads it back and removes it (and a probe object in the
+    /// bucket, for S3): whether the store takes writes now.
+    pub fn probe(&self) -> Result<()> {
+        let nonce = uuid::Uuid::new_v4().simple().to_string();
+        let path = self.root.join(format!(".probe-{nonce}"));
+        write_atomic(&path, nonce.as_bytes())?;
+        let back = std::fs::read(&path).map_err(|e| Error::io(&path, e));
+        std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        if back? != nonce.as_bytes() {
+            return Err(corrupted(path));
+        }
+        if let Some(remote) = &self.remote {
+            remote.probe(&nonce)?;
+        }
+        Ok(())
+    }
+
+    /// Removes temporary files that a killed process left in the store (named
+    /// `.NAME.tmpPID-N`): those of processes that no longer run on this host, untouched for
+    /// [`LEFTOVER_AGE`], and any untouched for [`STALE_AGE`] (a process on another machine
+    /// sharing the directory). Returns how many were removed.
+    pub fn remove_leftovers(&self) -> Result<usize> {
+        let mut removed = 0;
+        let dirs = std::fs::read_dir(&self.root).map_err(|e| Error::io(&self.root, e))?;
+        for dir in dirs.flatten() {
+            if !dir.file_type().is_ok_and(|t| t.is_dir()) {
+                continue;
+            }
+            let Ok(files) = std::fs::read_dir(dir.path()) else {
+                continue;
+            };
+            for file in files.flatten() {
+                let name = file.file_name().to_string_lossy().into_owned();
+                let Some(pid) = leftover_pid(&name) else {
+                    continue;
+                };
+                let age = file
+                    .metadata()
+                    .and_then(|m| m.modified())
+                    .ok()
+                    .and_then(|t| t.elapsed().ok())
+                    .unwrap_or_default();
+                let dead = pid != std::process::id() && !process_runs(pid);
+                if (dead && age >= LEFTOVER_AGE) || age >= STALE_AGE {
+                    match std::fs::remove_file(file.path()) {
+                        Ok(()) => removed += 1,
+                        Err(e) => tracing::warn!("{}: {e}", file.path().display()),
+                    }
+                }
+            }
+        }
+        Ok(removed)
+    }
+
+    /// `message` with the store's local paths cut down to the blob keys they end in, for
+    /// answers that must not reveal the server's directories.
+    pub fn scrub(&self, message: &str) -> String {
+        let root = self.root.display().to_string();
+        let mut out = String::with_capacity(message.len());
+        let mut rest = message;
+        while let Some(at) = rest.find(&root) {
+            out += &rest[..at];
+            rest = &rest[at + root.len()..];
+            // "/ab/" of the shard directory, if it follows.
+            let shard = rest.as_bytes();
+            if shard.len() >= 4 && shard[0] == b'/' && shard[3] == b'/' {
+                rest = &rest[4..];
+            } else {
+                rest = rest.trim_start_matches('/');
+            }
+        }
+        out + rest
+    }
+
     /// The local file of blob `key` (fetched into the cache first, for S3), or `None` when
     /// no such blob exists.
     pub fn file(&self, key: &str) -> Result<Option<PathBuf>> {
@@ -140,6 +260,26 @@ impl BlobStore {
             return Ok(None);
         }
         Ok(self.get(key)?.map(|_| path))
+    }
+}
+
+/// How long a dead process's temporary file is left alone before it is removed.
+pub const LEFTOVER_AGE: std::time::Duration = std::time::Duration::from_secs(60);
+/// How long any temporary file is left alone before it is taken for a leftover.
+pub const STALE_AGE: std::time::Duration = std::time::Duration::from_secs(3600);
+
+/// The process id in a temporary file's name (`.NAME.tmpPID-N`), if it is one.
+fn leftover_pid(name: &str) -> Option<u32> {
+    let (_, tail) = name.strip_prefix('.')?.rsplit_once(".tmp")?;
+    tail.split_once('-')?.0.parse().ok()
+}
+
+/// Whether process `pid` runs on this host (always "yes" where that cannot be told).
+fn process_runs(pid: u32) -> bool {
+    if cfg!(target_os = "linux") {
+        Path::new(&format!("/proc/{pid}")).exists()
+    } else {
+        true
     }
 }
 
@@ -231,6 +371,29 @@ impl Remote {
         result.map_err(|e| self.failed(key, e))
     }
 
+    fn delete(&self, key: &str) -> Result<()> {
+        let (store, object) = (self.store.clone(), ObjectPath::from(key));
+        let result = self.run(async move {
+            match store.delete(&object).await {
+                Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
+                Err(e) => Err(e),
+            }
+        })?;
+        result.map_err(|e| self.failed(key, e))
+    }
+
+    /// Writes and deletes the object `probes/NONCE`.
+    fn probe(&self, nonce: &str) -> Result<()> {
+        let name = format!("probes/{nonce}");
+        let (store, object) = (self.store.clone(), ObjectPath::from(name.as_str()));
+        let payload = PutPayload::from(nonce.as_bytes().to_vec());
+        let result = self.run(async move {
+            store.put(&object, payload).await?;
+            store.delete(&object).await
+        })?;
+        result.map_err(|e| self.failed(&name, e))
+    }
+
     fn get(&self, key: &str) -> Result<Option<Vec<u8>>> {
         let (store, object) = (self.store.clone(), ObjectPath::from(key));
         let result = self.run(async move {
@@ -281,6 +444,63 @@ mod tests {
         // A blob whose bytes no longer match its key is reported, not served.
         std::fs::write(store.path(&key).unwrap(), b"chain mall").unwrap();
         assert!(store.get(&key).is_err());
+    }
+
+    #[test]
+    fn leftovers_of_dead_processes_are_removed_and_live_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = local(dir.path());
+        let key = store.put(b"kept").unwrap();
+        let shard = store.path(&key).unwrap().parent().unwrap().to_owned();
+        let old = std::time::SystemTime::now() - 2 * LEFTOVER_AGE;
+        let make = |name: &str, modified: std::time::SystemTime| {
+            let path = shard.join(name);
+            std::fs::write(&path, b"half a blob").unwrap();
+            std::fs::File::options()
+                .write(true)
+                .open(&path)
+                .unwrap()
+                .set_modified(modified)
+                .unwrap();
+            path
+        };
+        // No process has a pid this large (Linux caps them at 2^22).
+        let dead_old = make(&format!(".{key}.tmp{}-0", 1u32 << 30), old);
+        let dead_fresh = make(
+            &format!(".{key}.tmp{}-1", 1u32 << 30),
+            std::time::SystemTime::now(),
+        );
+        let live_old = make(&format!(".{key}.tmp{}-2", std::process::id()), old);
+        let upload = store.temp_path().unwrap();
+        std::fs::write(&upload, b"streaming").unwrap();
+        assert_eq!(store.remove_leftovers().unwrap(), 1);
+        assert!(!dead_old.exists());
+        assert!(dead_fresh.exists() && live_old.exists() && upload.exists());
+        assert_eq!(store.get(&key).unwrap().unwrap(), b"kept");
+    }
+
+    #[test]
+    fn probes_leave_nothing_and_scrubbed_messages_keep_only_keys() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = local(dir.path());
+        store.probe().unwrap();
+        assert_eq!(std::fs::read_dir(&store.root).unwrap().count(), 0);
+        let key = key_of(b"x");
+        let message = format!(
+            "scene: {} is a 8x8x4 volume",
+            store.path(&key).unwrap().display()
+        );
+        assert_eq!(
+            store.scrub(&message),
+            format!("scene: {key} is a 8x8x4 volume")
+        );
+        let tmp = store.temp_path().unwrap();
+        std::fs::write(&tmp, b"x").unwrap();
+        store.put_file(&tmp, &key).unwrap();
+        assert_eq!(store.get(&key).unwrap().unwrap(), b"x");
+        assert!(!tmp.exists());
+        store.remove(&key).unwrap();
+        assert!(store.get(&key).unwrap().is_none());
     }
 
     #[test]

@@ -144,6 +144,8 @@ pub struct Claimed {
     pub spec: JobSpec,
     /// This attempt's number (1 for the first).
     pub attempt: i32,
+    /// When the job became runnable (its submission or its retry's backoff), Unix ms.
+    pub ready_ms: i64,
 }
 
 const VIEW_COLUMNS: &str = "id, state, stage, progress, attempts, plan, timings, error, \
@@ -274,7 +276,7 @@ impl Db {
             "UPDATE jobs SET state = 'running', lease_owner = $1, lease_expires_ms = $2, \
              attempts = attempts + 1, updated_ms = $3 \
              WHERE id = (SELECT id FROM jobs WHERE {runnable} ORDER BY created_ms, id LIMIT 1) \
-             AND {runnable} RETURNING id, spec, attempts"
+             AND {runnable} RETURNING id, spec, attempts, run_after_ms"
         )))
         .bind(worker)
         .bind(now + lease_ms)
@@ -289,6 +291,7 @@ impl Db {
             spec: serde_json::from_str(&spec)
                 .map_err(|e| Error::Database(format!("job spec: {e}")))?,
             attempt: row.try_get("attempts").map_err(db_error)?,
+            ready_ms: row.try_get("run_after_ms").map_err(db_error)?,
         }))
     }
 
@@ -396,6 +399,51 @@ impl Db {
         .await
         .map_err(db_error)?;
         self.job(id).await
+    }
+
+    /// Hands `worker`'s running job `id` back to the queue at once (the worker is shutting
+    /// down): the attempt does not count. Returns whether it still owned the lease.
+    pub async fn release_job(&self, id: &str, worker: &str) -> Result<bool> {
+        let now = now_ms();
+        let done = sqlx::query(
+            "UPDATE jobs SET state = 'queued', attempts = attempts - 1, lease_owner = NULL, \
+             lease_expires_ms = NULL, run_after_ms = $3, updated_ms = $3 \
+             WHERE id = $1 AND lease_owner = $2 AND state = 'running'",
+        )
+        .bind(id)
+        .bind(worker)
+        .bind(now)
+        .execute(&self.pool)
+        .await
+        .map_err(db_error)?;
+        Ok(done.rows_affected() == 1)
+    }
+
+    /// How many jobs are queued or running.
+    pub async fn active_job_count(&self) -> Result<u64> {
+        let n: i64 =
+            sqlx::query_scalar("SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')")
+                .fetch_one(&self.pool)
+                .await
+                .map_err(db_error)?;
+        Ok(n.max(0) as u64)
+    }
+
+    /// How many jobs are in each state.
+    pub async fn job_counts(&self) -> Result<Vec<(String, i64)>> {
+        let rows =
+            sqlx::query("SELECT state, COUNT(*) AS n FROM jobs GROUP BY state ORDER BY state")
+                .fetch_all(&self.pool)
+                .await
+                .map_err(db_error)?;
+        rows.iter()
+            .map(|r| {
+                Ok((
+                    r.try_get("state").map_err(db_error)?,
+                    r.try_get("n").map_err(db_error)?,
+                ))
+            })
+            .collect()
     }
 
     /// Cancels running jobs whose cancellation was asked for and whose worker's lease

@@ -3,6 +3,8 @@
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
 use super::jobs::{JobSpec, JobView, check_job_id};
+use super::json_body::JsonBody;
+use super::request_limits::check_scene_cost;
 use crate::scene::{BaseMeshSource, MesostructureSource, Scene};
 use axum::Json;
 use axum::extract::{Path, State};
@@ -58,23 +60,47 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
     Ok(())
 }
 
-/// Parses and checks a job specification: the scene is valid, the rank in 1..=64 and every
-/// asset it names uploaded as the right kind.
-pub async fn check_spec(state: &AppState, body: serde_json::Value) -> ApiResult<JobSpec> {
-    let unprocessable = |m: String| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, m);
-    let spec: JobSpec =
-        serde_json::from_value(body).map_err(|e| unprocessable(format!("job: {e}")))?;
+/// Checks a job specification: the scene is valid and within the server's cost limits, the
+/// rank in 1..=64 and every asset it names uploaded as the right kind.
+pub async fn check_spec(state: &AppState, spec: &JobSpec) -> ApiResult<()> {
     // Deserializing does not validate a scene; parsing its text does.
     let text = serde_json::to_string(&spec.scene).expect("scenes serialize");
     Scene::from_json(&text)?;
     if spec.rank == 0 || spec.rank > 64 {
-        return Err(unprocessable(format!(
-            "rank must be in 1..=64, got {}",
-            spec.rank
-        )));
+        return Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            format!("rank must be in 1..=64, got {}", spec.rank),
+        ));
     }
-    check_assets(state, &spec.scene).await?;
-    Ok(spec)
+    check_scene_cost(&spec.scene, &state.config, &state.limits)?;
+    check_assets(state, &spec.scene).await
+}
+
+/// Submits `spec` (checked) to the queue, refusing with 429 a new job beyond
+/// [`ServerConfig::max_queued_jobs`](super::config::ServerConfig::max_queued_jobs).
+pub async fn enqueue(state: &AppState, spec: &JobSpec) -> ApiResult<(JobView, bool)> {
+    let adds_a_job = state
+        .db
+        .job_for(spec)
+        .await?
+        .is_none_or(|j| matches!(j.state.as_str(), "failed" | "cancelled"));
+    if adds_a_job {
+        let active = state.db.active_job_count().await?;
+        if active >= state.config.max_queued_jobs {
+            return Err(ApiError::new(
+                StatusCode::TOO_MANY_REQUESTS,
+                format!(
+                    "{active} jobs are queued or running, the server's limit (max_queued_jobs); \
+                     try again later"
+                ),
+            ));
+        }
+    }
+    let (job, queued) = state.db.submit_job(spec).await?;
+    if queued {
+        tracing::info!("job {} queued", job.id);
+    }
+    Ok((job, queued))
 }
 
 /// Submits a bake. Identical inputs and parameters reuse the existing job and its result.
@@ -85,15 +111,17 @@ pub async fn check_spec(state: &AppState, body: serde_json::Value) -> ApiResult<
     responses(
         (status = 202, description = "Queued", body = JobView),
         (status = 200, description = "The same inputs and parameters were submitted before", body = JobView),
-        (status = 422, description = "Invalid scene or parameters, or unknown assets"),
+        (status = 413, description = "Body over max_json_bytes"),
+        (status = 422, description = "Invalid scene or parameters, a cost over the server's limits, or unknown assets"),
+        (status = 429, description = "The queue is full (max_queued_jobs)"),
     )
 )]
 pub async fn submit(
     State(state): State<AppState>,
-    Json(body): Json<serde_json::Value>,
+    JsonBody(spec): JsonBody<JobSpec>,
 ) -> ApiResult<(StatusCode, Json<JobView>)> {
-    let spec = check_spec(&state, body).await?;
-    let (job, queued) = state.db.submit_job(&spec).await?;
+    check_spec(&state, &spec).await?;
+    let (job, queued) = enqueue(&state, &spec).await?;
     let status = if queued {
         StatusCode::ACCEPTED
     } else {
@@ -148,6 +176,7 @@ pub async fn cancel(
         .cancel_job(&id)
         .await?
         .ok_or_else(|| ApiError::not_found(format!("job {id}")))?;
+    tracing::info!("job {id}: cancellation asked for ({})", job.state);
     Ok(Json(job))
 }
 

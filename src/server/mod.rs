@@ -1,18 +1,28 @@
 //! The baking server (`mesobake serve`): axum on tokio over the database ([`db`]) and the
 //! blob store ([`blobs`]). Routes live under `/api/v1`; the OpenAPI document is generated
 //! from the handlers (utoipa) and served at `/api/v1/openapi.json`.
+//!
+//! What a request may cost is bounded before any work starts: bodies by kind (413 from the
+//! `Content-Length` before reading), scenes by [`request_limits`], uploads and GPU renders by
+//! the number running at once, previews by a render deadline, the queue by its length. Slow
+//! clients are bounded by [`connections`].
 
 pub mod api_error;
 pub mod assets;
 pub mod auth;
 pub mod blobs;
 pub mod config;
+pub mod connections;
 pub mod db;
 pub mod health;
 pub mod jobs;
 pub mod jobs_api;
+pub mod json_body;
+pub mod middleware;
 pub mod packages;
 pub mod preview_api;
+pub mod preview_cache;
+pub mod request_limits;
 pub mod worker;
 
 use crate::error::{Error, Result};
@@ -21,11 +31,13 @@ use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::routing::{get, post};
 use blobs::BlobStore;
-use config::ServerConfig;
+use config::{ServerConfig, millis};
 use db::Db;
 use health::Metrics;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use tower_http::limit::RequestBodyLimitLayer;
+use tower_http::timeout::RequestBodyTimeoutLayer;
 use utoipa::OpenApi;
 
 /// What every handler shares.
@@ -40,9 +52,13 @@ pub struct AppState {
     /// Counters for `/metrics`.
     pub metrics: Arc<Metrics>,
     /// The GPU for previews, opened on first use.
-    pub gpu: preview_api::SharedGpu,
+    pub gpu: Arc<preview_api::PreviewGpu>,
     /// Who may call what.
     pub auth: auth::AuthPolicy,
+    /// The configuration the server runs with.
+    pub config: Arc<ServerConfig>,
+    /// Upload validation slots ([`ServerConfig::max_concurrent_uploads`]).
+    pub uploads: Arc<tokio::sync::Semaphore>,
 }
 
 /// The OpenAPI document of the API.
@@ -77,10 +93,18 @@ async fn openapi() -> axum::Json<utoipa::openapi::OpenApi> {
     axum::Json(ApiDoc::openapi())
 }
 
-/// The application's routes over `state`, accepting bodies up to `max_body` bytes.
-pub fn router(state: AppState, max_body: u64) -> Router {
+/// The application's routes over `state`, with the body limits and timeouts of its
+/// configuration.
+pub fn router(state: AppState) -> Router {
+    let config = &state.config;
+    let as_usize = |n: u64| usize::try_from(n).unwrap_or(usize::MAX);
+    let uploads =
+        Router::new()
+            .route("/assets", post(assets::upload))
+            .layer(RequestBodyLimitLayer::new(as_usize(
+                config.max_upload_bytes,
+            )));
     let api = Router::new()
-        .route("/assets", post(assets::upload))
         .route("/assets/{id}", get(assets::get))
         .route("/jobs", post(jobs_api::submit).get(jobs_api::list))
         .route("/jobs/{id}", get(jobs_api::get))
@@ -90,55 +114,102 @@ pub fn router(state: AppState, max_body: u64) -> Router {
         .route("/packages/{digest}/manifest", get(packages::manifest))
         .route("/preview", post(preview_api::render))
         .route("/scenes/sample", get(preview_api::sample_scene))
-        .route("/openapi.json", get(openapi));
+        .route("/openapi.json", get(openapi))
+        .layer(RequestBodyLimitLayer::new(as_usize(config.max_json_bytes)))
+        .merge(uploads);
     Router::new()
         .route("/", get(index))
         .nest("/api/v1", api)
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))
         .route("/metrics", get(health::metrics))
+        .fallback(middleware::not_found)
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             auth::check,
         ))
-        .layer(DefaultBodyLimit::max(
-            usize::try_from(max_body).unwrap_or(usize::MAX),
+        .layer(DefaultBodyLimit::disable())
+        .layer(RequestBodyTimeoutLayer::new(millis(
+            config.body_read_timeout_ms,
+        )))
+        .layer(axum::middleware::from_fn(middleware::json_errors))
+        .layer(axum::middleware::from_fn_with_state(
+            state.metrics.clone(),
+            middleware::log_requests,
         ))
-        .layer(tower_http::trace::TraceLayer::new_for_http())
         .with_state(state)
 }
 
-/// Opens the database and the blob store named by `config`.
+/// Opens the database and the blob store named by `config` (removing what a killed
+/// process left in the store), with `limits` on what input may allocate.
 pub async fn open_state(config: &ServerConfig, limits: Limits) -> Result<AppState> {
+    let db = Db::connect(&config.database_url).await.map_err(|e| {
+        Error::Database(format!(
+            "{}: {}",
+            config.database_url_redacted(),
+            e.to_string().replace(&config.database_url, "")
+        ))
+    })?;
+    let blobs = BlobStore::open(&config.data_dir, &config.blob_url, &config.blob_options)?;
+    let removed = blobs.remove_leftovers()?;
+    if removed > 0 {
+        tracing::info!("removed {removed} temporary files left by a killed process");
+    }
     Ok(AppState {
-        db: Db::connect(&config.database_url).await?,
-        blobs: BlobStore::open(&config.data_dir, &config.blob_url, &config.blob_options)?,
-        limits,
+        db,
+        blobs,
+        limits: Limits {
+            image_pixels: config.max_input_pixels,
+            ..limits
+        },
         metrics: Arc::new(Metrics::default()),
         gpu: Default::default(),
         auth: auth::AuthPolicy {
             require_keys: config.require_keys,
             public_packages: config.public_packages,
+            public_metrics: config.public_metrics,
         },
+        config: Arc::new(config.clone()),
+        uploads: Arc::new(tokio::sync::Semaphore::new(
+            config.max_concurrent_uploads as usize,
+        )),
     })
 }
 
-/// Starts `count` workers in this process; they stop when `stop` is set.
-pub fn spawn_workers(state: &AppState, count: u32, stop: &Arc<AtomicBool>) {
-    for i in 0..count {
-        tokio::spawn(worker::work(
-            state.clone(),
-            worker::worker_name(i),
-            stop.clone(),
-        ));
-    }
+/// Starts `count` workers in this process; they stop when `stop` is set, handing their
+/// running jobs back to the queue.
+pub fn spawn_workers(
+    state: &AppState,
+    count: u32,
+    stop: &Arc<AtomicBool>,
+) -> Vec<tokio::task::JoinHandle<()>> {
+    (0..count)
+        .map(|i| {
+            tokio::spawn(worker::work(
+                state.clone(),
+                worker::worker_name(i),
+                stop.clone(),
+            ))
+        })
+        .collect()
 }
 
-/// Serves until Ctrl-C or SIGTERM, with the configured number of workers.
+/// Logs where the state lives, as absolute paths, with the database password redacted.
+fn log_locations(config: &ServerConfig) {
+    tracing::info!(
+        "data directory {}, database {}",
+        config.data_dir.display(),
+        config.database_url_redacted()
+    );
+}
+
+/// Serves until Ctrl-C or SIGTERM, with the configured number of workers; then stops
+/// accepting, hands running jobs back to the queue and returns within the grace period.
 pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
+    log_locations(&config);
     let state = open_state(&config, limits).await?;
     let stop = Arc::new(AtomicBool::new(false));
-    spawn_workers(&state, config.workers, &stop);
+    let workers = spawn_workers(&state, config.workers, &stop);
     if config.seed_sample {
         seed_sample(&state).await?;
     }
@@ -149,12 +220,51 @@ pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
         .local_addr()
         .map_err(|e| Error::InvalidParameter(format!("listen address: {e}")))?;
     eprintln!("mesobake serving on http://{addr}/");
-    axum::serve(listener, router(state, config.max_upload_bytes))
-        .with_graceful_shutdown(shutdown_signal())
-        .await
-        .map_err(|e| Error::InvalidParameter(format!("server: {e}")))?;
-    stop.store(true, Ordering::Relaxed);
+    let signal = {
+        let stop = stop.clone();
+        async move {
+            shutdown_signal().await;
+            stop.store(true, Ordering::Relaxed);
+        }
+    };
+    let deadline = serve_on(listener, state, signal).await;
+    stop_workers(&stop, workers, deadline).await;
     Ok(())
+}
+
+/// Serves the API over `state` on `listener` with the configuration's connection
+/// timeouts until `shutdown` resolves, then drains connections for at most the grace
+/// period; returns the end of that period.
+pub async fn serve_on(
+    listener: tokio::net::TcpListener,
+    state: AppState,
+    shutdown: impl Future<Output = ()>,
+) -> tokio::time::Instant {
+    let config = state.config.clone();
+    connections::serve(
+        listener,
+        router(state),
+        millis(config.header_read_timeout_ms),
+        shutdown,
+        millis(config.shutdown_grace_ms),
+    )
+    .await
+}
+
+/// Sets `stop` and waits for the workers until `deadline` (each hands its running job back
+/// to the queue when it sees the flag).
+async fn stop_workers(
+    stop: &AtomicBool,
+    workers: Vec<tokio::task::JoinHandle<()>>,
+    deadline: tokio::time::Instant,
+) {
+    stop.store(true, Ordering::Relaxed);
+    for worker in workers {
+        if tokio::time::timeout_at(deadline, worker).await.is_err() {
+            tracing::warn!("a worker did not stop within the grace period");
+        }
+    }
+    tracing::info!("stopped");
 }
 
 /// Queues the bake of the built-in sample scene (a no-op when it was baked before), so that
@@ -173,32 +283,41 @@ pub async fn seed_sample(state: &AppState) -> Result<()> {
 }
 
 /// Runs `config.workers` (at least one) workers without the HTTP server, until Ctrl-C or
-/// SIGTERM (`mesobake worker`).
+/// SIGTERM (`mesobake worker`); then hands running jobs back within the grace period.
 pub async fn work(config: ServerConfig, limits: Limits) -> Result<()> {
+    log_locations(&config);
     let state = open_state(&config, limits).await?;
     let stop = Arc::new(AtomicBool::new(false));
-    spawn_workers(&state, config.workers.max(1), &stop);
+    let workers = spawn_workers(&state, config.workers.max(1), &stop);
     eprintln!(
         "mesobake worker: {} worker(s) on {}",
         config.workers.max(1),
-        config.database_url
+        config.database_url_redacted()
     );
     shutdown_signal().await;
-    stop.store(true, Ordering::Relaxed);
+    let deadline = tokio::time::Instant::now() + millis(config.shutdown_grace_ms);
+    stop_workers(&stop, workers, deadline).await;
     Ok(())
 }
 
-async fn shutdown_signal() {
+/// Resolves on Ctrl-C or SIGTERM.
+pub async fn shutdown_signal() {
     let ctrl_c = tokio::signal::ctrl_c();
     #[cfg(unix)]
     {
-        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
-            .expect("installing a SIGTERM handler");
-        tokio::select! {
-            _ = ctrl_c => {}
-            _ = term.recv() => {}
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = ctrl_c => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = ctrl_c.await;
+            }
         }
     }
     #[cfg(not(unix))]
     let _ = ctrl_c.await;
+    tracing::info!("shutting down: no new connections or jobs");
 }

@@ -14,11 +14,12 @@ use std::sync::atomic::Ordering;
 /// What a `Range` header asks of a body.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ByteRange {
-    /// The whole body (no range, another unit, or several ranges: allowed by RFC 9110).
+    /// The whole body: no range, another unit, an invalid range (ignored, as RFC 9110
+    /// §14.2 allows) or several ranges.
     Whole,
     /// The inclusive byte range.
     Part(u64, u64),
-    /// Nothing the body has (416).
+    /// A valid range the body does not have (416).
     Unsatisfiable,
 }
 
@@ -30,31 +31,52 @@ pub fn parse_range(value: &str, len: u64) -> ByteRange {
     if spec.contains(',') {
         return ByteRange::Whole;
     }
-    match single_range(spec, len) {
-        Some((start, end)) => ByteRange::Part(start, end),
-        None => ByteRange::Unsatisfiable,
+    let Some((a, b)) = spec.split_once('-') else {
+        return ByteRange::Whole;
+    };
+    let (a, b) = (a.trim(), b.trim());
+    let number = |t: &str| t.parse::<u64>().ok();
+    match (a.is_empty(), b.is_empty()) {
+        // bytes=-N: the last N bytes; N = 0 asks for nothing.
+        (true, false) => match number(b) {
+            Some(0) => ByteRange::Unsatisfiable,
+            Some(_) if len == 0 => ByteRange::Unsatisfiable,
+            Some(n) => ByteRange::Part(len.saturating_sub(n), len - 1),
+            None => ByteRange::Whole,
+        },
+        // bytes=A- and bytes=A-B (B < A is invalid, not unsatisfiable).
+        (false, _) => {
+            let Some(start) = number(a) else {
+                return ByteRange::Whole;
+            };
+            let end = if b.is_empty() {
+                None
+            } else {
+                match number(b) {
+                    Some(end) if end >= start => Some(end),
+                    _ => return ByteRange::Whole,
+                }
+            };
+            if start >= len {
+                return ByteRange::Unsatisfiable;
+            }
+            ByteRange::Part(start, end.map_or(len - 1, |e| e.min(len - 1)))
+        }
+        (true, true) => ByteRange::Whole,
     }
 }
 
-fn single_range(spec: &str, len: u64) -> Option<(u64, u64)> {
-    let (a, b) = spec.split_once('-')?;
-    let (a, b) = (a.trim(), b.trim());
-    match (a.is_empty(), b.is_empty()) {
-        (true, false) => {
-            let n: u64 = b.parse().ok()?;
-            (n > 0 && len > 0).then(|| (len.saturating_sub(n), len - 1))
-        }
-        (false, _) => {
-            let start: u64 = a.parse().ok()?;
-            let end = if b.is_empty() {
-                len.checked_sub(1)?
-            } else {
-                b.parse::<u64>().ok()?.min(len.saturating_sub(1))
-            };
-            (start < len && end >= start).then_some((start, end))
-        }
-        (true, true) => None,
-    }
+/// Whether an `If-None-Match` value matches `etag`, by weak comparison (RFC 9110 §13.1.2:
+/// `W/"x"` matches `"x"`).
+pub fn none_match(value: &str, etag: &str) -> bool {
+    let opaque = |t: &str| t.trim().trim_start_matches("W/").to_owned();
+    value.trim() == "*" || value.split(',').any(|t| opaque(t) == opaque(etag))
+}
+
+/// Whether an `If-Range` value lets a range be served: only a strong ETag equal to
+/// `etag` (dates and weak tags never do: the whole body is sent).
+pub fn if_range_holds(value: &str, etag: &str) -> bool {
+    value.trim() == etag
 }
 
 /// Downloads a package.
@@ -84,10 +106,12 @@ pub async fn get(
             .header(header::CACHE_CONTROL, "public, max-age=31536000, immutable")
             .header(header::ACCEPT_RANGES, "bytes")
     };
-    let matches = headers
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"));
+    let header_text = |name| {
+        headers
+            .get(name)
+            .and_then(|v: &HeaderValue| v.to_str().ok())
+    };
+    let matches = header_text(header::IF_NONE_MATCH).is_some_and(|v| none_match(v, &etag));
     if matches {
         return Ok(common(Response::builder().status(StatusCode::NOT_MODIFIED))
             .body(Body::empty())
@@ -104,9 +128,9 @@ pub async fn get(
             )
         })?;
     let len = bytes.len() as u64;
-    let range = headers
-        .get(header::RANGE)
-        .and_then(|v| v.to_str().ok())
+    let range_allowed = header_text(header::IF_RANGE).is_none_or(|v| if_range_holds(v, &etag));
+    let range = header_text(header::RANGE)
+        .filter(|_| range_allowed)
         .map_or(ByteRange::Whole, |v| parse_range(v, len));
     state
         .metrics
@@ -133,7 +157,7 @@ pub async fn get(
 
 #[cfg(test)]
 mod tests {
-    use super::{ByteRange, parse_range};
+    use super::{ByteRange, if_range_holds, none_match, parse_range};
 
     #[test]
     fn byte_ranges_follow_rfc_9110() {
@@ -144,17 +168,32 @@ mod tests {
         assert_eq!(parse_range("bytes=50-1000", 100), ByteRange::Part(50, 99));
         assert_eq!(parse_range("bytes=0-0,5-9", 100), ByteRange::Whole);
         assert_eq!(parse_range("items=0-9", 100), ByteRange::Whole);
-        for bad in [
-            "bytes=100-",
-            "bytes=9-0",
-            "bytes=-0",
-            "bytes=-",
-            "bytes=a-b",
-            "bytes=5",
-        ] {
-            assert_eq!(parse_range(bad, 100), ByteRange::Unsatisfiable, "{bad}");
+        // Invalid ranges are ignored: the whole body.
+        for invalid in ["bytes=9-0", "bytes=-", "bytes=a-b", "bytes=5", "bytes=1-x"] {
+            assert_eq!(parse_range(invalid, 100), ByteRange::Whole, "{invalid}");
+        }
+        // Valid ranges the body does not have.
+        for unsatisfiable in ["bytes=100-", "bytes=100-200", "bytes=-0"] {
+            assert_eq!(
+                parse_range(unsatisfiable, 100),
+                ByteRange::Unsatisfiable,
+                "{unsatisfiable}"
+            );
         }
         assert_eq!(parse_range("bytes=0-", 0), ByteRange::Unsatisfiable);
+    }
+
+    #[test]
+    fn validators_compare_as_rfc_9110_says() {
+        let etag = "\"abc\"";
+        for matching in ["\"abc\"", "W/\"abc\"", " \"x\", W/\"abc\"", "*"] {
+            assert!(none_match(matching, etag), "{matching}");
+        }
+        assert!(!none_match("\"abd\"", etag));
+        assert!(if_range_holds("\"abc\"", etag));
+        for other in ["W/\"abc\"", "\"abd\"", "Wed, 21 Oct 2015 07:28:00 GMT"] {
+            assert!(!if_range_holds(other, etag), "{other}");
+        }
     }
 }
 

@@ -4,9 +4,11 @@
 
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
-use super::db::{db_error, now_ms};
+use super::config::millis;
 use super::jobs::JobSpec;
-use super::jobs_api::check_spec;
+use super::jobs_api::{check_spec, enqueue};
+use super::json_body::JsonBody;
+use super::preview_cache;
 use super::worker::resolve_assets;
 use crate::error::{Error, Result};
 use crate::package::Package;
@@ -17,18 +19,30 @@ use axum::Json;
 use axum::extract::State;
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
-use sqlx::Row;
 use std::path::Path;
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use tokio::sync::Semaphore;
 
 /// The built-in sample scene (`scenes/torus-chain.json`).
 pub const SAMPLE_SCENE: &str = include_str!("../../scenes/torus-chain.json");
 
-/// Largest preview image side the server renders.
-pub const MAX_PREVIEW_SIDE: u32 = 2048;
+/// The GPU, opened on first use and shared by previews, one render at a time.
+pub struct PreviewGpu {
+    gpu: Mutex<Option<Gpu>>,
+    /// The right to render: whoever holds it may lock `gpu` without waiting.
+    slot: Arc<Semaphore>,
+}
 
-/// The GPU, opened on first use and shared by previews (one render at a time).
-pub type SharedGpu = Arc<Mutex<Option<Gpu>>>;
+impl Default for PreviewGpu {
+    fn default() -> Self {
+        PreviewGpu {
+            gpu: Mutex::new(None),
+            slot: Arc::new(Semaphore::new(1)),
+        }
+    }
+}
 
 /// The sample scene.
 #[utoipa::path(get, path = "/api/v1/scenes/sample", responses((status = 200, description = "A scene (docs/scene-format.md)")))]
@@ -37,7 +51,7 @@ pub async fn sample_scene() -> impl IntoResponse {
 }
 
 fn render_png(
-    gpu: &SharedGpu,
+    gpu: &PreviewGpu,
     scene: &Scene,
     package: Vec<u8>,
     state: &AppState,
@@ -47,6 +61,7 @@ fn render_png(
     resolve_assets(&mut scene, &state.blobs)?;
     let loaded = LoadedScene::load(scene, Path::new("/"), &state.limits)?;
     let mut guard = gpu
+        .gpu
         .lock()
         .map_err(|_| Error::Gpu("a previous preview panicked".into()))?;
     if guard.is_none() {
@@ -54,6 +69,32 @@ fn render_png(
     }
     let (image, _) = preview(guard.as_ref().expect("opened above"), &loaded, &package, 0)?;
     image.to_png()
+}
+
+/// Renders `spec`'s scene from `package` on the GPU: waits at most `busy_wait_ms` for the
+/// GPU and `preview_timeout_ms` for the render (503 beyond either; an abandoned render keeps
+/// the GPU until it ends, and the next waits for it at most `busy_wait_ms`).
+async fn render_on_gpu(state: &AppState, spec: &JobSpec, package: Vec<u8>) -> ApiResult<Vec<u8>> {
+    let config = &state.config;
+    let permit = tokio::time::timeout(
+        millis(config.busy_wait_ms),
+        state.gpu.slot.clone().acquire_owned(),
+    )
+    .await
+    .map_err(|_| ApiError::busy("the GPU is busy with other previews; try again shortly"))?
+    .map_err(|_| ApiError::busy("the GPU is closed"))?;
+    let (st, scene) = (state.clone(), spec.scene.clone());
+    let render = tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        render_png(&st.gpu, &scene, package, &st).map_err(|e| ApiError::scrubbed(e, &st.blobs))
+    });
+    match tokio::time::timeout(millis(config.preview_timeout_ms), render).await {
+        Ok(result) => Ok(result??),
+        Err(_) => Err(ApiError::busy(format!(
+            "the preview render ran past {} ms (preview_timeout_ms) and was abandoned",
+            config.preview_timeout_ms
+        ))),
+    }
 }
 
 /// Renders a scene with the real-time pipeline from the package baked for it. While that
@@ -65,16 +106,18 @@ fn render_png(
     responses(
         (status = 200, description = "The image", content_type = "image/png"),
         (status = 409, description = "The scene's package is not baked yet: {error, job}"),
-        (status = 422, description = "Invalid scene"),
-        (status = 503, description = "No GPU adapter"),
+        (status = 413, description = "Body over max_json_bytes"),
+        (status = 422, description = "Invalid scene, or a cost over the server's limits"),
+        (status = 429, description = "The scene's package is not baked and the queue is full"),
+        (status = 503, description = "No GPU adapter, the GPU busy, or the render past preview_timeout_ms"),
     )
 )]
 pub async fn render(
     State(state): State<AppState>,
-    Json(body): Json<serde_json::Value>,
+    JsonBody(spec): JsonBody<JobSpec>,
 ) -> ApiResult<Response> {
-    let spec = check_spec(&state, body).await?;
-    let camera = spec.scene.camera;
+    let start = Instant::now();
+    check_spec(&state, &spec).await?;
     let lit_by_exr = matches!(spec.scene.environment, Some(EnvironmentSource::Exr(_)))
         && spec.scene.wants(Effect::EnvironmentLighting);
     if lit_by_exr {
@@ -85,15 +128,9 @@ pub async fn render(
                 .to_owned(),
         ));
     }
-    if camera.width > MAX_PREVIEW_SIDE || camera.height > MAX_PREVIEW_SIDE {
-        return Err(ApiError::new(
-            StatusCode::UNPROCESSABLE_ENTITY,
-            format!("previews are at most {MAX_PREVIEW_SIDE} pixels a side"),
-        ));
-    }
     let job = match state.db.job_for(&spec).await? {
         Some(job) if job.state == "succeeded" => job,
-        _ => state.db.submit_job(&spec).await?.0,
+        _ => enqueue(&state, &spec).await?.0,
     };
     let Some(digest) = job
         .package_digest
@@ -110,23 +147,19 @@ pub async fn render(
     let cache_key = blake3::hash(format!("preview-v1\n{digest}\n{scene_text}").as_bytes())
         .to_hex()
         .to_string();
-    let cached: Option<String> =
-        sqlx::query("SELECT png_digest FROM previews WHERE cache_key = $1")
-            .bind(&cache_key)
-            .fetch_optional(&state.db.pool)
-            .await
-            .map_err(db_error)?
-            .map(|r| r.try_get("png_digest"))
-            .transpose()
-            .map_err(db_error)?;
-    let blobs = state.blobs.clone();
-    let png = match cached {
-        Some(png_digest) => tokio::task::spawn_blocking(move || blobs.get(&png_digest)).await??,
-        None => None,
-    };
-    let png = match png {
-        Some(png) => png,
+    let png = match preview_cache::lookup(&state, &cache_key).await? {
+        Some(png) => {
+            state
+                .metrics
+                .preview_cache_hits
+                .fetch_add(1, Ordering::Relaxed);
+            png
+        }
         None => {
+            state
+                .metrics
+                .preview_cache_misses
+                .fetch_add(1, Ordering::Relaxed);
             let package = {
                 let blobs = state.blobs.clone();
                 tokio::task::spawn_blocking(move || blobs.get(&digest)).await??
@@ -137,25 +170,14 @@ pub async fn render(
                     "the package's blob is missing",
                 )
             })?;
-            let (gpu, st, scene) = (state.gpu.clone(), state.clone(), spec.scene.clone());
-            let png = tokio::task::spawn_blocking(move || render_png(&gpu, &scene, package, &st))
-                .await??;
-            let blobs = state.blobs.clone();
-            let bytes = png.clone();
-            let png_digest = tokio::task::spawn_blocking(move || blobs.put(&bytes)).await??;
-            sqlx::query(
-                "INSERT INTO previews (cache_key, png_digest, created_ms) VALUES ($1, $2, $3) \
-                 ON CONFLICT (cache_key) DO NOTHING",
-            )
-            .bind(&cache_key)
-            .bind(&png_digest)
-            .bind(now_ms())
-            .execute(&state.db.pool)
-            .await
-            .map_err(db_error)?;
+            let png = render_on_gpu(&state, &spec, package).await?;
+            preview_cache::store(&state, &cache_key, png.clone()).await?;
             png
         }
     };
+    state
+        .metrics
+        .observe("preview", start.elapsed().as_secs_f64());
     Ok((
         [
             (header::CONTENT_TYPE, "image/png"),

@@ -15,13 +15,14 @@ use crate::scene::{BaseMeshSource, LoadedScene, MesostructureSource, Scene};
 use crate::scene_package::bake_scene_package;
 use std::path::Path;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// How long a claim lasts without a heartbeat.
 pub const LEASE_MS: i64 = 10_000;
-/// How often a running job heartbeats (and looks for a cancellation).
-const HEARTBEAT: Duration = Duration::from_millis(1_000);
+/// How often a running job heartbeats and looks for a cancellation or a shutdown: well
+/// within the second in which a cancellation is honoured.
+const HEARTBEAT: Duration = Duration::from_millis(250);
 /// How long an idle worker waits before looking for work again.
 const POLL: Duration = Duration::from_millis(200);
 
@@ -52,25 +53,67 @@ pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
     Ok(())
 }
 
+/// Relative cost of each stage, for the job's overall progress.
+fn stage_weight(stage: &str) -> f64 {
+    match stage {
+        "bake_gdm" | "bake_rtv" => 10.0,
+        "compress" => 3.0,
+        "bake_prt" | "compress_rtv" => 2.0,
+        _ => 1.0,
+    }
+}
+
 /// Progress and cancellation shared between a running bake and its heartbeat.
-#[derive(Default)]
 struct Shared {
-    /// Fraction done, as f64 bits.
-    progress: AtomicU64,
+    /// The job's stages, in order.
+    stages: Vec<String>,
+    /// The running stage and the fraction of it done.
+    now: std::sync::Mutex<(usize, f64)>,
     cancel: AtomicBool,
+}
+
+impl Shared {
+    fn new(stages: Vec<String>) -> Shared {
+        Shared {
+            stages,
+            now: std::sync::Mutex::new((0, 0.0)),
+            cancel: AtomicBool::new(false),
+        }
+    }
+
+    /// The running stage's name and the job's fraction done.
+    fn progress_now(&self) -> (String, f64) {
+        let (index, fraction) = self.now.lock().map(|g| *g).unwrap_or((0, 0.0));
+        let total: f64 = self.stages.iter().map(|s| stage_weight(s)).sum();
+        let done: f64 = self.stages[..index].iter().map(|s| stage_weight(s)).sum();
+        let stage = self.stages.get(index).cloned().unwrap_or_default();
+        let weight = stage_weight(&stage);
+        (stage, ((done + weight * fraction) / total).min(1.0))
+    }
 }
 
 impl BakeObserver for Shared {
     fn progress(&self, done: u64, total: u64) {
-        // The bake is most of a job; compression and storing are the rest.
-        let fraction = 0.9 * done as f64 / total.max(1) as f64;
-        self.progress.store(fraction.to_bits(), Ordering::Relaxed);
+        if let Ok(mut now) = self.now.lock() {
+            now.1 = done as f64 / total.max(1) as f64;
+        }
     }
 
     fn cancelled(&self) -> bool {
         self.cancel.load(Ordering::Relaxed)
     }
+
+    fn stage(&self, name: &str) {
+        if let (Ok(mut now), Some(index)) =
+            (self.now.lock(), self.stages.iter().position(|s| s == name))
+        {
+            *now = (index, 0.0);
+        }
+    }
 }
+
+/// Seconds per stage, in the order run.
+type StageSeconds = Vec<(String, f64)>;
 
 /// Runs one job to its package bytes and the seconds per stage.
 fn bake(
@@ -78,14 +121,18 @@ fn bake(
     blobs: &BlobStore,
     limits: &Limits,
     observer: &Shared,
-) -> Result<(Vec<u8>, serde_json::Value)> {
+) -> Result<(Vec<u8>, StageSeconds)> {
     let start = Instant::now();
+    observer.stage("load");
     let mut scene = spec.scene.clone();
     resolve_assets(&mut scene, blobs)?;
     // A package holds transfer, not light: the environment is not loaded.
     scene.environment = None;
     let loaded = LoadedScene::load(scene, Path::new("/"), limits)?;
-    let load = start.elapsed().as_secs_f64();
+    if observer.cancelled() {
+        return Err(Error::Cancelled);
+    }
+    let mut seconds = vec![("load".to_owned(), start.elapsed().as_secs_f64())];
     let baked = bake_scene_package(
         &loaded,
         Path::new("/"),
@@ -93,12 +140,8 @@ fn bake(
         limits,
         observer,
     )?;
-    let mut timings = serde_json::Map::new();
-    timings.insert("load".into(), load.into());
-    for (stage, seconds) in baked.seconds {
-        timings.insert(stage, seconds.into());
-    }
-    Ok((baked.bytes, timings.into()))
+    seconds.extend(baked.seconds);
+    Ok((baked.bytes, seconds))
 }
 
 /// Whether a failure may go away on retry (storage, database, GPU) rather than being the
@@ -107,11 +150,27 @@ fn is_transient(e: &Error) -> bool {
     matches!(e, Error::Io { .. } | Error::Database(_) | Error::Gpu(_))
 }
 
-/// Runs claimed job `job` as `worker`.
-async fn run(state: &AppState, worker: &str, job: Claimed) -> Result<()> {
+/// What a bake task hands back: the package's digest, size, manifest and stage seconds.
+type Baked = (String, usize, serde_json::Value, StageSeconds);
+
+/// How a run of a job ended, before its outcome is written.
+enum Ended {
+    /// The bake task returned.
+    Returned(Result<Baked>),
+    /// A cancellation was asked for.
+    Cancelled,
+    /// The worker is stopping: the job goes back to the queue.
+    Stopping,
+    /// Another worker holds the lease now.
+    LostLease,
+}
+
+/// Runs claimed job `job` as `worker`, until it ends or `stop` is set.
+async fn run(state: &AppState, worker: &str, job: Claimed, stop: &AtomicBool) -> Result<()> {
     let db = &state.db;
     if job.attempt > MAX_ATTEMPTS {
         let error = format!("gave up after {MAX_ATTEMPTS} attempts (workers lost their lease)");
+        tracing::warn!("job {} failed: {error}", job.id);
         db.finish_job(
             &job.id,
             worker,
@@ -123,47 +182,78 @@ async fn run(state: &AppState, worker: &str, job: Claimed) -> Result<()> {
         .await?;
         return Ok(());
     }
-    let shared = Arc::new(Shared::default());
+    if job.attempt == 1 {
+        let waited = (now_ms() - job.ready_ms).max(0) as f64 / 1e3;
+        state.metrics.observe("queue_wait", waited);
+    }
+    tracing::info!(
+        "job {} running (attempt {}) on {worker}",
+        job.id,
+        job.attempt
+    );
+    let mut stages = super::jobs::plan(&job.spec).stages;
+    stages.retain(|s| s != "store");
+    stages.push("store".into());
+    let shared = Arc::new(Shared::new(stages));
     let (spec, blobs, limits) = (job.spec.clone(), state.blobs.clone(), state.limits);
     let task = {
         let shared = shared.clone();
         tokio::task::spawn_blocking(move || {
-            let (bytes, mut timings) = bake(&spec, &blobs, &limits, &shared)?;
+            let (bytes, mut seconds) = bake(&spec, &blobs, &limits, &shared)?;
+            shared.stage("store");
             let start = Instant::now();
             let package = Package::parse(bytes.clone())?;
             let digest = blobs.put(&bytes)?;
-            timings["store"] = start.elapsed().as_secs_f64().into();
+            seconds.push(("store".into(), start.elapsed().as_secs_f64()));
             let manifest = serde_json::to_value(package.manifest()).expect("manifests serialize");
-            Ok::<_, Error>((digest, bytes.len(), manifest, timings))
+            Ok::<_, Error>((digest, bytes.len(), manifest, seconds))
         })
     };
     tokio::pin!(task);
-    let mut lost = false;
-    let result = loop {
+    let ended = loop {
         tokio::select! {
-            result = &mut task => break result.map_err(|e| Error::InvalidParameter(format!("bake task: {e}")))?,
-            _ = tokio::time::sleep(HEARTBEAT) => {
-                let progress = f64::from_bits(shared.progress.load(Ordering::Relaxed));
-                let stage = if progress < 0.9 { "bake_gdm" } else { "compress" };
-                match db.heartbeat_job(&job.id, worker, LEASE_MS, stage, progress).await {
-                    Ok(Some(cancel)) => if cancel { shared.cancel.store(true, Ordering::Relaxed) },
-                    Ok(None) => { lost = true; shared.cancel.store(true, Ordering::Relaxed) }
+            result = &mut task => break Ended::Returned(
+                result.map_err(|e| Error::InvalidParameter(format!("bake task: {e}"))).and_then(|r| r)
+            ),
+            () = tokio::time::sleep(HEARTBEAT) => {
+                if stop.load(Ordering::Relaxed) {
+                    break Ended::Stopping;
+                }
+                let (stage, progress) = shared.progress_now();
+                match db.heartbeat_job(&job.id, worker, LEASE_MS, &stage, progress).await {
+                    Ok(Some(true)) => break Ended::Cancelled,
+                    Ok(Some(false)) => {}
+                    Ok(None) => break Ended::LostLease,
                     Err(e) => tracing::warn!("heartbeat of job {}: {e}", job.id),
                 }
             }
         }
     };
-    if lost {
-        tracing::warn!("worker {worker} lost its lease on job {}", job.id);
-        return Ok(());
+    let still_running = !matches!(ended, Ended::Returned(_));
+    if still_running {
+        // The bake stops at its next check; its result, if any, is dropped.
+        shared.cancel.store(true, Ordering::Relaxed);
     }
-    // A cancellation that arrived during the last, uninterruptible stages still wins.
-    let result = match result {
-        Ok(_) if shared.cancel.load(Ordering::Relaxed) => Err(Error::Cancelled),
-        r => r,
-    };
-    match result {
-        Ok((digest, bytes, manifest, timings)) => {
+    let empty = serde_json::json!({});
+    let scrub = |e: &Error| state.blobs.scrub(&e.to_string());
+    match ended {
+        Ended::Stopping => {
+            if db.release_job(&job.id, worker).await? {
+                tracing::info!(
+                    "job {} handed back to the queue: the worker is stopping",
+                    job.id
+                );
+            }
+            // A stopping worker does not wait for its bake to notice.
+            return Ok(());
+        }
+        Ended::LostLease => tracing::warn!("worker {worker} lost its lease on job {}", job.id),
+        Ended::Cancelled | Ended::Returned(Err(Error::Cancelled)) => {
+            db.finish_job(&job.id, worker, "cancelled", None, None, &empty)
+                .await?;
+            tracing::info!("job {} cancelled", job.id);
+        }
+        Ended::Returned(Ok((digest, bytes, manifest, seconds))) => {
             db.insert_package(&PackageRow {
                 digest: digest.clone(),
                 bytes: bytes as i64,
@@ -171,36 +261,41 @@ async fn run(state: &AppState, worker: &str, job: Claimed) -> Result<()> {
                 created_ms: now_ms(),
             })
             .await?;
-            db.finish_job(&job.id, worker, "succeeded", Some(&digest), None, &timings)
-                .await?;
-        }
-        Err(Error::Cancelled) => {
+            let mut timings = serde_json::Map::new();
+            for (stage, s) in &seconds {
+                state.metrics.observe(&format!("stage:{stage}"), *s);
+                timings.insert(stage.clone(), (*s).into());
+            }
             db.finish_job(
                 &job.id,
                 worker,
-                "cancelled",
+                "succeeded",
+                Some(&digest),
                 None,
-                None,
-                &serde_json::json!({}),
+                &timings.into(),
             )
             .await?;
+            tracing::info!("job {} succeeded: package {digest}", job.id);
         }
-        Err(e) if is_transient(&e) && job.attempt < MAX_ATTEMPTS => {
+        Ended::Returned(Err(e)) if is_transient(&e) && job.attempt < MAX_ATTEMPTS => {
             let backoff = 1_000i64 << job.attempt.min(6);
-            db.retry_job(&job.id, worker, &e.to_string(), backoff)
+            tracing::warn!(
+                "job {} attempt {} failed, retrying: {e}",
+                job.id,
+                job.attempt
+            );
+            db.retry_job(&job.id, worker, &scrub(&e), backoff).await?;
+        }
+        Ended::Returned(Err(e)) => {
+            tracing::warn!("job {} failed: {e}", job.id);
+            db.finish_job(&job.id, worker, "failed", None, Some(&scrub(&e)), &empty)
                 .await?;
         }
-        Err(e) => {
-            db.finish_job(
-                &job.id,
-                worker,
-                "failed",
-                None,
-                Some(&e.to_string()),
-                &serde_json::json!({}),
-            )
-            .await?;
-        }
+    }
+    if still_running {
+        // Wait for the abandoned bake to stop before taking more work, so that a worker
+        // never runs two bakes at once.
+        let _ = task.await;
     }
     Ok(())
 }
@@ -215,7 +310,7 @@ pub async fn work(state: AppState, worker: String, stop: Arc<AtomicBool>) {
         match claimed {
             Ok(Some(job)) => {
                 let id = job.id.clone();
-                if let Err(e) = run(&state, &worker, job).await {
+                if let Err(e) = run(&state, &worker, job, &stop).await {
                     tracing::error!("worker {worker}, job {id}: {e}");
                 }
             }

@@ -2,7 +2,7 @@
 #![allow(dead_code)] // each test file uses part of it
 
 use mesobake::limits::Limits;
-use mesobake::server::{AppState, config::ServerConfig, open_state, router};
+use mesobake::server::{AppState, config::ServerConfig, open_state, serve_on};
 use std::net::SocketAddr;
 
 /// The PostgreSQL server of the test machine (trust authentication).
@@ -73,13 +73,13 @@ impl TestServer {
         config.database_url = database_url.into();
         config.data_dir = data_dir.into();
         config.max_upload_bytes = max_upload;
+        config.max_json_bytes = config.max_json_bytes.min(max_upload);
         config.listen = "127.0.0.1:0".into();
         edit(&mut config);
         let state = open_state(&config, Limits::default()).await.unwrap();
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
         let addr = listener.local_addr().unwrap();
-        let app = router(state.clone(), max_upload);
-        tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
+        tokio::spawn(serve_on(listener, state.clone(), std::future::pending()));
         TestServer { addr, state }
     }
 

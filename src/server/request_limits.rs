@@ -1,0 +1,46 @@
+//! What a scene may ask the server for, checked when a job or preview is submitted, before
+//! any work starts: lights, image size, path samples (the configuration's `max_*` keys) and
+//! the GDM's size (the memory limit). Each refusal names the limit it hit.
+
+use super::api_error::{ApiError, ApiResult};
+use super::config::ServerConfig;
+use crate::error::Error;
+use crate::limits::Limits;
+use crate::scene::Scene;
+use axum::http::StatusCode;
+
+/// Refuses `scene` with 422 when its cost is out of the bounds of `config` and `limits`.
+pub fn check_scene_cost(scene: &Scene, config: &ServerConfig, limits: &Limits) -> ApiResult<()> {
+    let refuse = |what: String| Err(ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, what));
+    if scene.lights.len() as u64 > u64::from(config.max_lights) {
+        return refuse(format!(
+            "the scene has {} lights, over the server's limit of {} (max_lights)",
+            scene.lights.len(),
+            config.max_lights
+        ));
+    }
+    let camera = &scene.camera;
+    if camera.width > config.max_image_side || camera.height > config.max_image_side {
+        return refuse(format!(
+            "the camera's image is {}×{}, over the server's limit of {} pixels a side \
+             (max_image_side)",
+            camera.width, camera.height, config.max_image_side
+        ));
+    }
+    if scene.gi.path_samples > config.max_path_samples {
+        return refuse(format!(
+            "gi.path_samples is {}, over the server's limit of {} (max_path_samples)",
+            scene.gi.path_samples, config.max_path_samples
+        ));
+    }
+    let voxels = scene.dims()?.voxel_count();
+    let directions = scene.dirs()?.count() as u64;
+    limits
+        .check(
+            "the scene's GDM (resolution × directions × 4 bytes)",
+            voxels.saturating_mul(directions),
+            4,
+        )
+        .map_err(|e: Error| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
+    Ok(())
+}
