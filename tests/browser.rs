@@ -1,20 +1,18 @@
 //! The web page in a real headless browser (Debian's chromium and chromedriver, driven over
 //! WebDriver with fantoccini): upload a sample volume, bake it and watch the job finish, see
-//! the preview image change when a control moves. Skipped loudly when chromedriver is
+//! the preview image change when a control moves, on the real binary's default
+//! configuration. Skipped loudly when chromedriver is
 //! missing, unless MESOBAKE_REQUIRE_BROWSER=1 (set by `.ci/run`, which installs it).
 
-#[path = "common/server.rs"]
-mod server;
+#[path = "common/binary_server.rs"]
+mod binary_server;
 
+use binary_server::BinaryServer;
 use fantoccini::{ClientBuilder, Locator};
 use mesobake::grid::Dims;
 use mesobake::limits::Limits;
 use mesobake::samples::{self, SampleKind};
-use mesobake::server::spawn_workers;
-use server::TestServer;
 use std::process::{Child, Command, Stdio};
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 /// chromedriver on a free port, killed on drop.
@@ -76,15 +74,10 @@ async fn upload_bake_and_preview_in_a_browser() {
         return;
     }
     let Some(driver) = start_driver() else { return };
+    // The README's main job: the real binary on its default configuration, started from an
+    // empty directory.
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start(
-        &format!("sqlite://{}", dir.path().join("db.sqlite").display()),
-        &dir.path().join("data"),
-        1 << 26,
-    )
-    .await;
-    let stop = Arc::new(AtomicBool::new(false));
-    spawn_workers(&s.state, 1, &stop);
+    let s = BinaryServer::start(dir.path(), &[]).await;
     // The volume to upload: the sample scene's mesostructure at its resolution.
     let volume = samples::volume(
         SampleKind::Weave,
@@ -215,5 +208,4 @@ async fn upload_bake_and_preview_in_a_browser() {
     .await;
     assert_ne!(first, second);
     c.close().await.unwrap();
-    stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
