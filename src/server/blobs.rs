@@ -229,8 +229,9 @@ impl BlobStore {
         Ok(removed)
     }
 
-    /// `message` with the store's local paths cut down to the blob keys they end in, for
-    /// answers that must not reveal the server's directories.
+    /// `message` with the store's local paths hidden, for answers that must not reveal the
+    /// server's directories: a blob's path becomes its key, any other path in the store
+    /// `blob store/…`.
     pub fn scrub(&self, message: &str) -> String {
         let root = self.root.display().to_string();
         let mut out = String::with_capacity(message.len());
@@ -238,12 +239,16 @@ impl BlobStore {
         while let Some(at) = rest.find(&root) {
             out += &rest[..at];
             rest = &rest[at + root.len()..];
-            // "/ab/" of the shard directory, if it follows.
-            let shard = rest.as_bytes();
-            if shard.len() >= 4 && shard[0] == b'/' && shard[3] == b'/' {
-                rest = &rest[4..];
-            } else {
-                rest = rest.trim_start_matches('/');
+            // "/ab/KEY": the blob's key alone.
+            let blob = rest
+                .get(4..68)
+                .filter(|key| is_key(key) && rest.get(..4) == Some(&format!("/{}/", &key[..2])));
+            match blob {
+                Some(key) => {
+                    out += key;
+                    rest = &rest[68..];
+                }
+                None => out += "blob store",
             }
         }
         out + rest
@@ -487,12 +492,13 @@ mod tests {
         assert_eq!(std::fs::read_dir(&store.root).unwrap().count(), 0);
         let key = key_of(b"x");
         let message = format!(
-            "scene: {} is a 8x8x4 volume",
-            store.path(&key).unwrap().display()
+            "scene: {} is a 8x8x4 volume; {}: Not a directory",
+            store.path(&key).unwrap().display(),
+            store.root.join("ab").display()
         );
         assert_eq!(
             store.scrub(&message),
-            format!("scene: {key} is a 8x8x4 volume")
+            format!("scene: {key} is a 8x8x4 volume; blob store/ab: Not a directory")
         );
         let tmp = store.temp_path().unwrap();
         std::fs::write(&tmp, b"x").unwrap();

@@ -67,14 +67,12 @@ impl<S: Send + Sync, T: DeserializeOwned + Send + 'static> FromRequest<S> for Js
         let bytes = read_body(request.into_body()).await?;
         let small = bytes.len() <= INLINE_PARSE_BYTES;
         let parse = move || {
-            serde_json::from_slice::<T>(&bytes).map_err(|e| {
-                // Not JSON at all: 400; JSON of the wrong shape: 422 (as axum's `Json`).
-                let status = match e.classify() {
-                    serde_json::error::Category::Data => StatusCode::UNPROCESSABLE_ENTITY,
-                    _ => StatusCode::BAD_REQUEST,
-                };
-                ApiError::new(status, format!("job: {e}"))
-            })
+            // Not JSON at all: 400 (checked first, without building anything); JSON of the
+            // wrong shape: 422, as axum's `Json` answers.
+            serde_json::from_slice::<serde::de::IgnoredAny>(&bytes)
+                .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, format!("not JSON: {e}")))?;
+            serde_json::from_slice::<T>(&bytes)
+                .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, format!("job: {e}")))
         };
         let value = if small {
             parse()?

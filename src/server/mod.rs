@@ -194,6 +194,29 @@ pub fn spawn_workers(
         .collect()
 }
 
+/// How often a running server or worker looks for a killed process's temporary files.
+const LEFTOVER_SWEEP: std::time::Duration = std::time::Duration::from_secs(600);
+
+/// Removes a killed process's temporary files now and then (at start, [`open_state`]
+/// removes those old enough already), until the returned task is aborted.
+fn spawn_leftover_sweeps(blobs: &BlobStore) -> tokio::task::JoinHandle<()> {
+    let blobs = blobs.clone();
+    tokio::spawn(async move {
+        let mut every = tokio::time::interval(LEFTOVER_SWEEP);
+        every.tick().await;
+        loop {
+            every.tick().await;
+            let store = blobs.clone();
+            match tokio::task::spawn_blocking(move || store.remove_leftovers()).await {
+                Ok(Ok(0)) => {}
+                Ok(Ok(n)) => tracing::info!("removed {n} temporary files left by a killed process"),
+                Ok(Err(e)) => tracing::warn!("sweeping temporary files: {e}"),
+                Err(e) => tracing::warn!("sweeping temporary files: {e}"),
+            }
+        }
+    })
+}
+
 /// Logs where the state lives, as absolute paths, with the database password redacted.
 fn log_locations(config: &ServerConfig) {
     tracing::info!(
@@ -210,6 +233,7 @@ pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
     let state = open_state(&config, limits).await?;
     let stop = Arc::new(AtomicBool::new(false));
     let workers = spawn_workers(&state, config.workers, &stop);
+    let sweeps = spawn_leftover_sweeps(&state.blobs);
     if config.seed_sample {
         seed_sample(&state).await?;
     }
@@ -228,6 +252,7 @@ pub async fn serve(config: ServerConfig, limits: Limits) -> Result<()> {
         }
     };
     let deadline = serve_on(listener, state, signal).await;
+    sweeps.abort();
     stop_workers(&stop, workers, deadline).await;
     Ok(())
 }
@@ -289,12 +314,14 @@ pub async fn work(config: ServerConfig, limits: Limits) -> Result<()> {
     let state = open_state(&config, limits).await?;
     let stop = Arc::new(AtomicBool::new(false));
     let workers = spawn_workers(&state, config.workers.max(1), &stop);
+    let sweeps = spawn_leftover_sweeps(&state.blobs);
     eprintln!(
         "mesobake worker: {} worker(s) on {}",
         config.workers.max(1),
         config.database_url_redacted()
     );
     shutdown_signal().await;
+    sweeps.abort();
     let deadline = tokio::time::Instant::now() + millis(config.shutdown_grace_ms);
     stop_workers(&stop, workers, deadline).await;
     Ok(())
