@@ -187,6 +187,13 @@ fn environment_maps_project_with_second_order_error_and_round_trip_through_exr()
         ..Limits::default()
     };
     assert!(Environment::read_exr(&path, &tiny).is_err());
+    // An image over the pixel limit is refused from its header, naming its size.
+    let few_pixels = Limits {
+        image_pixels: 64 * 32 - 1,
+        ..Limits::default()
+    };
+    let e = Environment::read_exr(&path, &few_pixels).unwrap_err();
+    assert!(e.to_string().contains("64×32"), "{e}");
     std::fs::write(&path, b"not an exr").unwrap();
     let e = Environment::read_exr(&path, &Limits::default()).unwrap_err();
     assert!(e.to_string().contains("sky.exr"), "{e}");

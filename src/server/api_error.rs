@@ -53,12 +53,12 @@ impl From<Error> for ApiError {
             Error::MemoryLimit { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             Error::Cancelled => StatusCode::CONFLICT,
             Error::Gpu(_) | Error::Database(_) => StatusCode::SERVICE_UNAVAILABLE,
-            Error::Io { .. } => {
+            Error::Io { source, .. } => {
                 // The path is the server's business: logged, not answered.
                 tracing::error!("{e}");
                 return ApiError::new(
                     StatusCode::INTERNAL_SERVER_ERROR,
-                    "storage error (the server's log has the details)",
+                    format!("storage error: {source}"),
                 );
             }
         };

@@ -332,3 +332,29 @@ pub fn worker_name(index: u32) -> String {
         &uuid::Uuid::new_v4().simple().to_string()[..8]
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_moves_through_every_stage_by_weight() {
+        let stages = ["load", "bake_gdm", "compress", "encode", "store"];
+        let shared = Shared::new(stages.iter().map(|s| s.to_string()).collect());
+        // Weights 1 + 10 + 3 + 1 + 1 = 16.
+        let at = |stage: &str, done: u64, total: u64| {
+            shared.stage(stage);
+            shared.progress(done, total);
+            shared.progress_now()
+        };
+        assert_eq!(at("load", 0, 1), ("load".to_owned(), 0.0));
+        assert_eq!(
+            at("bake_gdm", 256, 512),
+            ("bake_gdm".to_owned(), 6.0 / 16.0)
+        );
+        assert_eq!(at("compress", 0, 1), ("compress".to_owned(), 11.0 / 16.0));
+        assert_eq!(at("store", 1, 1), ("store".to_owned(), 1.0));
+        // A stage the plan does not name leaves the running stage as it was.
+        assert_eq!(at("bake_rtv", 1, 1), ("store".to_owned(), 1.0));
+    }
+}
