@@ -4,10 +4,10 @@
 //! tiles; see `ARCHITECTURE.md` for the map of the code and its invariants.
 //!
 //! ```
-//! use mesobake::gdm::{self, volume_caster::VolumeCaster};
+//! use mesobake::bake::gdm::{self, volume_caster::VolumeCaster};
 //! use mesobake::grid::{DirectionGrid, Dims};
-//! use mesobake::limits::Limits;
-//! use mesobake::volume::Volume;
+//! use mesobake::util::limits::Limits;
+//! use mesobake::mesostructure::volume::Volume;
 //!
 //! // A floor: layer 0 of an 8×8×4 volume is solid.
 //! let limits = Limits::default();
@@ -22,43 +22,20 @@
 //! # Ok::<(), mesobake::Error>(())
 //! ```
 
-pub mod bake_package;
-pub mod base_mesh;
+pub mod bake;
 pub mod bench;
 pub mod client;
 pub mod compress;
-pub mod counting_alloc;
-pub mod empty_space;
 pub mod error;
-pub mod explicit;
-pub mod exr_export;
-pub mod flat_preview;
-pub mod fsutil;
-pub mod gdm;
-pub mod gi;
-pub mod gi_report;
 pub mod grid;
-pub mod height_field;
-pub mod input;
-pub mod limits;
-pub mod mesh_tile;
-pub mod npy;
+pub mod mesostructure;
 pub mod package;
-pub mod preview_bench;
-pub mod preview_scene;
 pub mod realtime;
 pub mod render;
-pub mod render_report;
-pub mod render_scene;
 pub mod report;
-pub mod samples;
 pub mod scene;
-pub mod scene_package;
 pub mod server;
-pub mod server_bench;
-pub mod shell;
-pub mod trimesh;
-pub mod volume;
-pub mod volume_format;
+pub mod surface;
+pub mod util;
 
 pub use error::{Error, Result};

@@ -2,23 +2,27 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use mesobake::bake_package::{PackageParams, bake_package};
+use mesobake::bake::gdm::{self, BakeObserver, Method};
+use mesobake::bench::bakes as bench;
+use mesobake::bench::counting_alloc::CountingAlloc;
 use mesobake::client::Client;
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
-use mesobake::counting_alloc::CountingAlloc;
-use mesobake::fsutil::write_atomic;
-use mesobake::gdm::{self, BakeObserver, Method};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::limits::{Limits, parse_bytes};
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::{input, volume_format};
 use mesobake::package::Package;
-use mesobake::preview_scene::preview;
+use mesobake::package::bake::{PackageParams, bake_package};
 use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
-use mesobake::render_scene::{self, GdmSource, RenderMethod};
-use mesobake::samples::{self, SampleKind};
-use mesobake::scene_package::{ScenePackageParams, bake_scene_package, scene_package};
-use mesobake::{Error, Result, bench, input, npy, render_report, report, volume_format};
+use mesobake::report::{accuracy as report, render as render_report};
+use mesobake::scene::package::{ScenePackageParams, bake_scene_package, scene_package};
+use mesobake::scene::preview::preview;
+use mesobake::scene::render::{self as render_scene, GdmSource, RenderMethod};
+use mesobake::util::fs::write_atomic;
+use mesobake::util::limits::{Limits, parse_bytes};
+use mesobake::util::npy;
+use mesobake::{Error, Result};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -255,7 +259,7 @@ enum Command {
         #[arg(long, conflicts_with = "scene")]
         thickness: Option<f64>,
         /// Tiles per UV unit along u and v, e.g. 24x10 [default: 1x1].
-        #[arg(long, value_parser = mesobake::explicit::parse_pair, conflicts_with = "scene")]
+        #[arg(long, value_parser = mesobake::surface::explicit::parse_pair, conflicts_with = "scene")]
         tiles: Option<[f64; 2]>,
         /// The tile's height H in tile units (Z/X of its grid) [default: 0.5].
         #[arg(long, conflicts_with = "scene")]
@@ -836,7 +840,7 @@ fn run(cli: Cli) -> Result<()> {
             let g = pkg.reconstruct(&limits)?;
             npy::write_gdm(&g, &out)?;
             if let Some(path) = exr {
-                mesobake::exr_export::write_factors(&pkg, &path)?;
+                mesobake::package::exr_export::write_factors(&pkg, &path)?;
             }
             Ok(())
         }
@@ -850,7 +854,7 @@ fn run(cli: Cli) -> Result<()> {
             write_atomic(&obj, mesh.to_obj(name).as_bytes())?;
             let progress = Progress::new("baking GDM (exact)");
             let start = Instant::now();
-            let caster = mesobake::gdm::volume_caster::VolumeCaster::new(&volume);
+            let caster = mesobake::bake::gdm::volume_caster::VolumeCaster::new(&volume);
             let g = gdm::exact::bake(&caster, DirectionGrid::PAPER, &limits, &progress)?;
             progress.0.finish_and_clear();
             eprintln!(
@@ -858,9 +862,9 @@ fn run(cli: Cli) -> Result<()> {
                 start.elapsed().as_secs_f64()
             );
             npy::write_gdm(&g, &out.join(format!("{name}-gdm.npy")))?;
-            let setup = mesobake::flat_preview::default_setup(&g);
-            let rgb = mesobake::flat_preview::render(&volume, &g, &setup)?;
-            let png = mesobake::flat_preview::encode_png(&rgb, setup.size, setup.size)?;
+            let setup = mesobake::render::flat_preview::default_setup(&g);
+            let rgb = mesobake::render::flat_preview::render(&volume, &g, &setup)?;
+            let png = mesobake::render::flat_preview::encode_png(&rgb, setup.size, setup.size)?;
             let path = out.join(format!("{name}-preview.png"));
             write_atomic(&path, &png)?;
             eprintln!("wrote {}", path.display());
@@ -1002,7 +1006,7 @@ fn run(cli: Cli) -> Result<()> {
             out,
             json,
         } => {
-            use mesobake::explicit::ExplicitInput;
+            use mesobake::surface::explicit::ExplicitInput;
             let input = match (&scene, &mesh, &tile) {
                 (Some(scene), _, _) => ExplicitInput::from_scene(scene, &limits)?,
                 (None, Some(mesh), Some(tile)) => ExplicitInput::from_files(
@@ -1101,7 +1105,7 @@ fn run(cli: Cli) -> Result<()> {
             progress.0.finish_and_clear();
             let table = report::markdown(&rows);
             std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-            let fsutil = mesobake::fsutil::write_atomic;
+            let fsutil = mesobake::util::fs::write_atomic;
             fsutil(&out.join("accuracy.md"), table.as_bytes())?;
             fsutil(&out.join("accuracy.csv"), report::csv(&rows).as_bytes())?;
             fsutil(
@@ -1129,7 +1133,7 @@ fn run(cli: Cli) -> Result<()> {
                 },
         } => {
             let loaded = render_scene::load_scene(&scene, &limits)?;
-            let sweep = mesobake::gi_report::GiSweep {
+            let sweep = mesobake::report::gi::GiSweep {
                 dirs,
                 bounces,
                 prt_samples,
@@ -1138,9 +1142,9 @@ fn run(cli: Cli) -> Result<()> {
                 image_scale,
             };
             let progress = Progress::new("GI accuracy report");
-            let report = mesobake::gi_report::gi_accuracy(&loaded, &sweep, &limits, &progress)?;
+            let report = mesobake::report::gi::gi_accuracy(&loaded, &sweep, &limits, &progress)?;
             progress.0.finish_and_clear();
-            let table = mesobake::gi_report::markdown(&report);
+            let table = mesobake::report::gi::markdown(&report);
             std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
             let json = serde_json::to_string_pretty(&report).expect("report serializes");
             write_atomic(&out.join("gi-accuracy.md"), table.as_bytes())?;
@@ -1221,7 +1225,7 @@ fn run(cli: Cli) -> Result<()> {
                 },
         } => {
             let progress = Progress::new("baking GDM (exact)");
-            let (adapter, rows) = mesobake::preview_bench::run(
+            let (adapter, rows) = mesobake::bench::preview::run(
                 &scene,
                 &sizes,
                 &depths,
@@ -1231,7 +1235,7 @@ fn run(cli: Cli) -> Result<()> {
                 &progress,
             )?;
             progress.0.finish_and_clear();
-            print!("{}", mesobake::preview_bench::markdown(&adapter, &rows));
+            print!("{}", mesobake::bench::preview::markdown(&adapter, &rows));
             Ok(())
         }
         Command::Bench {
@@ -1239,7 +1243,7 @@ fn run(cli: Cli) -> Result<()> {
         } => {
             print!(
                 "{}",
-                mesobake::server_bench::run(database_url.as_deref(), &limits)?
+                mesobake::bench::server::run(database_url.as_deref(), &limits)?
             );
             Ok(())
         }

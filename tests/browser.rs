@@ -10,8 +10,8 @@ mod binary_server;
 use binary_server::BinaryServer;
 use fantoccini::{ClientBuilder, Locator};
 use mesobake::grid::Dims;
-use mesobake::limits::Limits;
-use mesobake::samples::{self, SampleKind};
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::util::limits::Limits;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -86,7 +86,7 @@ async fn upload_bake_and_preview_in_a_browser() {
     )
     .unwrap();
     let file = dir.path().join("weave.mbvol");
-    mesobake::volume_format::write(&volume, &file).unwrap();
+    mesobake::mesostructure::volume_format::write(&volume, &file).unwrap();
 
     let mut caps = serde_json::Map::new();
     caps.insert(

@@ -1,7 +1,7 @@
 //! The CI commands end to end: bake → package → unpack (.npy, EXR), and report accuracy.
 
-use mesobake::limits::Limits;
 use mesobake::package::Package;
+use mesobake::util::limits::Limits;
 use std::path::Path;
 
 mod common;

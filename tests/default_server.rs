@@ -11,10 +11,10 @@ mod server;
 
 use binary_server::BinaryServer;
 use mesobake::grid::Dims;
-use mesobake::limits::Limits;
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
-use mesobake::samples::{self, SampleKind};
-use mesobake::volume_format;
+use mesobake::util::limits::Limits;
 use serde_json::{Value, json};
 use std::process::Command;
 use std::time::{Duration, Instant};

@@ -5,13 +5,13 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::base_mesh::{BaseMesh, BuiltinMesh};
-use mesobake::explicit::{Explicit, ExplicitParams, export};
 use mesobake::grid::Dims;
-use mesobake::limits::Limits;
-use mesobake::samples::{self, SampleKind};
-use mesobake::shell::{PrismPoint, Shell, ShellParams};
-use mesobake::trimesh::TriMesh;
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::trimesh::TriMesh;
+use mesobake::surface::base_mesh::{BaseMesh, BuiltinMesh};
+use mesobake::surface::explicit::{Explicit, ExplicitParams, export};
+use mesobake::surface::shell::{PrismPoint, Shell, ShellParams};
+use mesobake::util::limits::Limits;
 use std::collections::HashMap;
 
 fn base(mesh: BuiltinMesh) -> BaseMesh {

@@ -5,16 +5,16 @@
 //! f64 traces are compared at 1e-9 voxel. The mesh path works in f32 (obvhs), so it is compared
 //! at 2e-3 voxel over distances of at most a few hundred voxels.
 
-use mesobake::gdm::caster::{Caster, Trace};
-use mesobake::gdm::mesh_caster::MeshCaster;
-use mesobake::gdm::volume_caster::VolumeCaster;
-use mesobake::gdm::{self, EscapeConvention, Gdm, Method};
+use mesobake::bake::gdm::caster::{Caster, Trace};
+use mesobake::bake::gdm::mesh_caster::MeshCaster;
+use mesobake::bake::gdm::volume_caster::VolumeCaster;
+use mesobake::bake::gdm::{self, EscapeConvention, Gdm, Method};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::limits::Limits;
-use mesobake::mesh_tile::MeshTile;
-use mesobake::samples::{self, SampleKind};
-use mesobake::trimesh::TriMesh;
-use mesobake::volume::Volume;
+use mesobake::mesostructure::mesh_tile::MeshTile;
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::trimesh::TriMesh;
+use mesobake::mesostructure::volume::Volume;
+use mesobake::util::limits::Limits;
 use proptest::prelude::*;
 
 fn dims(x: u32, y: u32, z: u32) -> Dims {

@@ -1,14 +1,14 @@
 //! The fast (sweep) bake against the exact bake, with the error bounds it must hold.
 
-use mesobake::gdm::compare::compare;
-use mesobake::gdm::exact;
-use mesobake::gdm::fast::{self, FastParams};
-use mesobake::gdm::mesh_caster::MeshCaster;
-use mesobake::gdm::volume_caster::VolumeCaster;
+use mesobake::bake::gdm::compare::compare;
+use mesobake::bake::gdm::exact;
+use mesobake::bake::gdm::fast::{self, FastParams};
+use mesobake::bake::gdm::mesh_caster::MeshCaster;
+use mesobake::bake::gdm::volume_caster::VolumeCaster;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::limits::Limits;
-use mesobake::mesh_tile::MeshTile;
-use mesobake::samples::{self, SampleKind};
+use mesobake::mesostructure::mesh_tile::MeshTile;
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::util::limits::Limits;
 
 /// On every sample at 32×32×16 with 8×16 directions, the default fast bake stays within the
 /// targets of the W1 benchmark: mean absolute error ≤ 0.25 voxel over samples both bakes hit,

@@ -3,11 +3,11 @@
 //! macro-scale PRT (a flat plane's hemisphere, a wall's solid angle, the unshadowed rotation).
 
 use glam::{DMat3, DVec2, DVec3};
-use mesobake::base_mesh::BaseMesh;
-use mesobake::gi::environment::{Environment, Sky, direction};
-use mesobake::gi::prt::{Visibility, transfer, vertex_frames};
-use mesobake::gi::sh::{self, COEFFS, Quadrature};
-use mesobake::limits::Limits;
+use mesobake::bake::gi::environment::{Environment, Sky, direction};
+use mesobake::bake::gi::prt::{Visibility, transfer, vertex_frames};
+use mesobake::bake::gi::sh::{self, COEFFS, Quadrature};
+use mesobake::surface::base_mesh::BaseMesh;
+use mesobake::util::limits::Limits;
 use std::f64::consts::PI;
 
 /// The SH convention's direction of polar angle θ (from +z) and azimuth φ.
@@ -322,8 +322,8 @@ fn without_macro_shadows_the_transfer_is_the_rotation_into_the_frame() {
 }
 
 /// A Lambertian RTV bake with `bounces` bounces.
-fn lambert(bounces: u32) -> mesobake::gi::rtv::RtvParams {
-    mesobake::gi::rtv::RtvParams {
+fn lambert(bounces: u32) -> mesobake::bake::gi::rtv::RtvParams {
+    mesobake::bake::gi::rtv::RtvParams {
         bounces,
         glossy: None,
     }
@@ -331,13 +331,13 @@ fn lambert(bounces: u32) -> mesobake::gi::rtv::RtvParams {
 
 /// The exact GDM (16×32 directions) and the material of `volume`, whose albedo is `rho`.
 fn gdm_and_material(
-    volume: &mesobake::volume::Volume,
+    volume: &mesobake::mesostructure::volume::Volume,
     rho: f64,
 ) -> (
-    mesobake::gdm::Gdm,
+    mesobake::bake::gdm::Gdm,
     mesobake::render::material::MaterialVolume,
 ) {
-    use mesobake::gdm::{self, Method, fast::FastParams, volume_caster::VolumeCaster};
+    use mesobake::bake::gdm::{self, Method, fast::FastParams, volume_caster::VolumeCaster};
     let dirs = mesobake::grid::DirectionGrid::new(16, 32).unwrap();
     let g = gdm::bake(
         &VolumeCaster::new(volume),
@@ -355,10 +355,11 @@ fn gdm_and_material(
 
 #[test]
 fn a_flat_slab_reflects_the_clamped_cosine_and_nothing_bounces() {
-    use mesobake::gi::rtv;
+    use mesobake::bake::gi::rtv;
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
     let slab =
-        mesobake::volume::Volume::from_fn(dims, &Limits::default(), |_, _, k| k < 3).unwrap();
+        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |_, _, k| k < 3)
+            .unwrap();
     let rho = 0.5;
     let (g, material) = gdm_and_material(&slab, rho);
     let (rtv, stats) = rtv::bake(&g, &material, &lambert(4), &Limits::default(), &()).unwrap();
@@ -385,14 +386,15 @@ fn a_flat_slab_reflects_the_clamped_cosine_and_nothing_bounces() {
 
 #[test]
 fn a_white_furnace_converges_to_the_light_with_bounces() {
-    use mesobake::gi::rtv;
+    use mesobake::bake::gi::rtv;
     // A floor with pillars and bars over them (overhangs): every downward ray hits something,
     // so with albedo 1 under constant radiance 1 every surface point must reach radiance 1.
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
-    let volume = mesobake::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
-        k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5)
-    })
-    .unwrap();
+    let volume =
+        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
+            k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5)
+        })
+        .unwrap();
     let (g, material) = gdm_and_material(&volume, 1.0);
     let mut light = [[0.0; COEFFS]; 3];
     for c in &mut light {
@@ -460,12 +462,12 @@ fn flat_slab_with(
     });
     let path = dir.path().join("scene.json");
     std::fs::write(&path, scene.to_string()).unwrap();
-    mesobake::render_scene::load_scene(&path, &Limits::default()).unwrap()
+    mesobake::scene::render::load_scene(&path, &Limits::default()).unwrap()
 }
 
 /// [`flat_slab`] rendered by the GDM renderer.
-fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::render_scene::Rendered {
-    use mesobake::render_scene::{GdmSource, RenderMethod, render};
+fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::render::Rendered {
+    use mesobake::scene::render::{GdmSource, RenderMethod, render};
     let loaded = flat_slab(effects, c, ground);
     render(
         &loaded,
@@ -531,7 +533,7 @@ fn a_slab_under_a_constant_sky_reflects_albedo_times_radiance() {
 
 #[test]
 fn the_gi_report_measures_against_its_references() {
-    use mesobake::gi_report::{GiSweep, gi_accuracy, markdown};
+    use mesobake::report::gi::{GiSweep, gi_accuracy, markdown};
     let loaded = flat_slab(&["environment_lighting"], 1.0, 0.2);
     let sweep = GiSweep {
         dirs: vec![
@@ -589,7 +591,7 @@ fn the_gi_report_measures_against_its_references() {
 
 #[test]
 fn the_path_tracer_reflects_albedo_times_radiance_on_a_slab_without_sh_truncation() {
-    use mesobake::render_scene::{GdmSource, RenderMethod, render};
+    use mesobake::scene::render::{GdmSource, RenderMethod, render};
     // Every cosine-distributed direction from the slab's top escapes upwards, so each path
     // brings exactly the sky's radiance above the horizon: ρ·c with no variance, also under
     // the half-dark sky where the SH pipeline's band-3 truncation gives 0.989·ρ·c.
@@ -620,7 +622,7 @@ fn the_path_tracer_reflects_albedo_times_radiance_on_a_slab_without_sh_truncatio
 
 #[test]
 fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
-    use mesobake::render_scene::{GdmSource, RenderMethod, render};
+    use mesobake::scene::render::{GdmSource, RenderMethod, render};
     // A grey material (ρ = 0.5, k_s = 0.3) makes both lobes weigh ρ + k_s, and a narrow lobe
     // (Blinn–Phong 400: Phong 100) about the mirror of a near-vertical view lies wholly above
     // the horizon (its mass below is under 1e-20): every path brings (ρ + k_s)·c, no variance.
@@ -654,19 +656,20 @@ fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
 
 #[test]
 fn path_traced_and_rtv_white_furnaces_agree() {
-    use mesobake::render_scene::{GdmSource, RenderMethod, render};
+    use mesobake::scene::render::{GdmSource, RenderMethod, render};
     // Pillars and bars on a floor, albedo 1, under radiance 1 everywhere: every surface
     // point's radiance is 1, which the path tracer reaches with enough bounces and the RTV
     // with enough bounces (without macro shadows the incident SH is the constant's).
     let dir = tempfile::tempdir().unwrap();
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
-    let volume = mesobake::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
-        k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5)
-    })
-    .unwrap();
+    let volume =
+        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
+            k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5)
+        })
+        .unwrap();
     std::fs::write(
         dir.path().join("pillars.mbvol"),
-        mesobake::volume_format::encode(&volume),
+        mesobake::mesostructure::volume_format::encode(&volume),
     )
     .unwrap();
     let scene = serde_json::json!({
@@ -687,7 +690,7 @@ fn path_traced_and_rtv_white_furnaces_agree() {
     let path = dir.path().join("furnace.json");
     std::fs::write(&path, scene.to_string()).unwrap();
     let limits = Limits::default();
-    let loaded = mesobake::render_scene::load_scene(&path, &limits).unwrap();
+    let loaded = mesobake::scene::render::load_scene(&path, &limits).unwrap();
     let mean = |method| {
         let r = render(&loaded, method, GdmSource::Bake, &limits, &()).unwrap();
         let hits: Vec<f64> = r
@@ -740,10 +743,11 @@ fn the_phong_lobe_convolves_by_its_closed_form() {
 
 #[test]
 fn a_glossy_slab_reflects_the_phong_filtered_upper_hemisphere() {
-    use mesobake::gi::rtv::{self, Glossy, RtvParams};
+    use mesobake::bake::gi::rtv::{self, Glossy, RtvParams};
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
     let slab =
-        mesobake::volume::Volume::from_fn(dims, &Limits::default(), |_, _, k| k < 3).unwrap();
+        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |_, _, k| k < 3)
+            .unwrap();
     // No diffuse part: what leaves is the glossy lobe alone.
     let (g, material) = gdm_and_material(&slab, 0.0);
     let (exponent, k_s) = (8.0, 0.5);
@@ -791,14 +795,15 @@ fn a_glossy_slab_reflects_the_phong_filtered_upper_hemisphere() {
 
 #[test]
 fn the_rtv_svd_is_the_dense_svd_and_reports_its_error_exactly() {
-    use mesobake::gi::compressed_rtv::{CompressedRtv, MATRICES};
-    use mesobake::gi::rtv::{self, Glossy, RtvParams};
+    use mesobake::bake::gi::compressed_rtv::{CompressedRtv, MATRICES};
+    use mesobake::bake::gi::rtv::{self, Glossy, RtvParams};
     // Pillars and bars over a floor: view-dependent glossy transfer with bounces.
     let dims = mesobake::grid::Dims::new(8, 8, 6).unwrap();
-    let volume = mesobake::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
-        k == 0 || (k < 4 && i % 4 < 2 && j % 4 < 2) || (k == 4 && i % 4 < 3)
-    })
-    .unwrap();
+    let volume =
+        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
+            k == 0 || (k < 4 && i % 4 < 2 && j % 4 < 2) || (k == 4 && i % 4 < 3)
+        })
+        .unwrap();
     let (g, material) = gdm_and_material(&volume, 0.6);
     let params = RtvParams {
         bounces: 2,

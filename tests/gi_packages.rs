@@ -6,11 +6,11 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::gi::shading::GiShading;
-use mesobake::limits::Limits;
+use mesobake::bake::gi::shading::GiShading;
 use mesobake::package::Package;
-use mesobake::render_scene::{bake_gdm, load_scene};
-use mesobake::scene_package::{ScenePackageParams, bake_scene_package};
+use mesobake::scene::package::{ScenePackageParams, bake_scene_package};
+use mesobake::scene::render::load_scene;
+use mesobake::util::limits::Limits;
 use std::path::{Path, PathBuf};
 
 /// A small GI scene (wavy plane, weave 32×32×16, 16×32 directions, overcast sky, glossy
@@ -164,7 +164,7 @@ fn gi_packages_are_deterministic_and_shade_like_the_bake() {
     // over the tile and views above the surface.
     let exact = GiShading::bake(
         &loaded,
-        &bake_gdm(&loaded, &limits, &()).unwrap(),
+        &loaded.bake_gdm(&limits, &()).unwrap(),
         &limits,
         &(),
     )

@@ -1,17 +1,17 @@
 //! GDM packages: round trips, determinism, and rejection of every kind of corrupt file.
 
-use mesobake::bake_package::{PackageParams, bake_info, bake_package};
+use mesobake::bake::gdm::volume_caster::VolumeCaster;
+use mesobake::bake::gdm::{self, EscapeConvention, Gdm, Method};
 use mesobake::compress::gdm::{CompressedGdm, compress};
 use mesobake::compress::layout::GdmRows;
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::{GramEigen, RankChoice};
-use mesobake::gdm::volume_caster::VolumeCaster;
-use mesobake::gdm::{self, EscapeConvention, Gdm, Method};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::limits::Limits;
+use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::package::Package;
+use mesobake::package::bake::{PackageParams, bake_info, bake_package};
 use mesobake::package::manifest::{InputInfo, Manifest};
-use mesobake::samples::{self, SampleKind};
+use mesobake::util::limits::Limits;
 use proptest::prelude::*;
 
 fn params(rank: usize, quantization: Quantization) -> PackageParams {
@@ -113,7 +113,7 @@ fn packages_are_byte_identical_across_runs_and_thread_counts() {
     let limits = Limits::default();
     let volume =
         samples::volume(SampleKind::Chain, Dims::new(16, 16, 8).unwrap(), &limits).unwrap();
-    mesobake::volume_format::write(&volume, &path).unwrap();
+    mesobake::mesostructure::volume_format::write(&volume, &path).unwrap();
     let bake = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)

@@ -4,19 +4,19 @@
 //! Vulkan driver. Without any adapter these tests fail, unless MESOBAKE_SKIP_GPU_TESTS=1 says
 //! to skip them (loudly).
 
+use mesobake::bake::gi::shading::GiShading;
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
-use mesobake::gi::shading::GiShading;
-use mesobake::limits::Limits;
 use mesobake::package::Package;
-use mesobake::preview_scene::preview;
 use mesobake::realtime::gpu::Gpu;
 use mesobake::render::gdm_lookup::PackageLookup;
 use mesobake::render::gdm_renderer::GdmRenderer;
 use mesobake::render::image::{Image, compare};
 use mesobake::render::render_image;
+use mesobake::scene::package::{ScenePackageParams, scene_package};
+use mesobake::scene::preview::preview;
 use mesobake::scene::{Effect, LoadedScene, Scene};
-use mesobake::scene_package::{ScenePackageParams, scene_package};
+use mesobake::util::limits::Limits;
 use std::path::Path;
 
 /// Whether GPU tests run here; panics with the reason when no adapter exists and skipping

@@ -7,12 +7,12 @@ mod server;
 
 use futures_util::future::join_all;
 use mesobake::grid::Dims;
-use mesobake::limits::Limits;
+use mesobake::mesostructure::volume::Volume;
+use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
 use mesobake::server::jobs::JobSpec;
 use mesobake::server::spawn_workers;
-use mesobake::volume::Volume;
-use mesobake::volume_format;
+use mesobake::util::limits::Limits;
 use serde_json::json;
 use server::{TestServer, database_urls};
 use std::process::{Child, Command};

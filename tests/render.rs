@@ -4,24 +4,24 @@
 //! a nearly inverted shell. Tolerances are stated with each assertion.
 
 use glam::{DVec2, DVec3};
-use mesobake::base_mesh::BaseMesh;
-use mesobake::gdm::caster::{Caster, Trace};
-use mesobake::gdm::volume_caster::VolumeCaster;
-use mesobake::gdm::{self, Gdm};
+use mesobake::bake::gdm::caster::{Caster, Trace};
+use mesobake::bake::gdm::volume_caster::VolumeCaster;
+use mesobake::bake::gdm::{self, Gdm};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::input::Mesostructure;
-use mesobake::limits::Limits;
+use mesobake::mesostructure::input::Mesostructure;
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::volume::Volume;
 use mesobake::render::gdm_lookup::RawLookup;
 use mesobake::render::gdm_renderer::{GdmRenderer, ShadowTest, Substitutions};
 use mesobake::render::image::compare;
 use mesobake::render::material::MaterialVolume;
 use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
-use mesobake::render_scene::{GdmSource, RenderMethod, render};
-use mesobake::samples::{self, SampleKind};
+use mesobake::scene::render::{GdmSource, RenderMethod, render};
 use mesobake::scene::{LoadedScene, Scene};
-use mesobake::shell::{Shell, ShellParams};
-use mesobake::volume::Volume;
+use mesobake::surface::base_mesh::BaseMesh;
+use mesobake::surface::shell::{Shell, ShellParams};
+use mesobake::util::limits::Limits;
 
 const SLAB_SCENE: &str = r#"{
   "base_mesh": { "builtin": { "plane": {} } },
@@ -577,11 +577,11 @@ fn gdm_refinement_moves_hits_onto_the_surface() {
 
 /// A package of `volume`'s exact GDM at `rank` (f32) and the raw GDM.
 fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
+    use mesobake::bake::gdm::EscapeConvention;
     use mesobake::compress::gdm::compress;
     use mesobake::compress::layout::GdmRows;
     use mesobake::compress::quantize::Quantization;
     use mesobake::compress::svd::{GramEigen, RankChoice};
-    use mesobake::gdm::EscapeConvention;
     use mesobake::package::Package;
     use mesobake::package::manifest::InputInfo;
     let limits = Limits::default();
@@ -602,7 +602,7 @@ fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
         blake3: String::new(),
     };
     let info =
-        mesobake::bake_package::bake_info(&raw, gdm::Method::Exact, Default::default(), false);
+        mesobake::package::bake::bake_info(&raw, gdm::Method::Exact, Default::default(), false);
     let package = Package::parse(Package::encode(input, info, &c.unwrap())).unwrap();
     (raw, package)
 }

@@ -6,10 +6,10 @@
 mod server;
 
 use mesobake::grid::Dims;
-use mesobake::limits::Limits;
-use mesobake::samples::{self, SampleKind};
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::volume_format;
 use mesobake::server::db::{PackageRow, now_ms};
-use mesobake::volume_format;
+use mesobake::util::limits::Limits;
 use server::{TestServer, database_urls};
 
 fn volume_bytes(kind: SampleKind, res: u32) -> Vec<u8> {

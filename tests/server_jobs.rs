@@ -5,11 +5,11 @@
 mod server;
 
 use mesobake::grid::Dims;
-use mesobake::limits::Limits;
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
-use mesobake::samples::{self, SampleKind};
 use mesobake::server::spawn_workers;
-use mesobake::volume_format;
+use mesobake::util::limits::Limits;
 use object_store::ObjectStoreExt;
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};

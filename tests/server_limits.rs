@@ -8,10 +8,10 @@
 mod server;
 
 use mesobake::grid::Dims;
-use mesobake::limits::Limits;
-use mesobake::samples::{self, SampleKind};
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::volume_format;
 use mesobake::server::db::{PackageRow, now_ms};
-use mesobake::volume_format;
+use mesobake::util::limits::Limits;
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};
 use std::time::{Duration, Instant};

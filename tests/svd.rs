@@ -1,7 +1,7 @@
 //! Truncated SVD against nalgebra's full SVD (f64) on small matrices, and its hard cases.
 
 use mesobake::compress::svd::{DenseRows, RankChoice, Truncated, truncated_svd};
-use mesobake::limits::Limits;
+use mesobake::util::limits::Limits;
 use nalgebra::DMatrix;
 
 /// Deterministic uniform numbers in [-1, 1).
@@ -214,11 +214,11 @@ fn bad_matrices_are_refused() {
 /// (+∞) are refused.
 #[test]
 fn gdm_layout_rows_and_columns() {
+    use mesobake::bake::gdm::{EscapeConvention, exact, volume_caster::VolumeCaster};
     use mesobake::compress::layout::GdmRows;
     use mesobake::compress::svd::RowSource;
-    use mesobake::gdm::{EscapeConvention, exact, volume_caster::VolumeCaster};
     use mesobake::grid::{Dims, DirectionGrid};
-    use mesobake::volume::Volume;
+    use mesobake::mesostructure::volume::Volume;
     let d = Dims::new(5, 3, 4).unwrap();
     let limits = Limits::default();
     let v = Volume::from_fn(d, &limits, |i, j, k| (i + 2 * j + k) % 4 == 0).unwrap();
@@ -247,7 +247,7 @@ struct CancelAfter {
     asked: std::sync::atomic::AtomicUsize,
 }
 
-impl mesobake::gdm::BakeObserver for CancelAfter {
+impl mesobake::bake::gdm::BakeObserver for CancelAfter {
     fn cancelled(&self) -> bool {
         self.asked
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed)

@@ -13,8 +13,8 @@
 
 use super::layout::GdmRows;
 use super::svd::{RowSource, gemm};
+use crate::bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use crate::error::Result;
-use crate::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use rayon::prelude::*;
 
 /// Resolution of the relative escape margin.

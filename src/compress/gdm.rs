@@ -5,9 +5,9 @@ use super::accuracy::{Accuracy, measure};
 use super::layout::GdmRows;
 use super::quantize::{Quantization, QuantizedFactor};
 use super::svd::{GramEigen, RankChoice, Truncated};
+use crate::bake::gdm::Gdm;
 use crate::error::Result;
-use crate::gdm::Gdm;
-use crate::limits::Limits;
+use crate::util::limits::Limits;
 use std::time::Instant;
 
 /// A compressed GDM: its factorization, the quantized factors, and their accuracy.

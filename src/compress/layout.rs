@@ -1,8 +1,8 @@
 //! The paper's matrix layouts of baked data, read as [`RowSource`]s without a copy.
 
 use super::svd::{BlockOrder, RowSource};
+use crate::bake::gdm::{EscapeConvention, Gdm};
 use crate::error::{Error, Result};
-use crate::gdm::{EscapeConvention, Gdm};
 
 /// The GDM as a matrix with rows (x, y, φ) and columns (θ, z): row r = (b·Y + j)·X + i,
 /// column c = a·Z + k, so that weight maps are 3D textures W(x, y, φ) (x fastest) and

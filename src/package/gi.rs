@@ -4,12 +4,12 @@
 
 use super::Package;
 use super::manifest::{GiInfo, Section, TexelFormat, Texture, TextureDimension};
-use crate::base_mesh::BaseMesh;
+use crate::bake::gi::compressed_rtv::{CompressedRtv, MATRICES};
+use crate::bake::gi::prt::geometry_hash;
+use crate::bake::gi::sh::{COEFFS, ShMatrix};
 use crate::error::{Error, Result};
-use crate::gi::compressed_rtv::{CompressedRtv, MATRICES};
-use crate::gi::prt::geometry_hash;
-use crate::gi::sh::{COEFFS, ShMatrix};
 use crate::grid::{Dims, DirectionGrid};
+use crate::surface::base_mesh::BaseMesh;
 use half::f16;
 
 /// Section holding the sample index of every voxel (`u32::MAX`: not a sample).

@@ -1,13 +1,13 @@
 //! The JSON manifest of a package (see `docs/package-format.md`). Every map is a struct or a
 //! list, so serialization order is fixed and identical packages are byte-identical.
 
+use crate::bake::gdm::Method;
+use crate::bake::gdm::fast::FastParams;
+use crate::bake::gi::compressed_rtv::RtvCompression;
+use crate::bake::gi::rtv::Glossy;
 use crate::compress::accuracy::Accuracy;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
-use crate::gdm::Method;
-use crate::gdm::fast::FastParams;
-use crate::gi::compressed_rtv::RtvCompression;
-use crate::gi::rtv::Glossy;
 
 /// The value of [`Manifest::format`].
 pub const FORMAT_NAME: &str = "mesobake-package";
@@ -105,7 +105,7 @@ pub struct GiInfo {
     pub vertices: u32,
     /// Whether the PRT includes base-mesh self-shadowing.
     pub macro_shadows: bool,
-    /// BLAKE3 of the base mesh's geometry ([`crate::gi::prt::geometry_hash`]): the mesh the
+    /// BLAKE3 of the base mesh's geometry ([`crate::bake::gi::prt::geometry_hash`]): the mesh the
     /// PRT belongs to.
     pub base_mesh: String,
 }

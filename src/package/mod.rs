@@ -2,18 +2,20 @@
 //! manifest that says how it was made and how accurate it is. Writing is deterministic;
 //! reading validates everything (see `docs/package-format.md`).
 
+pub mod bake;
 pub mod container;
+pub mod exr_export;
 pub mod gi;
 pub mod manifest;
 
+use crate::bake::gdm::{EscapeConvention, Gdm};
 use crate::compress::accuracy::{MAX_MARGIN, resolve_escapes};
 use crate::compress::gdm::CompressedGdm;
 use crate::compress::quantize::{Quantization, QuantizedFactor};
 use crate::compress::svd::gemm;
 use crate::error::{Error, Result};
-use crate::gdm::{EscapeConvention, Gdm};
 use crate::grid::{Dims, DirectionGrid};
-use crate::limits::Limits;
+use crate::util::limits::Limits;
 use manifest::{
     BakeInfo, FORMAT_NAME, FactorInfo, GdmInfo, InputInfo, Manifest, Section, TexelFormat, Texture,
     TextureDimension,
@@ -209,10 +211,10 @@ impl Package {
         }
         if let Some(info) = &manifest.gi {
             let rank = info.compression.rank;
-            if !(1..=crate::gi::compressed_rtv::MAX_RTV_RANK).contains(&rank) {
+            if !(1..=crate::bake::gi::compressed_rtv::MAX_RTV_RANK).contains(&rank) {
                 return Err(bad(format!(
                     "the RTV rank {rank} is not 1 to {}",
-                    crate::gi::compressed_rtv::MAX_RTV_RANK
+                    crate::bake::gi::compressed_rtv::MAX_RTV_RANK
                 )));
             }
             for (name, expected) in gi::textures(info, dims, dirs) {

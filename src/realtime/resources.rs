@@ -102,7 +102,7 @@ pub fn upload_environment(
 ) -> Result<GpuEnvironment> {
     use crate::package::gi::{RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
     // The CPU twin's own tables: the same incident light and triangles on both sides.
-    let shading = crate::gi::shading::GiShading::from_package(loaded, package)?;
+    let shading = crate::bake::gi::shading::GiShading::from_package(loaded, package)?;
     let incident: Vec<f32> = shading
         .incident()
         .iter()

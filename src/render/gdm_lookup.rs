@@ -13,9 +13,9 @@
 //!   applies the package's escape rule d̃ ≥ (1 − μ)·b̃ with the boundary distance b̃
 //!   interpolated like the eigenmaps.
 
+use crate::bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use crate::compress::accuracy::is_escape;
 use crate::compress::quantize::QuantizedFactor;
-use crate::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::package::Package;
 use glam::DVec3;
@@ -198,7 +198,7 @@ impl PackageLookup {
     ) -> Self {
         let boundary = (0..dirs.n_theta)
             .flat_map(|a| (0..dims.z).map(move |k| (a, k)))
-            .map(|(a, k)| crate::gdm::boundary_distance(dims, &dirs, k, a))
+            .map(|(a, k)| crate::bake::gdm::boundary_distance(dims, &dirs, k, a))
             .collect();
         PackageLookup {
             dims,

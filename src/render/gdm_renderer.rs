@@ -37,11 +37,11 @@ use super::gdm_lookup::{GdmLookup, Lookup};
 use super::lighting::{SHADOW_OFFSET, shade};
 use super::material::{ALBEDO_DEPTH, MaterialVolume};
 use super::truth::{TruthRenderer, light_start};
+use crate::bake::gi::shading::GiShading;
 use crate::error::{Error, Result};
-use crate::gi::shading::GiShading;
 use crate::grid::Dims;
 use crate::scene::{Effect, Scene};
-use crate::shell::{FaceTriangle, Shell};
+use crate::surface::shell::{FaceTriangle, Shell};
 use glam::{DMat3, DVec3};
 
 /// How far short of the previous estimate, in voxels, a refinement query is made: close enough

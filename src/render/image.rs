@@ -2,8 +2,8 @@
 //! (linear float, A = mask) files; `compare`.
 
 use crate::error::{Error, Result};
-use crate::fsutil::write_atomic;
 use crate::scene::MAX_IMAGE_SIDE;
+use crate::util::fs::write_atomic;
 use serde::Serialize;
 use std::path::Path;
 

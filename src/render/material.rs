@@ -9,7 +9,7 @@
 //! solid that was hit), falling back to the scene's material albedo where the volume has none.
 
 use crate::grid::{Dims, Wrap, trilinear_corners};
-use crate::volume::{Occupancy, Volume};
+use crate::mesostructure::volume::{Occupancy, Volume};
 use glam::{DVec3, Vec3};
 
 /// How far past a hit, in voxels along the ray, the albedo is read.

@@ -2,6 +2,7 @@
 //! ([`gdm_renderer`]), with what they share (material volume, lighting, images).
 
 pub mod accel;
+pub mod flat_preview;
 pub mod gdm_lookup;
 pub mod gdm_renderer;
 pub mod image;

@@ -5,7 +5,7 @@
 //! (the full-resolution map, not its SH projection).
 //!
 //! At each hit the reflected light is estimated with `samples` paths of at most `depth`
-//! bounces. Every surface reflects as the RTV models it ([`crate::gi::rtv`]): Lambert with the
+//! bounces. Every surface reflects as the RTV models it ([`crate::bake::gi::rtv`]): Lambert with the
 //! material volume's albedo ρ, plus, when the scene calls for `environment_gloss`, the
 //! normalized Phong lobe k_s·(s+1)/(2π)·cos^s α about the mirror direction (s = shininess/4,
 //! no cosine at the light, nothing from below the surface). Each bounce picks one lobe, the
@@ -15,9 +15,9 @@
 //! does. The random numbers are seeded from the camera ray, so images are reproducible.
 
 use super::truth::{Surface, TruthRenderer};
+use crate::bake::gi::environment::Environment;
+use crate::bake::gi::prt::Occluder;
 use crate::error::{Error, Result};
-use crate::gi::environment::Environment;
-use crate::gi::prt::Occluder;
 use crate::scene::{Effect, LoadedScene, Scene};
 use glam::DVec3;
 use std::f64::consts::TAU;
@@ -61,7 +61,7 @@ impl<'a> PathTracer<'a> {
             environment,
             samples,
             depth,
-            gloss: crate::gi::shading::rtv_params(&loaded.scene)
+            gloss: crate::bake::gi::shading::rtv_params(&loaded.scene)
                 .glossy
                 .map(|g| Gloss {
                     specular: DVec3::from(g.specular),

@@ -24,9 +24,9 @@
 use super::accel::BoxBvh;
 use super::lighting::{SHADOW_OFFSET, shade};
 use super::material::{ALBEDO_DEPTH, MaterialVolume};
-use crate::gdm::caster::{Caster, Trace};
+use crate::bake::gdm::caster::{Caster, Trace};
 use crate::scene::{Effect, Scene};
-use crate::shell::{Prism, PrismPoint, Shell, cubic_roots};
+use crate::surface::shell::{Prism, PrismPoint, Shell, cubic_roots};
 use glam::{DMat3, DVec3};
 
 /// Largest distance, in voxels, between a chord's midpoint and the texture-space curve it

@@ -15,7 +15,7 @@
 //! outside the store.
 
 use crate::error::{Error, Result};
-use crate::fsutil::write_atomic;
+use crate::util::fs::write_atomic;
 use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey};
 use object_store::path::Path as ObjectPath;
 use object_store::prefix::PrefixStore;

@@ -14,8 +14,9 @@ use super::db::{Db, db_error, now_ms};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
+use crate::scene::package::ScenePackageParams;
+use crate::scene::plan::Plan;
 use crate::scene::{Effect, Scene};
-use crate::scene_package::{Plan, ScenePackageParams};
 use serde::{Deserialize, Serialize};
 use sqlx::any::AnyRow;
 use sqlx::{AssertSqlSafe, Row};
@@ -90,10 +91,10 @@ impl JobSpec {
     }
 }
 
-/// The stages of a bake job for `spec`: the scene's ([`crate::scene_package::plan`]), then
+/// The stages of a bake job for `spec`: the scene's ([`crate::scene::plan::plan`]), then
 /// `store`.
 pub fn plan(spec: &JobSpec) -> Plan {
-    let mut plan = crate::scene_package::plan(&spec.scene);
+    let mut plan = crate::scene::plan::plan(&spec.scene);
     plan.stages.push("store".into());
     plan
 }

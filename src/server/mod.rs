@@ -26,7 +26,7 @@ pub mod request_limits;
 pub mod worker;
 
 use crate::error::{Error, Result};
-use crate::limits::Limits;
+use crate::util::limits::Limits;
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::routing::{get, post};

@@ -5,8 +5,8 @@
 use super::api_error::{ApiError, ApiResult};
 use super::config::ServerConfig;
 use crate::error::Error;
-use crate::limits::Limits;
 use crate::scene::Scene;
+use crate::util::limits::Limits;
 use axum::http::StatusCode;
 
 /// Refuses `scene` with 422 when its cost is out of the bounds of `config` and `limits`.

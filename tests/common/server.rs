@@ -1,8 +1,8 @@
 //! Running the server in-process against each database backend.
 #![allow(dead_code)] // each test file uses part of it
 
-use mesobake::limits::Limits;
 use mesobake::server::{AppState, config::ServerConfig, open_state, serve_on};
+use mesobake::util::limits::Limits;
 use std::net::SocketAddr;
 
 /// The PostgreSQL server of the test machine (trust authentication).

@@ -1,0 +1,133 @@
+//! Indexed triangle meshes and their OBJ text form.
+
+use crate::error::{Error, Result};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// An indexed triangle mesh, counter-clockwise triangles facing outward.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriMesh {
+    /// Vertex positions.
+    pub positions: Vec<[f64; 3]>,
+    /// Vertex indices of each triangle.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    /// Appends `other`, re-indexing its triangles.
+    pub fn append(&mut self, other: &TriMesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles.extend(
+            other
+                .triangles
+                .iter()
+                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+        );
+    }
+
+    /// Applies `f` to every vertex position.
+    pub fn map_positions(&mut self, f: impl Fn([f64; 3]) -> [f64; 3]) {
+        for p in &mut self.positions {
+            *p = f(*p);
+        }
+    }
+
+    /// The three corner positions of triangle `t`.
+    pub fn corners(&self, t: usize) -> [[f64; 3]; 3] {
+        let [a, b, c] = self.triangles[t];
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
+    }
+
+    /// OBJ text: `v x y z` lines with 9 decimals, then `f a b c` (1-based). Deterministic.
+    pub fn to_obj(&self, comment: &str) -> String {
+        let mut s = String::with_capacity(self.positions.len() * 40 + self.triangles.len() * 24);
+        for line in comment.lines() {
+            let _ = writeln!(s, "# {line}");
+        }
+        for p in &self.positions {
+            let _ = writeln!(s, "v {:.9} {:.9} {:.9}", p[0], p[1], p[2]);
+        }
+        for t in &self.triangles {
+            let _ = writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        s
+    }
+
+    /// Parses OBJ text (all objects and groups merged, polygons triangulated as fans by tobj).
+    /// Indices out of range, unparsable lines and non-finite coordinates are errors.
+    pub fn from_obj(text: &str) -> Result<Self> {
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ..Default::default()
+        };
+        let (models, _materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .map_err(|e| Error::MeshTile(format!("cannot parse OBJ: {e}")))?;
+        let mut mesh = TriMesh::default();
+        for model in &models {
+            let m = &model.mesh;
+            let base = mesh.positions.len() as u32;
+            for (n, p) in m.positions.chunks_exact(3).enumerate() {
+                if !p.iter().all(|c| c.is_finite()) {
+                    return Err(Error::MeshTile(format!(
+                        "vertex {} of object {:?} has a non-finite coordinate ({}, {}, {})",
+                        n + 1,
+                        model.name,
+                        p[0],
+                        p[1],
+                        p[2]
+                    )));
+                }
+                mesh.positions.push([p[0], p[1], p[2]]);
+            }
+            let count = (m.positions.len() / 3) as u32;
+            for t in m.indices.chunks_exact(3) {
+                if t.iter().any(|&i| i >= count) {
+                    return Err(Error::MeshTile(format!(
+                        "a face of object {:?} refers to a vertex that does not exist",
+                        model.name
+                    )));
+                }
+                mesh.triangles.push([t[0] + base, t[1] + base, t[2] + base]);
+            }
+        }
+        if mesh.triangles.is_empty() {
+            return Err(Error::MeshTile("the OBJ file has no faces".into()));
+        }
+        Ok(mesh)
+    }
+
+    /// Reads and parses an OBJ file, refusing files larger than `max_bytes`.
+    pub fn read_obj(path: &Path, max_bytes: u64) -> Result<Self> {
+        let bytes = crate::util::fs::read_bounded(path, "OBJ file", max_bytes)?;
+        let text = std::str::from_utf8(&bytes)
+            .map_err(|e| Error::MeshTile(format!("not UTF-8 text: {e}")))?;
+        Self::from_obj(text)
+    }
+}
+
+/// Cross product.
+pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// a − b.
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Dot product.
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}

@@ -1,0 +1,154 @@
+//! From an input file to a package: load, bake, compress, encode. The stages `mesobake bake`
+//! runs (and that the server will queue), with the time each takes.
+
+use crate::bake::gdm::fast::FastParams;
+use crate::bake::gdm::{self, BakeObserver, EscapeConvention, Gdm, Method};
+use crate::compress::gdm::{CompressedGdm, compress};
+use crate::compress::layout::GdmRows;
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::{GramEigen, RankChoice};
+use crate::error::{Error, Result};
+use crate::grid::{Dims, DirectionGrid};
+use crate::mesostructure::input::{self, Mesostructure};
+use crate::package::Package;
+use crate::package::manifest::{BakeInfo, InputInfo};
+use crate::util::limits::Limits;
+use std::path::Path;
+use std::time::Instant;
+
+/// Everything that decides a package's content (with the input's bytes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PackageParams {
+    /// Voxel grid: required for OBJ tiles; for volumes it must match when given.
+    pub res: Option<Dims>,
+    /// Direction grid.
+    pub dirs: DirectionGrid,
+    /// Baking algorithm.
+    pub method: Method,
+    /// Knobs of [`Method::Fast`].
+    pub fast: FastParams,
+    /// How many SVD components to keep.
+    pub rank: RankChoice,
+    /// Number format of the factors.
+    pub quantization: Quantization,
+    /// Accept open OBJ tiles as thin sheets.
+    pub allow_open: bool,
+}
+
+/// Seconds spent in each stage.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct StageSeconds {
+    /// Reading, hashing and preparing the input.
+    pub load: f64,
+    /// Baking the GDM.
+    pub bake: f64,
+    /// The truncated SVD (Gram matrix, eigendecomposition and projection).
+    pub svd: f64,
+    /// Quantizing the factors and measuring the reconstruction's error.
+    pub quantize: f64,
+    /// Encoding the package.
+    pub encode: f64,
+}
+
+/// A baked package and what it took.
+pub struct BakedPackage {
+    /// The package's bytes.
+    pub bytes: Vec<u8>,
+    /// The compressed GDM they encode.
+    pub gdm: CompressedGdm,
+    /// Time per stage.
+    pub seconds: StageSeconds,
+}
+
+/// Reads `path`, returning its bytes' identity and the loaded mesostructure.
+pub fn load_input(
+    path: &Path,
+    res: Option<Dims>,
+    allow_open: bool,
+    limits: &Limits,
+) -> Result<(InputInfo, Mesostructure)> {
+    let len = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    limits.check(&format!("input {}", path.display()), len, 1)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let meso = input::load(path, res, allow_open, limits)?;
+    let kind = match meso {
+        Mesostructure::Volume(_) => "volume",
+        Mesostructure::Mesh(_) => "mesh",
+    };
+    let info = InputInfo {
+        kind: kind.into(),
+        bytes: bytes.len() as u64,
+        blake3: blake3::hash(&bytes).to_hex().to_string(),
+    };
+    Ok((info, meso))
+}
+
+/// The parameters of the bake that made `g`, as recorded in a manifest (`fast` only
+/// matters for [`Method::Fast`]).
+pub fn bake_info(g: &Gdm, method: Method, fast: FastParams, allow_open: bool) -> BakeInfo {
+    let (d, dirs) = (g.dims(), g.dirs());
+    BakeInfo {
+        res: [d.x, d.y, d.z],
+        dirs: [dirs.n_theta, dirs.n_phi],
+        method,
+        fast: (method == Method::Fast).then_some(fast),
+        allow_open,
+    }
+}
+
+/// Bakes the package of the input at `path`.
+pub fn bake_package(
+    path: &Path,
+    params: &PackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<BakedPackage> {
+    let mut seconds = StageSeconds::default();
+    let start = Instant::now();
+    let (input, meso) = load_input(path, params.res, params.allow_open, limits)?;
+    seconds.load = start.elapsed().as_secs_f64();
+
+    let start = Instant::now();
+    let mut g = gdm::bake(
+        meso.caster(),
+        params.dirs,
+        params.method,
+        params.fast,
+        limits,
+        observer,
+    )?;
+    g.set_escape_convention(EscapeConvention::Boundary);
+    seconds.bake = start.elapsed().as_secs_f64();
+
+    let info = bake_info(&g, params.method, params.fast, params.allow_open);
+    let gdm = compress_gdm(&g, params, limits, observer, &mut seconds)?;
+    let start = Instant::now();
+    let bytes = Package::encode(input, info, &gdm);
+    seconds.encode = start.elapsed().as_secs_f64();
+    Ok(BakedPackage {
+        bytes,
+        gdm,
+        seconds,
+    })
+}
+
+/// The SVD and quantization of `g` (boundary escape convention) with `params`' rank and
+/// quantization, timed into `seconds`; `observer` may cancel them until the SVD's Gram matrix
+/// is formed.
+pub fn compress_gdm(
+    g: &Gdm,
+    params: &PackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+    seconds: &mut StageSeconds,
+) -> Result<CompressedGdm> {
+    let start = Instant::now();
+    let gram = GramEigen::observed(&GdmRows::new(g)?, limits, observer)?;
+    let gram_s = start.elapsed().as_secs_f64();
+    let compressed = compress(g, &gram, params.rank, params.quantization, limits)?;
+    seconds.svd = gram_s + compressed.seconds.svd;
+    seconds.quantize = compressed.seconds.quantize;
+    Ok(compressed)
+}

@@ -1,0 +1,577 @@
+//! Scenes and their pipelines. This module: the scene file, one JSON document (serde) that
+//! every renderer and the server read (the format and its coordinate conventions are
+//! specified in `docs/scene-format.md`), and [`LoadedScene`], its inputs loaded. Then what a
+//! scene calls for, in order: [`plan`] (the stages its effects need), [`package`] (baking
+//! them), [`render`] (CPU images) and [`preview`] (the real-time pipeline).
+
+pub mod package;
+pub mod plan;
+pub mod preview;
+pub mod render;
+
+use crate::bake::gdm::caster::Caster;
+use crate::bake::gdm::mesh_caster::MeshCaster;
+use crate::bake::gdm::volume_caster::VolumeCaster;
+use crate::bake::gdm::{BakeObserver, Gdm};
+use crate::bake::gi::environment::{Environment, Sky};
+use crate::error::{Error, Result};
+use crate::grid::{Dims, DirectionGrid};
+use crate::mesostructure::height_field::HeightField;
+use crate::mesostructure::input::Mesostructure;
+use crate::mesostructure::mesh_tile::MeshTile;
+use crate::mesostructure::samples::{self, SampleKind};
+use crate::mesostructure::trimesh::TriMesh;
+use crate::mesostructure::volume_format;
+use crate::render::material::MaterialVolume;
+use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
+use crate::surface::shell::{Shell, ShellParams};
+use crate::util::limits::Limits;
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Largest accepted scene file.
+pub const MAX_SCENE_BYTES: u64 = 1 << 20;
+
+/// Largest accepted image side in pixels.
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
+/// A scene as written in its JSON file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// The surface the mesostructure is mapped onto.
+    pub base_mesh: BaseMeshSource,
+    /// Uniform scale applied to the base mesh's positions (object units per mesh unit).
+    #[serde(default = "one")]
+    pub mesh_scale: f64,
+    /// The mesostructure sample.
+    pub mesostructure: MesostructureSource,
+    /// Voxel grid X×Y×Z of the mesostructure (samples and tiles are sampled on it; a volume
+    /// must have it).
+    #[serde(default = "default_resolution")]
+    pub resolution: [u32; 3],
+    /// Direction grid Nθ×Nφ of the GDM.
+    #[serde(default = "default_directions")]
+    pub directions: [u32; 2],
+    /// Extra GDM queries per hit in the GDM renderers, each from one voxel short of the
+    /// previous answer (0 = the paper's single query; at most [`MAX_GDM_REFINEMENTS`]).
+    #[serde(default = "default_gdm_refinements")]
+    pub gdm_refinements: u32,
+    /// How the base mesh is extruded into the shell.
+    pub shell: ShellParams,
+    /// Reflectance.
+    #[serde(default)]
+    pub material: MaterialParams,
+    /// The pinhole camera.
+    pub camera: Camera,
+    /// Light sources.
+    #[serde(default)]
+    pub lights: Vec<Light>,
+    /// The effects the scene calls for; nothing else is baked or shaded.
+    #[serde(default)]
+    pub effects: Vec<Effect>,
+    /// Distant environment light (shaded only when the effects call for
+    /// `environment_lighting`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<EnvironmentSource>,
+    /// Knobs of the global-illumination bakes.
+    #[serde(default, skip_serializing_if = "GiParams::is_default")]
+    pub gi: GiParams,
+}
+
+/// Where a scene's environment light comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum EnvironmentSource {
+    /// A built-in procedural sky.
+    Sky(Sky),
+    /// A lat-long OpenEXR radiance map (relative paths are relative to the scene file).
+    Exr(PathBuf),
+}
+
+/// The accuracy knobs of the global-illumination bakes.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GiParams {
+    /// Interreflection bounces in the RTV (0 = direct light only; at most
+    /// [`crate::bake::gi::rtv::MAX_BOUNCES`]).
+    pub bounces: u32,
+    /// Visibility directions per base-mesh vertex in the shadowed PRT (16 to 2²⁰).
+    pub prt_samples: usize,
+    /// Width of the lat-long map a procedural sky is rendered to (height is half).
+    pub sky_width: usize,
+    /// Paths per pixel of the ground truth's path tracer (1–4096).
+    pub path_samples: u32,
+    /// Most bounces of a path (1–64).
+    pub path_depth: u32,
+    /// SVD components per RTV matrix in a package (1 to
+    /// [`crate::bake::gi::compressed_rtv::MAX_RTV_RANK`]).
+    pub rtv_rank: usize,
+}
+
+impl Default for GiParams {
+    /// Four bounces, 1024 PRT directions, a 256×128 sky, 16 paths of at most 8 bounces, RTV
+    /// rank 4 (the paper's).
+    fn default() -> Self {
+        GiParams {
+            bounces: 4,
+            prt_samples: 1024,
+            sky_width: 256,
+            path_samples: 16,
+            path_depth: 8,
+            rtv_rank: 4,
+        }
+    }
+}
+
+impl GiParams {
+    fn is_default(&self) -> bool {
+        *self == GiParams::default()
+    }
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn default_resolution() -> [u32; 3] {
+    [64, 64, 32]
+}
+
+fn default_directions() -> [u32; 2] {
+    [16, 32]
+}
+
+fn default_gdm_refinements() -> u32 {
+    0
+}
+
+/// Largest accepted `gdm_refinements`.
+pub const MAX_GDM_REFINEMENTS: u32 = 8;
+
+/// Where the base mesh comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum BaseMeshSource {
+    /// A built-in mesh with its parameters.
+    Builtin(BuiltinMesh),
+    /// An OBJ file (relative paths are relative to the scene file).
+    Obj(PathBuf),
+}
+
+/// Where the mesostructure comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum MesostructureSource {
+    /// A built-in sample, voxelized on the scene's resolution.
+    Sample(SampleKind),
+    /// A `.mbvol` volume file.
+    Volume(PathBuf),
+    /// A closed OBJ tile, sampled on the scene's resolution.
+    Tile(PathBuf),
+    /// A grayscale PNG height field ([`crate::mesostructure::height_field`]), the volume under it on the
+    /// scene's resolution.
+    HeightField(PathBuf),
+}
+
+/// Blinn–Phong reflectance; the diffuse albedo comes from the volume where it has one.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MaterialParams {
+    /// Linear diffuse albedo where the mesostructure has none.
+    pub albedo: [f64; 3],
+    /// Linear specular colour of the Blinn–Phong lobe.
+    pub specular: [f64; 3],
+    /// Blinn–Phong exponent.
+    pub shininess: f64,
+}
+
+impl Default for MaterialParams {
+    fn default() -> Self {
+        MaterialParams {
+            albedo: [0.7, 0.7, 0.7],
+            specular: [0.15, 0.15, 0.15],
+            shininess: 32.0,
+        }
+    }
+}
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: [f64; 3],
+    /// The point looked at (centre of the image).
+    pub target: [f64; 3],
+    /// Up direction (need not be orthogonal to the view).
+    #[serde(default = "default_up")]
+    pub up: [f64; 3],
+    /// Vertical field of view in degrees.
+    pub fov_y_degrees: f64,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+impl Camera {
+    /// Eye, and the unit direction through the centre of pixel (`x`, `y`) (row 0 at the top).
+    pub fn ray(&self, x: u32, y: u32) -> (DVec3, DVec3) {
+        let eye = DVec3::from(self.eye);
+        let forward = (DVec3::from(self.target) - eye).normalize();
+        let right = forward.cross(DVec3::from(self.up)).normalize();
+        let up = right.cross(forward);
+        let half = (self.fov_y_degrees.to_radians() * 0.5).tan();
+        let aspect = self.width as f64 / self.height as f64;
+        let sx = ((x as f64 + 0.5) / self.width as f64 * 2.0 - 1.0) * half * aspect;
+        let sy = (1.0 - (y as f64 + 0.5) / self.height as f64 * 2.0) * half;
+        (eye, (forward + right * sx + up * sy).normalize())
+    }
+
+    fn validate(&self) -> Result<()> {
+        let vectors = [self.eye, self.target, self.up];
+        if !vectors.iter().flatten().all(|c| c.is_finite()) {
+            return Err(Error::Scene("camera: non-finite eye, target or up".into()));
+        }
+        let forward = DVec3::from(self.target) - DVec3::from(self.eye);
+        if forward.length_squared() == 0.0 {
+            return Err(Error::Scene("camera: eye and target coincide".into()));
+        }
+        if forward.normalize().cross(DVec3::from(self.up)).length() < 1e-9 {
+            return Err(Error::Scene(
+                "camera: up is parallel to the viewing direction (or zero)".into(),
+            ));
+        }
+        if !(self.fov_y_degrees > 0.0 && self.fov_y_degrees < 179.0) {
+            return Err(Error::Scene(format!(
+                "camera: fov_y_degrees must be in (0, 179), got {}",
+                self.fov_y_degrees
+            )));
+        }
+        for (name, side) in [("width", self.width), ("height", self.height)] {
+            if side == 0 || side > MAX_IMAGE_SIDE {
+                return Err(Error::Scene(format!(
+                    "camera: {name} must be in 1..={MAX_IMAGE_SIDE}, got {side}"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A light source. Radiometric quantities are linear RGB.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Light {
+    /// An isotropic point light: irradiance intensity / r² at distance r.
+    Point {
+        /// Position.
+        position: [f64; 3],
+        /// Radiant intensity.
+        intensity: [f64; 3],
+    },
+    /// A distant light.
+    Directional {
+        /// The direction the light travels (from the light towards the scene).
+        direction: [f64; 3],
+        /// Irradiance on a surface facing the light.
+        irradiance: [f64; 3],
+    },
+    /// Constant light from everywhere, never shadowed: adds albedo × radiance.
+    Ambient {
+        /// Ambient radiance.
+        radiance: [f64; 3],
+    },
+}
+
+impl Light {
+    fn validate(&self) -> Result<()> {
+        let (vectors, colour): (Vec<[f64; 3]>, [f64; 3]) = match *self {
+            Light::Point {
+                position,
+                intensity,
+            } => (vec![position], intensity),
+            Light::Directional {
+                direction,
+                irradiance,
+            } => {
+                if DVec3::from(direction).length_squared() == 0.0 {
+                    return Err(Error::Scene("directional light: zero direction".into()));
+                }
+                (vec![direction], irradiance)
+            }
+            Light::Ambient { radiance } => (vec![], radiance),
+        };
+        if !vectors.iter().flatten().all(|c| c.is_finite())
+            || !colour.iter().all(|c| c.is_finite() && *c >= 0.0)
+        {
+            return Err(Error::Scene(format!(
+                "light {self:?}: coordinates must be finite and colours finite and non-negative"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// An effect a scene can call for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Effect {
+    /// Mesostructure silhouettes: rays that leave the shell without a hit show the background.
+    /// Intrinsic to GDM rendering, listed for completeness.
+    Silhouettes,
+    /// Shadows from point and directional lights.
+    Shadows,
+    /// Distant light from the scene's `environment`, through the macro-scale PRT and the
+    /// mesostructure's radiance transfer volume (bounces included).
+    EnvironmentLighting,
+    /// The base mesh shadowing the environment light (shadowed PRT; without it, the PRT is a
+    /// pure rotation).
+    MacroShadows,
+    /// The material's specular lobe under the environment light: a view-dependent RTV
+    /// (without it, the RTV is Lambertian and view-independent).
+    EnvironmentGloss,
+}
+
+impl Scene {
+    /// Parses and validates scene JSON.
+    pub fn from_json(text: &str) -> Result<Scene> {
+        let scene: Scene = serde_json::from_str(text).map_err(|e| Error::Scene(e.to_string()))?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Reads a scene file (at most [`MAX_SCENE_BYTES`]).
+    pub fn read(path: &Path) -> Result<Scene> {
+        let len = std::fs::metadata(path)
+            .map_err(|e| Error::io(path, e))?
+            .len();
+        if len > MAX_SCENE_BYTES {
+            return Err(Error::Scene(format!(
+                "{} is {len} bytes, over the {MAX_SCENE_BYTES}-byte limit for scene files",
+                path.display()
+            )));
+        }
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Scene::from_json(&text).map_err(|e| Error::Scene(format!("{}: {e}", path.display())))
+    }
+
+    /// Whether the scene calls for `effect`.
+    pub fn wants(&self, effect: Effect) -> bool {
+        self.effects.contains(&effect)
+    }
+
+    /// The voxel grid.
+    pub fn dims(&self) -> Result<Dims> {
+        let [x, y, z] = self.resolution;
+        Dims::new(x, y, z)
+    }
+
+    /// The direction grid.
+    pub fn dirs(&self) -> Result<DirectionGrid> {
+        DirectionGrid::new(self.directions[0], self.directions[1])
+    }
+
+    fn validate(&self) -> Result<()> {
+        self.dims()?;
+        self.dirs()?;
+        if !(self.mesh_scale.is_finite() && self.mesh_scale > 0.0) {
+            return Err(Error::Scene(format!(
+                "mesh_scale must be finite and positive, got {}",
+                self.mesh_scale
+            )));
+        }
+        if self.gdm_refinements > MAX_GDM_REFINEMENTS {
+            return Err(Error::Scene(format!(
+                "gdm_refinements must be at most {MAX_GDM_REFINEMENTS}, got {}",
+                self.gdm_refinements
+            )));
+        }
+        self.shell.validate()?;
+        self.camera.validate()?;
+        for light in &self.lights {
+            light.validate()?;
+        }
+        if self.wants(Effect::EnvironmentLighting) {
+            match &self.environment {
+                None => {
+                    return Err(Error::Scene(
+                        "effects call for environment_lighting but no environment is given".into(),
+                    ));
+                }
+                Some(EnvironmentSource::Sky(sky)) => {
+                    sky.validate().map_err(|e| Error::Scene(e.to_string()))?
+                }
+                Some(EnvironmentSource::Exr(_)) => {}
+            }
+            let g = &self.gi;
+            if g.bounces > crate::bake::gi::rtv::MAX_BOUNCES
+                || !(16..=1 << 20).contains(&g.prt_samples)
+                || !(4..=8192).contains(&g.sky_width)
+                || !(1..=4096).contains(&g.path_samples)
+                || !(1..=64).contains(&g.path_depth)
+                || !(1..=crate::bake::gi::compressed_rtv::MAX_RTV_RANK).contains(&g.rtv_rank)
+            {
+                return Err(Error::Scene(format!(
+                    "gi: bounces must be at most {}, prt_samples 16–{}, sky_width 4–8192, \
+                     path_samples 1–4096, path_depth 1–64, rtv_rank 1–{}; got {g:?}",
+                    crate::bake::gi::rtv::MAX_BOUNCES,
+                    1 << 20,
+                    crate::bake::gi::compressed_rtv::MAX_RTV_RANK,
+                )));
+            }
+            let m = &self.material;
+            if self.wants(Effect::EnvironmentGloss)
+                && !(m.specular.iter().all(|k| *k <= 1.0)
+                    && m.shininess <= 4.0 * crate::bake::gi::rtv::MAX_EXPONENT)
+            {
+                return Err(Error::Scene(format!(
+                    "environment_gloss needs a specular colour of at most 1 and a shininess of \
+                     at most {}; got {:?} and {}",
+                    4.0 * crate::bake::gi::rtv::MAX_EXPONENT,
+                    m.specular,
+                    m.shininess
+                )));
+            }
+        } else if self.wants(Effect::EnvironmentGloss) || self.wants(Effect::MacroShadows) {
+            return Err(Error::Scene(
+                "environment_gloss and macro_shadows refine environment_lighting, which the \
+                 effects do not call for"
+                    .into(),
+            ));
+        }
+        let m = &self.material;
+        let colours_ok = (m.albedo.iter().chain(&m.specular)).all(|c| c.is_finite() && *c >= 0.0);
+        if !colours_ok || !m.shininess.is_finite() || m.shininess < 0.0 {
+            return Err(Error::Scene(
+                "material: colours and shininess must be finite and non-negative".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Returns the scene with every length scaled by `factor` (mesh, thickness, camera,
+    /// lights; point intensities by factor² so irradiance is unchanged): it must render the
+    /// same image.
+    pub fn scaled(&self, factor: f64) -> Scene {
+        let mut s = self.clone();
+        let scale = |v: [f64; 3]| v.map(|c| c * factor);
+        s.shell.thickness *= factor;
+        s.camera.eye = scale(s.camera.eye);
+        s.camera.target = scale(s.camera.target);
+        for light in &mut s.lights {
+            if let Light::Point {
+                position,
+                intensity,
+            } = light
+            {
+                *position = scale(*position);
+                *intensity = intensity.map(|c| c * factor * factor);
+            }
+        }
+        s.mesh_scale *= factor;
+        s
+    }
+}
+
+/// A scene with its inputs loaded: base mesh, shell, mesostructure and material volume.
+pub struct LoadedScene {
+    /// The scene as written.
+    pub scene: Scene,
+    /// The validated base mesh.
+    pub base: BaseMesh,
+    /// What validating the base mesh found.
+    pub base_report: MeshReport,
+    /// The extruded shell.
+    pub shell: Shell,
+    /// The mesostructure, ready for ray casting.
+    pub mesostructure: Mesostructure,
+    /// Albedo and normals of the mesostructure.
+    pub material: MaterialVolume,
+    /// The environment map, loaded only when the effects call for environment lighting.
+    pub environment: Option<Environment>,
+}
+
+impl LoadedScene {
+    /// Loads everything `scene` names; relative paths are resolved against `base_dir`.
+    pub fn load(scene: Scene, base_dir: &Path, limits: &Limits) -> Result<LoadedScene> {
+        let resolve = |p: &Path| base_dir.join(p);
+        let (mut base, base_report) = match &scene.base_mesh {
+            BaseMeshSource::Builtin(b) => b.build()?,
+            BaseMeshSource::Obj(p) => BaseMesh::read_obj(&resolve(p), limits)?,
+        };
+        for p in &mut base.positions {
+            *p *= scene.mesh_scale;
+        }
+        let shell = Shell::new(&base, scene.shell)?;
+        let dims = scene.dims()?;
+        let default_albedo = DVec3::from(scene.material.albedo);
+        let (mesostructure, material) = match &scene.mesostructure {
+            MesostructureSource::Sample(kind) => {
+                let volume = samples::volume(*kind, dims, limits)?;
+                let material = MaterialVolume::from_volume(&volume, default_albedo);
+                (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+            }
+            MesostructureSource::Volume(p) => {
+                let volume = volume_format::read(&resolve(p), limits)?;
+                if volume.dims() != dims {
+                    return Err(Error::Scene(format!(
+                        "{} is a {} volume but the scene's resolution is {dims}",
+                        p.display(),
+                        volume.dims()
+                    )));
+                }
+                let material = MaterialVolume::from_volume(&volume, default_albedo);
+                (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+            }
+            MesostructureSource::HeightField(p) => {
+                let volume = HeightField::read(&resolve(p), limits)?.to_volume(dims, limits)?;
+                let material = MaterialVolume::from_volume(&volume, default_albedo);
+                (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+            }
+            MesostructureSource::Tile(p) => {
+                let mesh = TriMesh::read_obj(&resolve(p), limits.memory_bytes / 8)?;
+                let caster = MeshCaster::new(&MeshTile::new(mesh, false)?, dims, limits)?;
+                let material =
+                    MaterialVolume::from_occupancy(caster.centres_inside(), None, default_albedo);
+                (Mesostructure::Mesh(Box::new(caster)), material)
+            }
+        };
+        let environment = match &scene.environment {
+            Some(source) if scene.wants(Effect::EnvironmentLighting) => Some(match source {
+                EnvironmentSource::Sky(sky) => {
+                    sky.to_map(scene.gi.sky_width, (scene.gi.sky_width / 2).max(1))?
+                }
+                EnvironmentSource::Exr(p) => Environment::read_exr(&resolve(p), limits)?,
+            }),
+            _ => None,
+        };
+        Ok(LoadedScene {
+            scene,
+            base,
+            base_report,
+            shell,
+            mesostructure,
+            material,
+            environment,
+        })
+    }
+}
+
+impl LoadedScene {
+    /// Bakes the exact GDM of the scene's mesostructure on its grids.
+    pub fn bake_gdm(&self, limits: &Limits, observer: &dyn BakeObserver) -> Result<Gdm> {
+        crate::bake::gdm::exact::bake(
+            self.mesostructure.caster(),
+            self.scene.dirs()?,
+            limits,
+            observer,
+        )
+    }
+}

@@ -1,0 +1,196 @@
+//! A scene's package: exactly the stages its effects call for ([`plan`]), run in order
+//! ([`bake_scene_package`]). Used by `mesobake bake --scene`, `mesobake preview` and the
+//! server's bake jobs.
+//!
+//! Always: the exact GDM on the scene's grids and its SVD compression. With
+//! `environment_lighting`: the macro-scale PRT of the base mesh (shadowed with
+//! `macro_shadows`), the RTV (glossy with `environment_gloss`) and its compression. The
+//! environment itself is not baked in: packages hold transfer, which any environment lights.
+
+use crate::bake::gdm::fast::FastParams;
+use crate::bake::gdm::{BakeObserver, EscapeConvention, Method};
+use crate::bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
+use crate::bake::gi::prt::geometry_hash;
+use crate::bake::gi::rtv::{self, RtvStats};
+use crate::bake::gi::shading::{prt_matrices, rtv_params};
+use crate::compress::gdm::CompressedGdm;
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::RankChoice;
+use crate::error::{Error, Result};
+use crate::package::Package;
+use crate::package::bake::{PackageParams, StageSeconds, bake_info, compress_gdm};
+use crate::package::gi::GiPayload;
+use crate::package::manifest::{GiInfo, InputInfo};
+use crate::scene::plan::{Plan, plan};
+use crate::scene::{Effect, LoadedScene, MesostructureSource, Scene};
+use crate::util::limits::Limits;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::time::Instant;
+
+/// How a package is made for a scene that names none.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScenePackageParams {
+    /// SVD components.
+    pub rank: RankChoice,
+    /// Number format of the factors.
+    pub quantization: Quantization,
+}
+
+impl Default for ScenePackageParams {
+    /// Rank 8 in f16, the defaults of `mesobake bake`.
+    fn default() -> Self {
+        ScenePackageParams {
+            rank: RankChoice::Rank(8),
+            quantization: Quantization::F16,
+        }
+    }
+}
+
+/// What the radiance-transfer stages made and measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct GiBake {
+    /// The RTV bake.
+    pub rtv: RtvStats,
+    /// The RTV's compression.
+    pub compression: RtvCompression,
+    /// Whether the PRT is shadowed.
+    pub macro_shadows: bool,
+}
+
+/// A scene's package and what making it took.
+pub struct ScenePackage {
+    /// The package's bytes.
+    pub bytes: Vec<u8>,
+    /// Its compressed GDM.
+    pub gdm: CompressedGdm,
+    /// The stages run and skipped.
+    pub plan: Plan,
+    /// Seconds per stage run (`load` is the caller's), in `plan` order.
+    pub seconds: Vec<(String, f64)>,
+    /// The radiance transfer's figures, when baked.
+    pub gi: Option<GiBake>,
+}
+
+/// Bakes the package of `loaded` as [`plan`] says. The manifest's input identity is the hash
+/// of the mesostructure file the scene names, or of the scene's `mesostructure` and
+/// `resolution` entries for a built-in sample.
+pub fn bake_scene_package(
+    loaded: &LoadedScene,
+    scene_dir: &Path,
+    params: ScenePackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<ScenePackage> {
+    let scene = &loaded.scene;
+    let plan = plan(scene);
+    let input = input_identity(scene, scene_dir)?;
+    let mut seconds = Vec::new();
+    let mut stage = StageSeconds::default();
+    let start = Instant::now();
+    observer.stage("bake_gdm");
+    let mut g = loaded.bake_gdm(limits, observer)?;
+    seconds.push(("bake_gdm".to_owned(), start.elapsed().as_secs_f64()));
+    g.set_escape_convention(EscapeConvention::Boundary);
+    let package_params = PackageParams {
+        res: Some(g.dims()),
+        dirs: g.dirs(),
+        method: Method::Exact,
+        fast: FastParams::default(),
+        rank: params.rank,
+        quantization: params.quantization,
+        allow_open: false,
+    };
+    let info = bake_info(&g, Method::Exact, FastParams::default(), false);
+    observer.stage("compress");
+    let gdm = compress_gdm(&g, &package_params, limits, observer, &mut stage)?;
+    seconds.push(("compress".to_owned(), stage.svd + stage.quantize));
+
+    let transfer = if scene.wants(Effect::EnvironmentLighting) {
+        let start = Instant::now();
+        observer.stage("bake_prt");
+        let prt = prt_matrices(loaded)?;
+        seconds.push(("bake_prt".to_owned(), start.elapsed().as_secs_f64()));
+        let start = Instant::now();
+        let rtv_params = rtv_params(scene);
+        observer.stage("bake_rtv");
+        let (rtv, stats) = rtv::bake(&g, &loaded.material, &rtv_params, limits, observer)?;
+        seconds.push(("bake_rtv".to_owned(), start.elapsed().as_secs_f64()));
+        observer.stage("compress_rtv");
+        let (compressed, compression, compress_s) =
+            CompressedRtv::compress(&rtv, g.dirs(), scene.gi.rtv_rank, limits)?;
+        seconds.push(("compress_rtv".to_owned(), compress_s));
+        let macro_shadows = scene.wants(Effect::MacroShadows);
+        let info = GiInfo {
+            samples: stats.samples as u32,
+            bounces: rtv_params.bounces,
+            glossy: rtv_params.glossy,
+            compression: compression.clone(),
+            vertices: loaded.base.positions.len() as u32,
+            macro_shadows,
+            base_mesh: geometry_hash(&loaded.base),
+        };
+        let figures = GiBake {
+            rtv: stats,
+            compression,
+            macro_shadows,
+        };
+        Some((info, compressed, prt, figures))
+    } else {
+        None
+    };
+    let start = Instant::now();
+    observer.stage("encode");
+    let payload = transfer.as_ref().map(|(info, rtv, prt, _)| GiPayload {
+        info: info.clone(),
+        rtv,
+        prt,
+    });
+    let bytes = Package::encode_with(input, info, &gdm, payload.as_ref());
+    seconds.push(("encode".to_owned(), start.elapsed().as_secs_f64()));
+    let gi = transfer.map(|t| t.3);
+    Ok(ScenePackage {
+        bytes,
+        gdm,
+        plan,
+        seconds,
+        gi,
+    })
+}
+
+/// [`bake_scene_package`], parsed.
+pub fn scene_package(
+    loaded: &LoadedScene,
+    scene_dir: &Path,
+    params: ScenePackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Package> {
+    Package::parse(bake_scene_package(loaded, scene_dir, params, limits, observer)?.bytes)
+}
+
+/// The identity of `scene`'s mesostructure input, as a manifest records it.
+fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
+    let identity = match &scene.mesostructure {
+        MesostructureSource::Sample(_) => {
+            serde_json::to_vec(&(&scene.mesostructure, scene.resolution))
+                .map_err(|e| Error::Scene(e.to_string()))?
+        }
+        MesostructureSource::Volume(p)
+        | MesostructureSource::Tile(p)
+        | MesostructureSource::HeightField(p) => {
+            let path = scene_dir.join(p);
+            std::fs::read(&path).map_err(|e| Error::io(path, e))?
+        }
+    };
+    Ok(InputInfo {
+        kind: match scene.mesostructure {
+            MesostructureSource::HeightField(_) => "height_field",
+            MesostructureSource::Tile(_) => "mesh",
+            MesostructureSource::Volume(_) | MesostructureSource::Sample(_) => "volume",
+        }
+        .into(),
+        bytes: identity.len() as u64,
+        blake3: blake3::hash(&identity).to_hex().to_string(),
+    })
+}

@@ -1,0 +1,194 @@
+//! Scene → image: loads what the scene names, bakes or reads the GDM when the method needs
+//! one, picks the renderer and times each stage (`mesobake render`).
+
+use crate::bake::gdm::BakeObserver;
+use crate::bake::gi::shading::{GiReport, GiShading};
+use crate::error::{Error, Result};
+use crate::package::Package;
+use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
+use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
+use crate::render::image::Image;
+use crate::render::path_tracer::PathTracer;
+use crate::render::render_image;
+use crate::render::truth::TruthRenderer;
+use crate::scene::{Effect, LoadedScene, Scene};
+use crate::util::limits::Limits;
+use serde::Serialize;
+use std::path::Path;
+use std::str::FromStr;
+use std::time::Instant;
+
+/// Which renderer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RenderMethod {
+    /// The ground truth: exact mapping, real mesostructure.
+    Truth,
+    /// The GDM per-pixel algorithm (the real-time pipeline's specification).
+    Gdm,
+}
+
+impl FromStr for RenderMethod {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "truth" => Ok(RenderMethod::Truth),
+            "gdm" => Ok(RenderMethod::Gdm),
+            _ => Err(Error::InvalidParameter(format!(
+                "render method {s:?}: expected truth or gdm"
+            ))),
+        }
+    }
+}
+
+/// Seconds per stage of a render.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct RenderSeconds {
+    /// Loading the scene's inputs and building the shell.
+    pub load: f64,
+    /// Baking (exact) or reading the GDM; 0 for the ground truth.
+    pub gdm: f64,
+    /// Building the acceleration structure and rendering the pixels.
+    pub render: f64,
+}
+
+/// A rendered scene.
+pub struct Rendered {
+    /// The image.
+    pub image: Image,
+    /// Seconds per stage.
+    pub seconds: RenderSeconds,
+    /// The GI bakes, when the scene calls for environment lighting.
+    pub gi: Option<GiReport>,
+}
+
+/// The GDM a `gdm` render uses.
+pub enum GdmSource<'a> {
+    /// Bake the exact GDM of the scene's mesostructure on its grids.
+    Bake,
+    /// Read this package (its grid must match the scene's resolution).
+    Package(&'a Path),
+}
+
+/// Reads the scene at `path` and loads its inputs (paths relative to the scene's folder).
+pub fn load_scene(path: &Path, limits: &Limits) -> Result<LoadedScene> {
+    let scene = Scene::read(path)?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    LoadedScene::load(scene, dir, limits)
+}
+
+/// Renders `loaded` with `method`.
+pub fn render(
+    loaded: &LoadedScene,
+    method: RenderMethod,
+    source: GdmSource,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Rendered> {
+    render_substituted(
+        loaded,
+        method,
+        source,
+        Substitutions::default(),
+        limits,
+        observer,
+    )
+}
+
+/// Renders `loaded` with `method`, the GDM renderer with parts of its algorithm substituted
+/// (a reference run: see [`Substitutions`]); substitutions need the GDM method.
+pub fn render_substituted(
+    loaded: &LoadedScene,
+    method: RenderMethod,
+    source: GdmSource,
+    substitutions: Substitutions,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Rendered> {
+    if method == RenderMethod::Truth && substitutions != Substitutions::default() {
+        return Err(Error::InvalidParameter(
+            "substitutions apply to the GDM renderer (method gdm) only".into(),
+        ));
+    }
+    let scene = &loaded.scene;
+    let mut seconds = RenderSeconds::default();
+    let environment = scene.wants(Effect::EnvironmentLighting);
+    let mut gi_report = None;
+    let image = match method {
+        RenderMethod::Truth if environment => {
+            let start = Instant::now();
+            let tracer = PathTracer::new(loaded, scene.gi.path_samples, scene.gi.path_depth)?;
+            let image = render_image(&scene.camera, |o, d| tracer.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
+        }
+        RenderMethod::Truth => {
+            let start = Instant::now();
+            let caster = loaded.mesostructure.caster();
+            let r = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
+            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
+        }
+        RenderMethod::Gdm => {
+            let start = Instant::now();
+            let (raw, raw_lookup, package_lookup);
+            let mut gi = None;
+            let lookup: &dyn GdmLookup = match source {
+                GdmSource::Bake => {
+                    raw = loaded.bake_gdm(limits, observer)?;
+                    raw_lookup = RawLookup::new(&raw);
+                    if environment {
+                        let (shading, report) = GiShading::bake(loaded, &raw, limits, observer)?;
+                        gi = Some(shading);
+                        gi_report = Some(report);
+                    }
+                    &raw_lookup
+                }
+                GdmSource::Package(path) => {
+                    let pkg = Package::read(path, limits)?;
+                    if pkg.dims() != scene.dims()? {
+                        return Err(Error::Scene(format!(
+                            "{} holds a {} GDM but the scene's resolution is {}",
+                            path.display(),
+                            pkg.dims(),
+                            scene.dims()?
+                        )));
+                    }
+                    if environment {
+                        gi = Some(GiShading::from_package(loaded, &pkg)?);
+                    }
+                    package_lookup = PackageLookup::new(&pkg);
+                    &package_lookup
+                }
+            };
+            seconds.gdm = start.elapsed().as_secs_f64();
+            let start = Instant::now();
+            // Only a substituted run needs the truth (and its BVH, in the render time).
+            let truth = (substitutions != Substitutions::default()).then(|| {
+                let caster = loaded.mesostructure.caster();
+                TruthRenderer::new(&loaded.shell, caster, &loaded.material)
+            });
+            let mut r = GdmRenderer::new(
+                &loaded.shell,
+                lookup,
+                &loaded.material,
+                scene.gdm_refinements,
+            );
+            if let Some(truth) = &truth {
+                r = r.with_substitutions(substitutions, truth);
+            }
+            if let Some(gi) = &gi {
+                r = r.with_gi(gi);
+            }
+            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
+        }
+    };
+    Ok(Rendered {
+        image,
+        seconds,
+        gi: gi_report,
+    })
+}
