@@ -1,0 +1,107 @@
+//! `mesobake bench`: speed and memory against baselines measured in the same run (see
+//! docs/BENCHMARKS.md).
+
+use super::output::Progress;
+use clap::Subcommand;
+use mesobake::bench::counting_alloc::CountingAlloc;
+use mesobake::bench::{bakes, preview, server};
+use mesobake::util::limits::Limits;
+use mesobake::{Error, Result};
+use std::path::PathBuf;
+
+/// The benchmarks.
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// GDM bake workloads W1–W3 (Markdown table on stdout).
+    Gdm {
+        /// Also print the rows as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Truncated SVD of the W1 GDM matrix against nalgebra's full SVD (Markdown on stdout).
+    Svd,
+    /// Package sizes and errors on W1: rank 8 f16, and the smallest package with RMSE ≤ 0.5.
+    Package,
+    /// The server: upload-to-package time, upload throughput, job claim latency and package
+    /// download throughput against nginx (needs nginx and wrk installed).
+    Server {
+        /// Database (default: a temporary SQLite file), e.g. postgres://127.0.0.1/bench.
+        #[arg(long)]
+        database_url: Option<String>,
+    },
+    /// The real-time preview's frame time against the CPU GDM renderer on the same scene and
+    /// package, over image sizes and volume depths (Markdown table on stdout).
+    Preview {
+        /// Scene file.
+        #[arg(long, default_value = "scenes/torus-chain.json")]
+        scene: PathBuf,
+        /// Square image sizes.
+        #[arg(long, value_delimiter = ',', default_value = "512")]
+        sizes: Vec<u32>,
+        /// Volume depths Z (the scene's resolution otherwise).
+        #[arg(long, value_delimiter = ',', default_value = "32")]
+        depths: Vec<u32>,
+        /// Frames timed per configuration.
+        #[arg(long, default_value_t = 10)]
+        frames: u32,
+        /// Use the adapter whose name contains this.
+        #[arg(long)]
+        adapter: Option<String>,
+    },
+}
+
+/// Runs the benchmark, reading heap use from `allocator` (the binary's global allocator).
+pub fn bench(which: BenchCommand, allocator: &CountingAlloc, limits: &Limits) -> Result<()> {
+    match which {
+        BenchCommand::Gdm { json } => {
+            eprintln!(
+                "mesobake bench gdm on {} threads ({})",
+                rayon::current_num_threads(),
+                std::env::consts::ARCH
+            );
+            let rows = bakes::run(allocator, limits)?;
+            print!("{}", bakes::markdown(&rows));
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&rows)
+                        .map_err(|e| Error::InvalidParameter(e.to_string()))?
+                );
+            }
+        }
+        BenchCommand::Package => {
+            print!("{}", bakes::package_markdown(&bakes::run_package(limits)?));
+        }
+        BenchCommand::Preview {
+            scene,
+            sizes,
+            depths,
+            frames,
+            adapter,
+        } => {
+            let progress = Progress::new("baking GDM (exact)");
+            let (adapter, rows) = preview::run(
+                &scene,
+                &sizes,
+                &depths,
+                frames,
+                adapter.as_deref(),
+                limits,
+                &progress,
+            )?;
+            progress.finish();
+            print!("{}", preview::markdown(&adapter, &rows));
+        }
+        BenchCommand::Server { database_url } => {
+            print!("{}", server::run(database_url.as_deref(), limits)?);
+        }
+        BenchCommand::Svd => {
+            eprintln!(
+                "mesobake bench svd on {} threads",
+                rayon::current_num_threads()
+            );
+            print!("{}", bakes::svd_markdown(&bakes::run_svd(limits)?));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,109 @@
+//! `mesobake preview`: a scene through the real-time pipeline (WGSL on wgpu, headless).
+
+use super::output::{Progress, print_json};
+use mesobake::Result;
+use mesobake::compress::quantize::Quantization;
+use mesobake::compress::svd::RankChoice;
+use mesobake::package::Package;
+use mesobake::realtime::gpu::Gpu;
+use mesobake::scene::package::{ScenePackageParams, scene_package};
+use mesobake::scene::preview::preview as render_preview;
+use mesobake::scene::render::load_scene;
+use mesobake::util::limits::Limits;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Options of `mesobake preview`.
+#[derive(clap::Args)]
+pub struct PreviewArgs {
+    /// The scene (JSON; see docs/scene-format.md).
+    #[arg(long)]
+    scene: PathBuf,
+    /// Output image (.png or .exr).
+    #[arg(long)]
+    out: PathBuf,
+    /// Render from this package (its grid must be the scene's) instead of baking one.
+    #[arg(long)]
+    package: Option<PathBuf>,
+    /// SVD components of the baked package.
+    #[arg(long, default_value_t = 8, conflicts_with = "package")]
+    rank: usize,
+    /// Number format of the baked package: f32, f16 or u8.
+    #[arg(long, default_value = "f16", conflicts_with = "package")]
+    quant: Quantization,
+    /// Also render this many frames and report the mean frame time.
+    #[arg(long, default_value_t = 0)]
+    frames: u32,
+    /// Use the adapter whose name contains this (case-insensitive; default: the
+    /// MESOBAKE_ADAPTER environment variable, else wgpu's choice).
+    #[arg(long)]
+    adapter: Option<String>,
+    /// Print a JSON summary (adapter, shader variant, GPU memory, seconds) on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Renders the preview (baking a package for the scene unless one is given).
+pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
+    let PreviewArgs {
+        scene,
+        out,
+        package,
+        rank,
+        quant,
+        frames,
+        adapter,
+        json,
+    } = args;
+    let start = Instant::now();
+    let loaded = load_scene(&scene, limits)?;
+    let load_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let package = match &package {
+        Some(path) => Package::read(path, limits)?,
+        None => {
+            let progress = Progress::new("baking GDM (exact)");
+            let params = ScenePackageParams {
+                rank: RankChoice::Rank(rank),
+                quantization: quant,
+            };
+            let dir = scene.parent().unwrap_or(Path::new("."));
+            let p = scene_package(&loaded, dir, params, limits, &progress)?;
+            progress.finish();
+            p
+        }
+    };
+    let package_s = start.elapsed().as_secs_f64();
+    let gpu = Gpu::open(adapter.as_deref())?;
+    let (image, report) = render_preview(&gpu, &loaded, &package, frames)?;
+    image.write(&out)?;
+    eprintln!(
+        "wrote {} ({}×{}, {} hit pixels) on {} ({})",
+        out.display(),
+        image.width,
+        image.height,
+        image.hits(),
+        report.adapter.name,
+        report.variant.name()
+    );
+    eprintln!(
+        "GPU memory {:.1} MB (package {:.1} MB)",
+        report.memory.total() as f64 / 1e6,
+        report.memory.package as f64 / 1e6
+    );
+    if let Some(t) = report.mean_frame_seconds {
+        eprintln!("mean frame time over {frames} frames: {:.3} ms", t * 1e3);
+    }
+    if json {
+        print_json(&serde_json::json!({
+            "scene": scene,
+            "output": out,
+            "width": image.width,
+            "height": image.height,
+            "hit_pixels": image.hits(),
+            "seconds": { "load": load_s, "package": package_s },
+            "preview": report,
+        }));
+    }
+    Ok(())
+}

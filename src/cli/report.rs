@@ -1,0 +1,205 @@
+//! `mesobake report`: what accuracy costs (GDM compression, the GDM renderer, radiance
+//! transfer), as Markdown on stdout and files in `--out`.
+
+use super::output::Progress;
+use clap::Subcommand;
+use mesobake::compress::quantize::Quantization;
+use mesobake::grid::{Dims, DirectionGrid};
+use mesobake::report::{accuracy, gi, render};
+use mesobake::scene::render::load_scene;
+use mesobake::util::fs::write_atomic;
+use mesobake::util::limits::Limits;
+use mesobake::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// The reports.
+#[derive(Subcommand)]
+pub enum ReportCommand {
+    /// Accuracy against time and bytes over direction resolutions × ranks × quantizations,
+    /// against the exact uncompressed GDM: Markdown on stdout; accuracy.md, accuracy.csv and
+    /// accuracy.svg in --out.
+    Accuracy {
+        /// A .mbvol volume or a closed OBJ tile.
+        #[arg(long)]
+        input: PathBuf,
+        /// Grid X×Y×Z: required for OBJ tiles.
+        #[arg(long)]
+        res: Option<Dims>,
+        /// Direction grids, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "8x16,16x32,32x64")]
+        dirs: Vec<DirectionGrid>,
+        /// Ranks, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
+        ranks: Vec<usize>,
+        /// Quantizations, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "f32,f16")]
+        quants: Vec<Quantization>,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
+    /// The GDM renderer's image error against the ground truth on a scene, over direction
+    /// resolutions × (exact GDM, SVD ranks) × refinement counts, with render times, then its
+    /// error budget (the query, the frame and the shadows substituted one at a time and all
+    /// together): Markdown on stdout; render-accuracy.md and render-accuracy.json in --out.
+    Render {
+        /// Scene file.
+        #[arg(long)]
+        scene: PathBuf,
+        /// Direction grids, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "8x16,16x32,32x64")]
+        dirs: Vec<DirectionGrid>,
+        /// SVD ranks, comma-separated (the exact GDM is always rendered too).
+        #[arg(long, value_delimiter = ',', default_value = "2,4,8,16")]
+        ranks: Vec<usize>,
+        /// Quantization of the compressed factors.
+        #[arg(long, default_value = "f16")]
+        quant: Quantization,
+        /// GDM refinement counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0,2")]
+        refinements: Vec<u32>,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
+    /// Global illumination on a scene with environment lighting: RTV error and time over
+    /// direction grids × bounce counts, PRT error and time over visibility sample counts
+    /// (the last grid, the most bounces and the most samples are the references): Markdown
+    /// on stdout; gi-accuracy.md and gi-accuracy.json in --out.
+    Gi {
+        /// Scene file (its effects must call for environment_lighting).
+        #[arg(long)]
+        scene: PathBuf,
+        /// Direction grids, comma-separated; the last is the reference.
+        #[arg(long, value_delimiter = ',', default_value = "8x16,16x32,32x64")]
+        dirs: Vec<DirectionGrid>,
+        /// Bounce counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "0,1,2,4,8")]
+        bounces: Vec<u32>,
+        /// PRT visibility samples per vertex, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "256,1024,4096,16384")]
+        prt_samples: Vec<usize>,
+        /// Path tracer paths per pixel, comma-separated; the largest is the reference image.
+        #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
+        path_samples: Vec<u32>,
+        /// RTV SVD ranks (1–16), comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16")]
+        rtv_ranks: Vec<usize>,
+        /// Divide the scene camera's width and height by this for the images.
+        #[arg(long, default_value_t = 4)]
+        image_scale: u32,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
+}
+
+/// Writes `files` (name, contents) into `out`, prints `table` and says what was written.
+fn publish(out: &Path, table: &str, files: &[(&str, &str)]) -> Result<()> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    for (name, contents) in files {
+        write_atomic(&out.join(name), contents.as_bytes())?;
+    }
+    print!("{table}");
+    let names: Vec<&str> = files.iter().map(|(name, _)| *name).collect();
+    let listed = match names.as_slice() {
+        [rest @ .., last] if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        _ => names.join(""),
+    };
+    eprintln!("wrote {listed} in {}", out.display());
+    Ok(())
+}
+
+/// Runs the report.
+pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
+    match which {
+        ReportCommand::Accuracy {
+            input,
+            res,
+            dirs,
+            ranks,
+            quants,
+            out,
+        } => {
+            let sweep = accuracy::Sweep {
+                dirs,
+                ranks,
+                quantizations: quants,
+            };
+            let progress = Progress::new("accuracy report");
+            let rows = accuracy::accuracy(&input, res, &sweep, limits, &progress)?;
+            progress.finish();
+            let table = accuracy::markdown(&rows);
+            let csv = accuracy::csv(&rows);
+            let svg = accuracy::svg_plot(&rows)?;
+            publish(
+                &out,
+                &table,
+                &[
+                    ("accuracy.md", &table),
+                    ("accuracy.csv", &csv),
+                    ("accuracy.svg", &svg),
+                ],
+            )
+        }
+        ReportCommand::Gi {
+            scene,
+            dirs,
+            bounces,
+            prt_samples,
+            path_samples,
+            rtv_ranks,
+            image_scale,
+            out,
+        } => {
+            let loaded = load_scene(&scene, limits)?;
+            let sweep = gi::GiSweep {
+                dirs,
+                bounces,
+                prt_samples,
+                path_samples,
+                rtv_ranks,
+                image_scale,
+            };
+            let progress = Progress::new("GI accuracy report");
+            let report = gi::gi_accuracy(&loaded, &sweep, limits, &progress)?;
+            progress.finish();
+            let table = gi::markdown(&report);
+            let json = serde_json::to_string_pretty(&report).expect("report serializes");
+            publish(
+                &out,
+                &table,
+                &[("gi-accuracy.md", &table), ("gi-accuracy.json", &json)],
+            )
+        }
+        ReportCommand::Render {
+            scene,
+            dirs,
+            ranks,
+            quant,
+            refinements,
+            out,
+        } => {
+            let loaded = load_scene(&scene, limits)?;
+            let sweep = render::RenderSweep {
+                dirs,
+                ranks,
+                quantization: quant,
+                refinements,
+            };
+            let progress = Progress::new("render accuracy report");
+            let report = render::render_accuracy(&loaded, &sweep, limits, &progress)?;
+            progress.finish();
+            let table = render::markdown(&report);
+            let json = serde_json::to_string_pretty(&report).expect("report serializes");
+            publish(
+                &out,
+                &table,
+                &[
+                    ("render-accuracy.md", &table),
+                    ("render-accuracy.json", &json),
+                ],
+            )
+        }
+    }
+}
