@@ -335,7 +335,7 @@ fn gdm_and_material(
     rho: f64,
 ) -> (
     mesobake::bake::gdm::Gdm,
-    mesobake::render::material::MaterialVolume,
+    mesobake::mesostructure::material::MaterialVolume,
 ) {
     use mesobake::bake::gdm::{self, Method, fast::FastParams, volume_caster::VolumeCaster};
     let dirs = mesobake::grid::DirectionGrid::new(16, 32).unwrap();
@@ -349,7 +349,7 @@ fn gdm_and_material(
     )
     .unwrap();
     let material =
-        mesobake::render::material::MaterialVolume::from_volume(volume, DVec3::splat(rho));
+        mesobake::mesostructure::material::MaterialVolume::from_volume(volume, DVec3::splat(rho));
     (g, material)
 }
 

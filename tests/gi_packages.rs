@@ -6,8 +6,8 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::bake::gi::shading::GiShading;
 use mesobake::package::Package;
+use mesobake::scene::gi::GiShading;
 use mesobake::scene::package::{ScenePackageParams, bake_scene_package};
 use mesobake::scene::render::load_scene;
 use mesobake::util::limits::Limits;

@@ -4,7 +4,6 @@
 //! Vulkan driver. Without any adapter these tests fail, unless MESOBAKE_SKIP_GPU_TESTS=1 says
 //! to skip them (loudly).
 
-use mesobake::bake::gi::shading::GiShading;
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
 use mesobake::package::Package;
@@ -13,6 +12,7 @@ use mesobake::render::gdm_lookup::PackageLookup;
 use mesobake::render::gdm_renderer::GdmRenderer;
 use mesobake::render::image::{Image, compare};
 use mesobake::render::render_image;
+use mesobake::scene::gi::GiShading;
 use mesobake::scene::package::{ScenePackageParams, scene_package};
 use mesobake::scene::preview::preview;
 use mesobake::scene::{Effect, LoadedScene, Scene};

@@ -8,6 +8,7 @@
 pub mod empty_space;
 pub mod height_field;
 pub mod input;
+pub mod material;
 pub mod mesh_tile;
 pub mod samples;
 pub mod trimesh;

@@ -8,10 +8,10 @@
 
 use super::gpu::Gpu;
 use crate::error::{Error, Result};
+use crate::mesostructure::material::MaterialVolume;
 use crate::package::Package;
 use crate::package::manifest::TexelFormat;
 use crate::render::gdm_renderer::PreparedPrism;
-use crate::render::material::MaterialVolume;
 use bytemuck::{Pod, Zeroable};
 use serde::Serialize;
 use wgpu::util::DeviceExt;
@@ -102,7 +102,7 @@ pub fn upload_environment(
 ) -> Result<GpuEnvironment> {
     use crate::package::gi::{RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
     // The CPU twin's own tables: the same incident light and triangles on both sides.
-    let shading = crate::bake::gi::shading::GiShading::from_package(loaded, package)?;
+    let shading = crate::scene::gi::GiShading::from_package(loaded, package)?;
     let incident: Vec<f32> = shading
         .incident()
         .iter()

@@ -35,11 +35,11 @@
 use super::accel::BoxBvh;
 use super::gdm_lookup::{GdmLookup, Lookup};
 use super::lighting::{SHADOW_OFFSET, shade};
-use super::material::{ALBEDO_DEPTH, MaterialVolume};
 use super::truth::{TruthRenderer, light_start};
-use crate::bake::gi::shading::GiShading;
 use crate::error::{Error, Result};
 use crate::grid::Dims;
+use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
+use crate::scene::gi::GiShading;
 use crate::scene::{Effect, Scene};
 use crate::surface::shell::{FaceTriangle, Shell};
 use glam::{DMat3, DVec3};

@@ -157,7 +157,7 @@ fn read_png(path: &Path) -> Result<Image> {
         .enumerate()
     {
         image.rgb[i] =
-            [0, 1, 2].map(|c| crate::render::material::srgb_to_linear(px[c] as f32 / 255.0));
+            [0, 1, 2].map(|c| crate::mesostructure::material::srgb_to_linear(px[c] as f32 / 255.0));
         image.mask[i] = channels == 3 || px[3] >= 128;
     }
     Ok(image)
@@ -204,7 +204,7 @@ pub fn difference(a: &Image, b: &Image) -> Result<Image> {
                 let d = (0..3)
                     .map(|c| (linear_to_srgb(a.rgb[i][c]) - linear_to_srgb(b.rgb[i][c])).abs())
                     .fold(0.0f32, f32::max);
-                [crate::render::material::srgb_to_linear((4.0 * d).min(1.0)); 3]
+                [crate::mesostructure::material::srgb_to_linear((4.0 * d).min(1.0)); 3]
             }
         };
     }

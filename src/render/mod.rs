@@ -1,5 +1,6 @@
 //! The CPU renderers: the ground truth ([`truth`]) and the GDM per-pixel algorithm
-//! ([`gdm_renderer`]), with what they share (material volume, lighting, images).
+//! ([`gdm_renderer`]), with what they share (lighting, images); the path tracer, the truth
+//! for environment light ([`path_tracer`]); the demo's flat preview ([`flat_preview`]).
 
 pub mod accel;
 pub mod flat_preview;
@@ -7,7 +8,6 @@ pub mod gdm_lookup;
 pub mod gdm_renderer;
 pub mod image;
 pub mod lighting;
-pub mod material;
 pub mod path_tracer;
 pub mod truth;
 

@@ -61,7 +61,7 @@ impl<'a> PathTracer<'a> {
             environment,
             samples,
             depth,
-            gloss: crate::bake::gi::shading::rtv_params(&loaded.scene)
+            gloss: crate::scene::gi::rtv_params(&loaded.scene)
                 .glossy
                 .map(|g| Gloss {
                     specular: DVec3::from(g.specular),

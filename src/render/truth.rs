@@ -23,8 +23,8 @@
 
 use super::accel::BoxBvh;
 use super::lighting::{SHADOW_OFFSET, shade};
-use super::material::{ALBEDO_DEPTH, MaterialVolume};
 use crate::bake::gdm::caster::{Caster, Trace};
+use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
 use crate::scene::{Effect, Scene};
 use crate::surface::shell::{Prism, PrismPoint, Shell, cubic_roots};
 use glam::{DMat3, DVec3};

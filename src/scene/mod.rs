@@ -4,6 +4,7 @@
 //! scene calls for, in order: [`plan`] (the stages its effects need), [`package`] (baking
 //! them), [`render`] (CPU images) and [`preview`] (the real-time pipeline).
 
+pub mod gi;
 pub mod package;
 pub mod plan;
 pub mod preview;
@@ -18,11 +19,11 @@ use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::input::Mesostructure;
+use crate::mesostructure::material::MaterialVolume;
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::samples::{self, SampleKind};
 use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume_format;
-use crate::render::material::MaterialVolume;
 use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
 use crate::surface::shell::{Shell, ShellParams};
 use crate::util::limits::Limits;

@@ -2,7 +2,6 @@
 //! one, picks the renderer and times each stage (`mesobake render`).
 
 use crate::bake::gdm::BakeObserver;
-use crate::bake::gi::shading::{GiReport, GiShading};
 use crate::error::{Error, Result};
 use crate::package::Package;
 use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
@@ -11,6 +10,7 @@ use crate::render::image::Image;
 use crate::render::path_tracer::PathTracer;
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
+use crate::scene::gi::{GiReport, GiShading};
 use crate::scene::{Effect, LoadedScene, Scene};
 use crate::util::limits::Limits;
 use serde::Serialize;

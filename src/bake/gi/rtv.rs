@@ -41,7 +41,7 @@ use super::sh::{self, COEFFS, Sh};
 use crate::bake::gdm::{BakeObserver, Gdm};
 use crate::error::{Error, Result};
 use crate::grid::{Dims, Wrap, trilinear_corners};
-use crate::render::material::MaterialVolume;
+use crate::mesostructure::material::MaterialVolume;
 use crate::util::limits::Limits;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;

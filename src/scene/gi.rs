@@ -8,12 +8,12 @@
 //! axes, which are orthonormal only where the mapping is conformal and voxels are cubic in
 //! object space; directions in the RTV are texture-space directions.
 
-use super::compressed_rtv::CompressedRtv;
-use super::environment::RgbSh;
-use super::prt::{self, Visibility};
-use super::rtv::{self, Glossy, Rtv, RtvParams, RtvStats};
-use super::sh::{self, COEFFS, ShMatrix};
 use crate::bake::gdm::{BakeObserver, Gdm};
+use crate::bake::gi::compressed_rtv::CompressedRtv;
+use crate::bake::gi::environment::RgbSh;
+use crate::bake::gi::prt::{self, Visibility};
+use crate::bake::gi::rtv::{self, Glossy, Rtv, RtvParams, RtvStats};
+use crate::bake::gi::sh::{self, COEFFS, ShMatrix};
 use crate::error::{Error, Result};
 use crate::package::Package;
 use crate::scene::{Effect, LoadedScene, Scene};
