@@ -32,6 +32,21 @@ fn scene(mesostructure: Value, res: [u32; 3], dirs: [u32; 2]) -> Value {
     })
 }
 
+/// Submits the job `spec`, which must be queued (202), and returns its id.
+async fn submit(s: &BinaryServer, spec: &Value) -> String {
+    let r = reqwest::Client::new()
+        .post(s.url("/api/v1/jobs"))
+        .json(spec)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 202);
+    r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_owned()
+}
+
 async fn wait_for_job(s: &BinaryServer, id: &str, until: impl Fn(&Value) -> bool) -> Value {
     let start = Instant::now();
     loop {
@@ -91,17 +106,7 @@ async fn the_default_server_bakes_an_upload_end_to_end_from_an_empty_directory()
         .unwrap()
         .to_owned();
     let spec = json!({ "scene": scene(json!({ "volume": digest }), [16, 16, 8], [4, 8]) });
-    let r = client
-        .post(s.url("/api/v1/jobs"))
-        .json(&spec)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 202);
-    let id = r.json::<Value>().await.unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_owned();
+    let id = submit(&s, &spec).await;
     let done = wait_for_job(&s, &id, |j| {
         j["state"] != "queued" && j["state"] != "running"
     })
@@ -185,17 +190,7 @@ async fn sigterm_hands_the_running_job_back_and_exits_within_the_grace_period() 
     .await;
     // A bake of several seconds: 128×128×32 voxels × 16×32 directions.
     let spec = json!({ "scene": scene(json!({ "sample": "chain" }), [128, 128, 32], [16, 32]) });
-    let r = reqwest::Client::new()
-        .post(s.url("/api/v1/jobs"))
-        .json(&spec)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 202);
-    let id = r.json::<Value>().await.unwrap()["id"]
-        .as_str()
-        .unwrap()
-        .to_owned();
+    let id = submit(&s, &spec).await;
     wait_for_job(&s, &id, |j| j["stage"] == "bake_gdm").await;
     // An open event stream must not hold the shutdown up either.
     let events = reqwest::get(s.url(&format!("/api/v1/jobs/{id}/events")))

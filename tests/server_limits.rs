@@ -10,6 +10,7 @@ mod server;
 use mesobake::grid::Dims;
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
+use mesobake::server::config::ServerConfig;
 use mesobake::server::db::{PackageRow, now_ms};
 use mesobake::util::limits::Limits;
 use serde_json::{Value, json};
@@ -20,6 +21,32 @@ use tokio::net::TcpStream;
 
 fn sqlite(dir: &std::path::Path) -> String {
     format!("sqlite://{}", dir.join("db.sqlite").display())
+}
+
+/// A server on a SQLite file and a blob store in `dir`, without workers, its configuration
+/// changed by `edit`.
+async fn start(dir: &std::path::Path, edit: impl FnOnce(&mut ServerConfig)) -> TestServer {
+    TestServer::start_with(&sqlite(dir), &dir.join("data"), 1 << 20, |c| {
+        c.workers = 0;
+        edit(c);
+    })
+    .await
+}
+
+/// Uploads `body` as the volume `v.mbvol`.
+async fn upload(s: &TestServer, body: Vec<u8>) -> reqwest::Response {
+    reqwest::Client::new()
+        .post(s.url("/api/v1/assets?kind=volume&name=v.mbvol"))
+        .body(body)
+        .send()
+        .await
+        .unwrap()
+}
+
+/// A `kind` sample volume of `side`×`side`×`side/2` voxels, encoded.
+fn volume_bytes(kind: SampleKind, side: u32) -> Vec<u8> {
+    let dims = Dims::new(side, side, side / 2).unwrap();
+    volume_format::encode(&samples::volume(kind, dims, &Limits::default()).unwrap())
 }
 
 fn scene() -> Value {
@@ -71,15 +98,7 @@ async fn raw(s: &TestServer, head: &[u8], wait: Duration) -> (String, bool) {
 #[tokio::test]
 async fn scenes_over_the_cost_limits_are_refused_naming_the_limit() {
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(
-        &sqlite(dir.path()),
-        &dir.path().join("data"),
-        1 << 20,
-        |c| {
-            c.workers = 0;
-        },
-    )
-    .await;
+    let s = start(dir.path(), |_| {}).await;
     let with = |edit: &dyn Fn(&mut Value)| {
         let mut sc = scene();
         edit(&mut sc);
@@ -141,15 +160,9 @@ async fn scenes_over_the_cost_limits_are_refused_naming_the_limit() {
 #[tokio::test]
 async fn bodies_over_their_limit_get_413_before_they_are_read() {
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(
-        &sqlite(dir.path()),
-        &dir.path().join("data"),
-        1 << 20,
-        |c| {
-            c.workers = 0;
-            c.max_json_bytes = 4096;
-        },
-    )
+    let s = start(dir.path(), |c| {
+        c.max_json_bytes = 4096;
+    })
     .await;
     // Headers announce more than the limit and no body follows: the answer comes at once.
     for (path, limit) in [
@@ -213,16 +226,10 @@ fn png_header(side: u32) -> Vec<u8> {
 #[tokio::test]
 async fn image_headers_are_checked_before_decoding_and_uploads_wait_for_a_slot() {
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(
-        &sqlite(dir.path()),
-        &dir.path().join("data"),
-        1 << 20,
-        |c| {
-            c.workers = 0;
-            c.max_concurrent_uploads = 1;
-            c.busy_wait_ms = 300;
-        },
-    )
+    let s = start(dir.path(), |c| {
+        c.max_concurrent_uploads = 1;
+        c.busy_wait_ms = 300;
+    })
     .await;
     let client = reqwest::Client::new();
     let start = Instant::now();
@@ -252,31 +259,14 @@ async fn image_headers_are_checked_before_decoding_and_uploads_wait_for_a_slot()
     .await
     .unwrap();
     tokio::time::sleep(Duration::from_millis(200)).await;
-    let volume = volume_format::encode(
-        &samples::volume(
-            SampleKind::Grid,
-            Dims::new(8, 8, 4).unwrap(),
-            &Limits::default(),
-        )
-        .unwrap(),
-    );
-    let r = client
-        .post(s.url("/api/v1/assets?kind=volume&name=v.mbvol"))
-        .body(volume.clone())
-        .send()
-        .await
-        .unwrap();
+    let volume = volume_bytes(SampleKind::Grid, 8);
+    let r = upload(&s, volume.clone()).await;
     assert_eq!(r.status(), 503);
     assert_eq!(r.headers()["retry-after"], "1");
     drop(slow);
     // Once the slot is free, the same upload goes through, and the cut upload left no file.
     tokio::time::sleep(Duration::from_millis(200)).await;
-    let r = client
-        .post(s.url("/api/v1/assets?kind=volume&name=v.mbvol"))
-        .body(volume)
-        .send()
-        .await
-        .unwrap();
+    let r = upload(&s, volume).await;
     assert_eq!(r.status(), 201);
     let tmp = dir.path().join("data/blobs/tmp");
     let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().collect();
@@ -314,16 +304,10 @@ async fn the_queue_has_a_cap_and_resubmissions_pass_it() {
 #[tokio::test]
 async fn slow_and_idle_clients_are_cut_off() {
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(
-        &sqlite(dir.path()),
-        &dir.path().join("data"),
-        1 << 20,
-        |c| {
-            c.workers = 0;
-            c.header_read_timeout_ms = 400;
-            c.body_read_timeout_ms = 400;
-        },
-    )
+    let s = start(dir.path(), |c| {
+        c.header_read_timeout_ms = 400;
+        c.body_read_timeout_ms = 400;
+    })
     .await;
     // Partial headers: closed after the header timeout.
     let (_, closed) = raw(
@@ -403,16 +387,10 @@ async fn a_blob_store_that_refuses_writes_is_not_ready() {
 #[tokio::test]
 async fn validators_ranges_and_keys_follow_http() {
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(
-        &sqlite(dir.path()),
-        &dir.path().join("data"),
-        1 << 20,
-        |c| {
-            c.workers = 0;
-            c.require_keys = true;
-            c.public_packages = false;
-        },
-    )
+    let s = start(dir.path(), |c| {
+        c.require_keys = true;
+        c.public_packages = false;
+    })
     .await;
     use mesobake::server::auth::Scope;
     let key = s
@@ -500,15 +478,7 @@ async fn validators_ranges_and_keys_follow_http() {
 #[tokio::test]
 async fn every_error_body_is_json() {
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(
-        &sqlite(dir.path()),
-        &dir.path().join("data"),
-        1 << 20,
-        |c| {
-            c.workers = 0;
-        },
-    )
-    .await;
+    let s = start(dir.path(), |_| {}).await;
     let client = reqwest::Client::new();
     let cases = [
         (client.post(s.url("/api/v1/assets?kind=bogus&name=x")), 400),
@@ -547,15 +517,9 @@ async fn every_error_body_is_json() {
 #[tokio::test]
 async fn the_preview_cache_evicts_the_least_recently_used_beyond_its_bytes() {
     let dir = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(
-        &sqlite(dir.path()),
-        &dir.path().join("data"),
-        1 << 20,
-        |c| {
-            c.workers = 0;
-            c.preview_cache_bytes = 250;
-        },
-    )
+    let s = start(dir.path(), |c| {
+        c.preview_cache_bytes = 250;
+    })
     .await;
     use mesobake::server::preview_cache::{lookup, store};
     let image = |n: u8| vec![n; 100];
@@ -583,20 +547,8 @@ async fn the_preview_cache_evicts_the_least_recently_used_beyond_its_bytes() {
     assert_eq!(lookup(&s.state, "a").await.unwrap(), Some(image(1)));
     assert_eq!(lookup(&s.state, "c").await.unwrap(), Some(image(3)));
     // A cached image whose bytes are also an uploaded asset keeps its blob when evicted.
-    let volume = volume_format::encode(
-        &samples::volume(
-            SampleKind::Grid,
-            Dims::new(8, 8, 4).unwrap(),
-            &Limits::default(),
-        )
-        .unwrap(),
-    );
-    let r = reqwest::Client::new()
-        .post(s.url("/api/v1/assets?kind=volume&name=v.mbvol"))
-        .body(volume.clone())
-        .send()
-        .await
-        .unwrap();
+    let volume = volume_bytes(SampleKind::Grid, 8);
+    let r = upload(&s, volume.clone()).await;
     assert_eq!(r.status(), 201);
     store(&s.state, "v", volume.clone()).await.unwrap();
     assert_eq!(
@@ -615,20 +567,8 @@ async fn failed_jobs_name_the_asset_not_the_servers_paths() {
     let s = TestServer::start(&sqlite(dir.path()), &data, 1 << 20).await;
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     mesobake::server::spawn_workers(&s.state, 1, &stop);
-    let volume = volume_format::encode(
-        &samples::volume(
-            SampleKind::Chain,
-            Dims::new(16, 16, 8).unwrap(),
-            &Limits::default(),
-        )
-        .unwrap(),
-    );
-    let r = reqwest::Client::new()
-        .post(s.url("/api/v1/assets?kind=volume&name=v.mbvol"))
-        .body(volume)
-        .send()
-        .await
-        .unwrap();
+    let volume = volume_bytes(SampleKind::Chain, 16);
+    let r = upload(&s, volume).await;
     let digest = r.json::<Value>().await.unwrap()["id"]
         .as_str()
         .unwrap()

@@ -110,6 +110,24 @@ fn publish(out: &Path, table: &str, files: &[(&str, &str)]) -> Result<()> {
     Ok(())
 }
 
+/// Writes `STEM.md` (the table) and `STEM.json` (the report) into `out`, prints the table.
+fn publish_report(
+    out: &Path,
+    stem: &str,
+    table: &str,
+    report: &impl serde::Serialize,
+) -> Result<()> {
+    let json = serde_json::to_string_pretty(report).expect("reports serialize");
+    publish(
+        out,
+        table,
+        &[
+            (&format!("{stem}.md"), table),
+            (&format!("{stem}.json"), &json),
+        ],
+    )
+}
+
 /// Runs the report.
 pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
     match which {
@@ -164,13 +182,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             let progress = Progress::new("GI accuracy report");
             let report = gi::gi_accuracy(&loaded, &sweep, limits, &progress)?;
             progress.finish();
-            let table = gi::markdown(&report);
-            let json = serde_json::to_string_pretty(&report).expect("report serializes");
-            publish(
-                &out,
-                &table,
-                &[("gi-accuracy.md", &table), ("gi-accuracy.json", &json)],
-            )
+            publish_report(&out, "gi-accuracy", &gi::markdown(&report), &report)
         }
         ReportCommand::Render {
             scene,
@@ -190,16 +202,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             let progress = Progress::new("render accuracy report");
             let report = render::render_accuracy(&loaded, &sweep, limits, &progress)?;
             progress.finish();
-            let table = render::markdown(&report);
-            let json = serde_json::to_string_pretty(&report).expect("report serializes");
-            publish(
-                &out,
-                &table,
-                &[
-                    ("render-accuracy.md", &table),
-                    ("render-accuracy.json", &json),
-                ],
-            )
+            publish_report(&out, "render-accuracy", &render::markdown(&report), &report)
         }
     }
 }
