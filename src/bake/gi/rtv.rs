@@ -155,12 +155,6 @@ impl Rtv {
         &self.matrices[s]
     }
 
-    /// The sample of voxel (i, j, k), if it is one.
-    pub fn sample_at(&self, i: u32, j: u32, k: u32) -> Option<usize> {
-        let s = self.sample_of[self.dims.index(i, j, k)];
-        (s != NO_SAMPLE).then_some(s as usize)
-    }
-
     /// The transfer vector of sample `s` towards view direction `view` (unit, texture space):
     /// per channel, the 16 weights of the light SH, y(view)ᵀ·A.
     pub fn transfer(&self, s: usize, view: DVec3) -> [Sh; 3] {
