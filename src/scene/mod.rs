@@ -563,9 +563,7 @@ impl LoadedScene {
             environment,
         })
     }
-}
 
-impl LoadedScene {
     /// Bakes the exact GDM of the scene's mesostructure on its grids.
     pub fn bake_gdm(&self, limits: &Limits, observer: &dyn BakeObserver) -> Result<Gdm> {
         crate::bake::gdm::exact::bake(
