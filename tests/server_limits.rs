@@ -127,6 +127,10 @@ async fn scenes_over_the_cost_limits_are_refused_naming_the_limit() {
             "max_path_samples",
         ),
         (
+            with(&|sc| sc["base_mesh"] = json!({ "builtin": { "plane": { "segments": 4096 } } })),
+            "max_base_triangles",
+        ),
+        (
             // 512×512×64 voxels × 16×32 directions × 4 bytes = 32 GiB.
             with(&|sc| {
                 sc["resolution"] = json!([512, 512, 64]);

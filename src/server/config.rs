@@ -50,6 +50,8 @@ pub struct ServerConfig {
     pub max_input_pixels: u64,
     /// Most path-traced samples per pixel a scene may ask for.
     pub max_path_samples: u32,
+    /// Most triangles of a built-in base mesh.
+    pub max_base_triangles: u64,
     /// Uploads validated at once.
     pub max_concurrent_uploads: u32,
     /// How long a request waits for an upload slot or the GPU before 503.
@@ -174,6 +176,7 @@ const KEYS: &[&str] = &[
     "max_image_side",
     "max_input_pixels",
     "max_path_samples",
+    "max_base_triangles",
     "max_concurrent_uploads",
     "busy_wait_ms",
     "preview_timeout_ms",

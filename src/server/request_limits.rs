@@ -1,11 +1,11 @@
 //! What a scene may ask the server for, checked when a job or preview is submitted, before
-//! any work starts: lights, image size, path samples (the configuration's `max_*` keys) and
-//! the GDM's size (the memory limit). Each refusal names the limit it hit.
+//! any work starts: lights, image size, path samples, built-in base mesh triangles (the
+//! configuration's `max_*` keys) and the GDM's size (the memory limit). Each refusal names the limit it hit.
 
 use super::api_error::{ApiError, ApiResult};
 use super::config::ServerConfig;
 use crate::error::Error;
-use crate::scene::Scene;
+use crate::scene::{BaseMeshSource, Scene};
 use crate::util::limits::Limits;
 use axum::http::StatusCode;
 
@@ -32,6 +32,16 @@ pub fn check_scene_cost(scene: &Scene, config: &ServerConfig, limits: &Limits) -
             "gi.path_samples is {}, over the server's limit of {} (max_path_samples)",
             scene.gi.path_samples, config.max_path_samples
         ));
+    }
+    if let BaseMeshSource::Builtin(builtin) = &scene.base_mesh {
+        let triangles = builtin.triangle_count();
+        if triangles > config.max_base_triangles {
+            return refuse(format!(
+                "the built-in base mesh has {triangles} triangles, over the server's limit of \
+                 {} (max_base_triangles)",
+                config.max_base_triangles
+            ));
+        }
     }
     let voxels = scene.dims()?.voxel_count();
     let directions = scene.dirs()?.count() as u64;

@@ -121,6 +121,24 @@ fn teapot_subdivisions() -> u32 {
 }
 
 impl BuiltinMesh {
+    /// How many triangles [`BuiltinMesh::build`] makes (before validation drops the
+    /// degenerate ones), from the parameters alone: what a server checks before building.
+    pub fn triangle_count(&self) -> u64 {
+        let quads = |a: u32, b: u32| u64::from(a) * u64::from(b);
+        match *self {
+            BuiltinMesh::Plane { segments, .. } => 2 * quads(segments, segments),
+            BuiltinMesh::Cylinder {
+                segments: [a, b], ..
+            }
+            | BuiltinMesh::Torus {
+                segments: [a, b], ..
+            } => 2 * quads(a, b),
+            // The pole's row of quads gives one triangle each.
+            BuiltinMesh::Vase { segments: [a, b] } => 2 * quads(a, b) - u64::from(a),
+            BuiltinMesh::Teapot { subdivisions } => 64 * quads(subdivisions, subdivisions),
+        }
+    }
+
     /// Builds and validates the mesh. Lengths must be finite and positive (the plane's
     /// amplitude and waves finite and ≥ 0, the torus's minor radius below its major radius),
     /// segment counts 3..=4096 (plane: 1..=4096), subdivisions 1..=256; an
@@ -398,6 +416,18 @@ mod tests {
     /// Every built-in at its defaults: finite, unit normals (||n| − 1| < 1e-12), UVs spanning
     /// exactly [0,1]², no flipped UV triangle, no non-manifold edge, nothing non-finite or
     /// degenerate, and zero-area triangles only on the teapot.
+    #[test]
+    fn triangle_counts_are_known_before_building() {
+        for (name, builtin) in BuiltinMesh::all_defaults() {
+            let (_, report) = builtin.build().unwrap();
+            let made = report.triangles
+                + report.non_finite_triangles
+                + report.degenerate_triangles
+                + report.zero_area_triangles;
+            assert_eq!(made as u64, builtin.triangle_count(), "{name}");
+        }
+    }
+
     #[test]
     fn defaults_are_clean() {
         for (name, builtin) in BuiltinMesh::all_defaults() {
