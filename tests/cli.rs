@@ -201,3 +201,51 @@ fn bad_input_exits_non_zero_with_a_message() {
     each_fails_with(&cases);
     assert!(!out_path.exists(), "nothing is written on failure");
 }
+
+#[test]
+fn inputs_are_recognized_by_content_not_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let volume = path("grid.mbvol");
+    succeeds(&["sample", "grid", "--res", "8x8x4", "--out", &volume]);
+    // A volume named like an OBJ bakes as the volume it is.
+    let disguised = path("grid.obj");
+    std::fs::copy(&volume, &disguised).unwrap();
+    let npy = path("grid.npy");
+    succeeds(&["gdm", "--input", &disguised, "--dirs", "2x4", "--out", &npy]);
+    std::fs::write(path("fake.mbvol"), b"{\"resolution\": [8, 8, 4]}").unwrap();
+    std::fs::write(path("notes.txt"), b"remember to bake the chain\n").unwrap();
+    std::fs::write(path("tile.dat"), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let out = path("x.npy");
+    let gdm = |input: String| -> Vec<String> {
+        ["gdm", "--input", &input, "--out", &out]
+            .map(str::to_owned)
+            .to_vec()
+    };
+    let cases = [
+        (
+            gdm(path("fake.mbvol")),
+            "fake.mbvol is JSON text (though its name suggests a .mbvol volume), not a \
+             mesostructure input",
+        ),
+        (gdm(path("notes.txt")), "notes.txt is text that is not OBJ"),
+        (gdm(npy.clone()), "grid.npy is a NumPy .npy array"),
+        (
+            gdm(path("tile.dat")),
+            "tile.dat is OBJ text; an OBJ tile needs --res",
+        ),
+    ];
+    let cases: Vec<(Vec<&str>, &str)> = cases
+        .iter()
+        .map(|(args, want)| (args.iter().map(String::as_str).collect(), *want))
+        .collect();
+    each_fails_with(&cases);
+    let out = common::mesobake(
+        &gdm(path("notes.txt"))
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.matches("invalid parameter").count(), 1, "{err}");
+}

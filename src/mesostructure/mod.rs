@@ -3,9 +3,10 @@
 //! ([`trimesh`], validated on the tiling by [`mesh_tile`]), grayscale height fields
 //! ([`height_field`]), the built-in analytic samples ([`samples`]), the empty-space distance
 //! that makes exact casting fast ([`empty_space`]), and the loader that turns any input file
-//! into a ray caster ([`input`]).
+//! into a ray caster ([`input`]), telling its kind by content ([`file_kind`]).
 
 pub mod empty_space;
+pub mod file_kind;
 pub mod height_field;
 pub mod input;
 pub mod material;
