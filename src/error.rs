@@ -60,11 +60,47 @@ pub enum Error {
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
+    /// The same error with `context` (the file it concerns, say) before its message, the
+    /// kind's prefix said once: "scene: a.json: …", not "scene: a.json: scene: …". Errors
+    /// that already name their subject (memory limit, I/O) and cancellations are unchanged.
+    pub fn context(self, context: impl std::fmt::Display) -> Self {
+        let with = |m: String| format!("{context}: {m}");
+        match self {
+            Error::InvalidParameter(m) => Error::InvalidParameter(with(m)),
+            Error::VolumeFormat(m) => Error::VolumeFormat(with(m)),
+            Error::MeshTile(m) => Error::MeshTile(with(m)),
+            Error::BaseMesh(m) => Error::BaseMesh(with(m)),
+            Error::Scene(m) => Error::Scene(with(m)),
+            Error::Package(m) => Error::Package(with(m)),
+            Error::Gpu(m) => Error::Gpu(with(m)),
+            Error::Database(m) => Error::Database(with(m)),
+            e @ (Error::MemoryLimit { .. } | Error::Io { .. } | Error::Cancelled) => e,
+        }
+    }
+
     /// Wraps an I/O error with the path it concerns.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
             source,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Error;
+
+    #[test]
+    fn context_says_the_kind_once() {
+        let e = Error::Scene("resolution must be positive".into()).context("a.json");
+        assert_eq!(e.to_string(), "scene: a.json: resolution must be positive");
+        let e = Error::InvalidParameter("height field PNG: 16-bit".into()).context("h.png");
+        assert_eq!(
+            e.to_string(),
+            "invalid parameter: h.png: height field PNG: 16-bit"
+        );
+        let io = Error::io("x", std::io::Error::other("gone")).context("ignored");
+        assert_eq!(io.to_string(), "x: gone");
     }
 }

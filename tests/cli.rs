@@ -248,4 +248,21 @@ fn inputs_are_recognized_by_content_not_by_name() {
     );
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(err.matches("invalid parameter").count(), 1, "{err}");
+    // A scene file's error names the file once, and its kind once.
+    std::fs::write(
+        path("bad.json"),
+        b"{\"resolution\": [8, 8, 4], \"bogus\": 1}",
+    )
+    .unwrap();
+    let out = common::mesobake(&[
+        "render",
+        "--scene",
+        &path("bad.json"),
+        "--out",
+        &path("x.png"),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(err.matches("scene:").count(), 1, "{err}");
+    assert_eq!(err.matches("bad.json").count(), 1, "{err}");
 }

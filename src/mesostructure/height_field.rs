@@ -78,8 +78,7 @@ impl HeightField {
     /// Reads and decodes the PNG at `path`.
     pub fn read(path: &Path, limits: &Limits) -> Result<HeightField> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        Self::decode_png(&bytes, limits)
-            .map_err(|e| Error::InvalidParameter(format!("{}: {e}", path.display())))
+        Self::decode_png(&bytes, limits).map_err(|e| e.context(path.display()))
     }
 
     /// Width and height in pixels.

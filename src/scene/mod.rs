@@ -360,7 +360,7 @@ impl Scene {
             )));
         }
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Scene::from_json(&text).map_err(|e| Error::Scene(format!("{}: {e}", path.display())))
+        Scene::from_json(&text).map_err(|e| e.context(path.display()))
     }
 
     /// Whether the scene calls for `effect`.
