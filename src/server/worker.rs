@@ -191,10 +191,7 @@ async fn run(state: &AppState, worker: &str, job: Claimed, stop: &AtomicBool) ->
         job.id,
         job.attempt
     );
-    let mut stages = super::jobs::plan(&job.spec).stages;
-    stages.retain(|s| s != "store");
-    stages.push("store".into());
-    let shared = Arc::new(Shared::new(stages));
+    let shared = Arc::new(Shared::new(super::jobs::plan(&job.spec).stages));
     let (spec, blobs, limits) = (job.spec.clone(), state.blobs.clone(), state.limits);
     let task = {
         let shared = shared.clone();
