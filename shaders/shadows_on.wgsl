@@ -11,5 +11,5 @@ fn light_visible(shadow_origin: vec3<f32>, l_tex: vec3<f32>) -> bool {
 }
 
 fn shadow_query(origin: vec3<f32>, l: vec3<f32>) -> bool {
-    return gdm_lookup(origin, l) < 0.0;
+    return escapes(origin, l);
 }

@@ -6,6 +6,7 @@ use crate::compress::quantize::Quantization;
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::package::Package;
+use crate::package::manifest::GdmCodec;
 use serde_json::{Value, json};
 use std::path::Path;
 use std::time::Duration;
@@ -90,6 +91,7 @@ impl Client {
         asset: &Value,
         res: Dims,
         dirs: DirectionGrid,
+        codec: GdmCodec,
         rank: usize,
         quantization: Quantization,
     ) -> Result<Value> {
@@ -109,7 +111,8 @@ impl Client {
             "shell": { "thickness": 0.1, "tiles_per_uv": [1, 1] },
             "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 64, "height": 64 }
         });
-        let body = json!({ "scene": scene, "rank": rank, "quantization": quantization });
+        let body =
+            json!({ "scene": scene, "codec": codec, "rank": rank, "quantization": quantization });
         let r = self
             .request(reqwest::Method::POST, "/jobs")
             .json(&body)

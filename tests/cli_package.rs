@@ -36,12 +36,22 @@ fn bake_then_unpack_gives_the_documented_npy_and_exr() {
     let summary = bake(
         &vol,
         &pkg,
-        &["--dirs", "4x8", "--rank", "5", "--quant", "u8"],
+        &[
+            "--dirs",
+            "4x8",
+            "--gdm-codec",
+            "paper-svd",
+            "--rank",
+            "5",
+            "--quant",
+            "u8",
+        ],
     );
     let bytes = std::fs::read(&pkg).unwrap();
     assert_eq!(summary["bytes"], bytes.len());
-    assert_eq!(summary["rank"], 5);
-    assert_eq!(summary["quantization"], "u8");
+    assert_eq!(summary["gdm"]["codec"], "paper-svd");
+    assert_eq!(summary["gdm"]["rank"], 5);
+    assert_eq!(summary["gdm"]["quantization"], "u8");
     for stage in ["load", "bake", "svd", "quantize", "encode", "write"] {
         assert!(
             summary["seconds"][stage].as_f64().unwrap() >= 0.0,
@@ -50,8 +60,8 @@ fn bake_then_unpack_gives_the_documented_npy_and_exr() {
     }
     let package = Package::parse(bytes).unwrap();
     assert_eq!(
-        summary["accuracy"]["flips"],
-        package.manifest().gdm.accuracy.flips
+        summary["gdm"]["accuracy"]["flips"],
+        package.manifest().gdm.as_ref().unwrap().accuracy.flips
     );
 
     let npy = dir.path().join("recon.npy");
@@ -80,7 +90,7 @@ fn bake_then_unpack_gives_the_documented_npy_and_exr() {
 
     // The EXR holds W0..W4 (16 × 16·8) and E0..E4 (8 × 4) with the dequantized values.
     let image = exr::prelude::read_all_flat_layers_from_file(&exr).unwrap();
-    let (w, e) = package.factors();
+    let (w, e) = package.factors().unwrap();
     let (w, e) = (w.dequantize(), e.dequantize());
     assert_eq!(image.layer_data.len(), 10);
     for layer in &image.layer_data {
@@ -110,12 +120,21 @@ fn bake_chooses_the_rank_from_a_target_rmse() {
     let summary = bake(
         &vol,
         &pkg,
-        &["--dirs", "4x8", "--max-rmse", "0.5", "--quant", "f32"],
+        &[
+            "--dirs",
+            "4x8",
+            "--gdm-codec",
+            "paper-svd",
+            "--max-rmse",
+            "0.5",
+            "--quant",
+            "f32",
+        ],
     );
     let package = Package::read(&pkg, &Limits::default()).unwrap();
-    let g = &package.manifest().gdm;
+    let g = package.manifest().gdm.as_ref().unwrap();
     let rank = g.rank as usize;
-    assert_eq!(summary["rank"], rank);
+    assert_eq!(summary["gdm"]["rank"], rank);
     // The fewest components whose optimal error meets the target.
     let optimal = |k: usize| {
         let tail: f64 = g.spectrum[k..].iter().map(|s| s * s).sum();
@@ -208,8 +227,59 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
             "cannot be used with",
         ),
         (
-            vec!["bake", "--input", &vol, "--out", p, "--max-rmse", "NaN"],
+            vec![
+                "bake",
+                "--input",
+                &vol,
+                "--out",
+                p,
+                "--gdm-codec",
+                "paper-svd",
+                "--max-rmse",
+                "NaN",
+            ],
             "target RMSE",
+        ),
+        // SVD sizes only with the SVD codec, and ranks within what the server accepts too.
+        (
+            vec!["bake", "--input", &vol, "--out", p, "--rank", "3"],
+            "rank sizes the paper-svd codec's SVD, but the codec is occupancy",
+        ),
+        (
+            vec!["bake", "--input", &vol, "--out", p, "--max-rmse", "1"],
+            "--max-rmse sizes the paper-svd codec's SVD",
+        ),
+        (
+            vec![
+                "bake",
+                "--input",
+                &vol,
+                "--out",
+                p,
+                "--gdm-codec",
+                "paper-svd",
+                "--rank",
+                "0",
+            ],
+            "rank must be in 1..=64, got 0",
+        ),
+        (
+            vec![
+                "bake",
+                "--input",
+                &vol,
+                "--out",
+                p,
+                "--gdm-codec",
+                "paper-svd",
+                "--rank",
+                "100000",
+            ],
+            "rank must be in 1..=64, got 100000",
+        ),
+        (
+            vec!["bake", "--input", &vol, "--out", p, "--gdm-codec", "jpeg"],
+            "GDM codec \"jpeg\": expected occupancy or paper-svd",
         ),
         (
             vec!["bake", "--input", &vol, "--out", p, "--quant", "f8"],

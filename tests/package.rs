@@ -8,9 +8,9 @@ use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::{GramEigen, RankChoice};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::package::Package;
 use mesobake::package::bake::{PackageParams, bake_info, bake_package};
-use mesobake::package::manifest::{InputInfo, Manifest};
+use mesobake::package::manifest::{GdmCodec, InputInfo, Manifest};
+use mesobake::package::{GdmPayload, OCCUPANCY_SECTION, Package};
 use mesobake::util::limits::Limits;
 use proptest::prelude::*;
 
@@ -18,6 +18,7 @@ fn params(rank: usize, quantization: Quantization) -> PackageParams {
     PackageParams {
         res: None,
         dirs: DirectionGrid::new(4, 8).unwrap(),
+        codec: GdmCodec::PaperSvd,
         method: Method::Exact,
         fast: Default::default(),
         rank: RankChoice::Rank(rank),
@@ -51,7 +52,7 @@ fn small_package() -> Vec<u8> {
     Package::encode(
         input_info(),
         bake_info(&g, Method::Exact, Default::default(), false),
-        &c,
+        &GdmPayload::PaperSvd(c),
     )
 }
 
@@ -63,11 +64,11 @@ fn round_trip_gives_back_the_measured_reconstruction() {
         let bytes = Package::encode(
             input_info(),
             bake_info(&g, Method::Exact, Default::default(), false),
-            &c,
+            &GdmPayload::PaperSvd(c.clone()),
         );
         let pkg = Package::parse(bytes).unwrap();
         // The unpacked codes are the quantized factors, bit for bit.
-        let (w, e) = pkg.factors();
+        let (w, e) = pkg.factors().unwrap();
         assert_eq!((&w, &e), (&c.weights, &c.eigen), "{q}");
         // Reconstruction through the package (a GEMM per direction) agrees with the
         // measurement (a GEMM per row block): same flips, same error on agreeing hits.
@@ -86,10 +87,10 @@ fn round_trip_gives_back_the_measured_reconstruction() {
         // Errors on hits are part of the total (which also counts escapes and flips).
         let rmse_hits_part = (sum_sq / c.accuracy.samples as f64).sqrt();
         assert!(rmse_hits_part <= c.accuracy.rmse * (1.0 + 1e-4), "{q}");
-        let m = pkg.manifest();
-        assert_eq!(m.gdm.rank, 6);
-        assert_eq!(m.gdm.weights.sections.len(), 2);
-        assert_eq!(m.gdm.spectrum.len(), 4 * 8);
+        let m = pkg.manifest().gdm.as_ref().unwrap();
+        assert_eq!(m.rank, 6);
+        assert_eq!(m.weights.sections.len(), 2);
+        assert_eq!(m.spectrum.len(), 4 * 8);
     }
 }
 
@@ -130,6 +131,86 @@ fn packages_are_byte_identical_across_runs_and_thread_counts() {
     let file = std::fs::read(&path).unwrap();
     assert_eq!(m.input.blake3, blake3::hash(&file).to_hex().to_string());
     assert_eq!(m.input.bytes, file.len() as u64);
+}
+
+/// The default codec's package of a small `chain` volume file.
+fn occupancy_package(dir: &std::path::Path) -> Vec<u8> {
+    let path = dir.join("chain.mbvol");
+    let limits = Limits::default();
+    let volume =
+        samples::volume(SampleKind::Chain, Dims::new(16, 16, 8).unwrap(), &limits).unwrap();
+    mesobake::mesostructure::volume_format::write(&volume, &path).unwrap();
+    let p = PackageParams {
+        codec: GdmCodec::Occupancy,
+        ..params(8, Quantization::F16)
+    };
+    bake_package(&path, &p, &limits, &()).unwrap().bytes
+}
+
+#[test]
+fn an_occupancy_package_holds_the_voxels_and_reconstructs_the_exact_gdm() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = occupancy_package(dir.path());
+    let limits = Limits::default();
+    let pkg = Package::parse(bytes.clone()).unwrap();
+    let m = pkg.manifest();
+    assert_eq!(m.codec, GdmCodec::Occupancy);
+    assert!(m.gdm.is_none() && pkg.factors().is_none());
+    // One byte per voxel, nothing else: 16·16·8 bytes in the only section.
+    assert_eq!(m.sections.len(), 1);
+    assert_eq!(m.sections[0].bytes, 16 * 16 * 8);
+    let volume =
+        samples::volume(SampleKind::Chain, Dims::new(16, 16, 8).unwrap(), &limits).unwrap();
+    let field = pkg.occupancy().unwrap().unwrap();
+    assert_eq!(field.occupancy(), volume.occupancy());
+    assert_eq!(
+        m.occupancy.as_ref().unwrap().solid_voxels,
+        volume.occupancy().solid_count()
+    );
+    // Its GDM is the exact bake of the volume, sample for sample.
+    let mut exact =
+        gdm::exact::bake(&VolumeCaster::new(&volume), pkg.dirs(), &limits, &()).unwrap();
+    exact.set_escape_convention(EscapeConvention::Infinite);
+    assert_eq!(pkg.reconstruct(&limits).unwrap().data(), exact.data());
+    // Deterministic: the same input gives the same bytes.
+    assert_eq!(bytes, occupancy_package(dir.path()));
+}
+
+#[test]
+fn corrupt_or_mismatched_occupancy_packages_are_refused_naming_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = occupancy_package(dir.path());
+    // A distance larger than its solid voxels allow, with every checksum fixed up: a march
+    // would skip solid voxels, so the package is refused.
+    let section = Package::parse(bytes.clone()).unwrap().manifest().sections[0].clone();
+    assert_eq!(section.name, OCCUPANCY_SECTION);
+    let at = section.offset as usize
+        + bytes[section.offset as usize..][..section.bytes as usize]
+            .iter()
+            .position(|&d| d == 1)
+            .unwrap();
+    let mut bad = bytes.clone();
+    bad[at] = 9;
+    let crc = crc32fast::hash(&bad[section.offset as usize..][..section.bytes as usize]);
+    let bad = with_manifest(&bad, |m| m["sections"][0]["crc32"] = serde_json::json!(crc));
+    let e = error_of(bad);
+    assert!(e.contains("occupancy field's distance"), "{e}");
+    // The codec must come with its own entry.
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["codec"] = serde_json::json!("paper-svd")
+    }));
+    assert!(
+        e.contains("codec paper-svd needs exactly its own entry (gdm)"),
+        "{e}"
+    );
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["codec"] = serde_json::json!("jpeg")
+    }));
+    assert!(e.contains("unknown variant"), "{e}");
+    let e = error_of(with_manifest(&bytes, |m| {
+        m["sections"][0]["texture"]["format"] = serde_json::json!("r8unorm")
+    }));
+    assert!(e.contains("occupancy.distance"), "{e}");
 }
 
 #[test]
@@ -198,10 +279,17 @@ fn wrong_versions_and_absurd_sizes_get_clear_errors() {
     // Sanity: resealing an unchanged manifest keeps the package valid.
     assert!(Package::parse(with_manifest(&bytes, |_| {})).is_ok());
 
-    let mut v2 = bytes.clone();
-    v2[8..12].copy_from_slice(&2u32.to_le_bytes());
-    reseal_header(&mut v2);
-    assert!(error_of(v2).contains("unsupported package version 2"));
+    // Version 1 (before codecs) and any later version are refused by number.
+    for version in [1u32, 3] {
+        let mut other = bytes.clone();
+        other[8..12].copy_from_slice(&version.to_le_bytes());
+        reseal_header(&mut other);
+        let e = error_of(other);
+        assert!(
+            e.contains(&format!("format version {version} is not supported")),
+            "{e}"
+        );
+    }
 
     let mut huge = bytes.clone();
     huge[24..32].copy_from_slice(&(1u64 << 62).to_le_bytes());
@@ -249,7 +337,7 @@ fn a_huge_declared_grid_fails_on_the_memory_limit_not_on_allocation() {
     let bytes = Package::encode(
         input_info(),
         bake_info(&g, Method::Exact, Default::default(), false),
-        &c,
+        &GdmPayload::PaperSvd(c),
     );
     let bytes = with_manifest(&bytes, |m| {
         m["bake"]["res"] = serde_json::json!([65536, 65536, 65536]);

@@ -7,8 +7,9 @@
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
 use mesobake::package::Package;
+use mesobake::package::manifest::GdmCodec;
 use mesobake::realtime::gpu::Gpu;
-use mesobake::render::gdm_lookup::PackageLookup;
+use mesobake::render::gdm_lookup::package_lookup;
 use mesobake::render::gdm_renderer::GdmRenderer;
 use mesobake::render::image::{Image, compare};
 use mesobake::render::render_image;
@@ -39,25 +40,35 @@ fn load(path: &str, edit: impl FnOnce(&mut Scene)) -> LoadedScene {
     LoadedScene::load(scene, path.parent().unwrap(), &Limits::default()).unwrap()
 }
 
+/// A `paper-svd` package of the scene.
 fn package(loaded: &LoadedScene, rank: usize, quantization: Quantization) -> Package {
     let params = ScenePackageParams {
+        codec: GdmCodec::PaperSvd,
         rank: RankChoice::Rank(rank),
         quantization,
     };
     scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap()
 }
 
+/// The default package of the scene (the `occupancy` codec).
+fn default_package(loaded: &LoadedScene) -> Package {
+    let params = ScenePackageParams::default();
+    let p = scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap();
+    assert_eq!(p.manifest().codec, GdmCodec::Occupancy);
+    p
+}
+
 /// The CPU twin: the GDM software renderer on the package (with its RTV and PRT when the
 /// scene calls for environment lighting).
 fn cpu_image(loaded: &LoadedScene, package: &Package) -> Image {
-    let lookup = PackageLookup::new(package);
+    let lookup = package_lookup(package).unwrap();
     let scene = &loaded.scene;
     let gi = scene
         .wants(Effect::EnvironmentLighting)
         .then(|| GiShading::from_package(loaded, package).unwrap());
     let mut r = GdmRenderer::new(
         &loaded.shell,
-        &lookup,
+        &*lookup,
         &loaded.material,
         scene.gdm_refinements,
     );
@@ -103,7 +114,9 @@ fn torus_chain_matches_the_cpu_gdm_renderer() {
         s.camera.height = 256;
     });
     let p = package(&loaded, 8, Quantization::F16);
-    agreement(&loaded, &p, "torus-chain rank 8 f16, shadows");
+    agreement(&loaded, &p, "torus-chain paper-svd rank 8 f16, shadows");
+    let p = default_package(&loaded);
+    agreement(&loaded, &p, "torus-chain occupancy, shadows");
 }
 
 #[test]
@@ -131,7 +144,13 @@ fn the_environment_variant_matches_its_cpu_twin() {
         agreement(
             &loaded,
             &p,
-            &format!("plane-weave-sky, gloss {gloss}, RTV rank {stored}"),
+            &format!("plane-weave-sky paper-svd, gloss {gloss}, RTV rank {stored}"),
+        );
+        let p = default_package(&loaded);
+        agreement(
+            &loaded,
+            &p,
+            &format!("plane-weave-sky occupancy, gloss {gloss}, RTV rank {stored}"),
         );
         // The sky alone lights the scene (it has no other light), and lights it well.
         let cpu = cpu_image(&loaded, &p);
@@ -172,6 +191,9 @@ fn plane_weave_matches_with_refinements_and_partial_groups() {
         &p,
         "plane-weave rank 3 f32, refinements 2, no shadows",
     );
+    // The occupancy codec ignores refinements: its march is exact.
+    let p = default_package(&loaded);
+    agreement(&loaded, &p, "plane-weave occupancy, no shadows");
 }
 
 /// Every shader variant a scene can choose passes naga's validation, and only the shadow
@@ -204,9 +226,29 @@ fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for()
             .iter()
             .any(|(_, g)| g.name.as_deref() == Some(GI_BINDING));
         assert_eq!(has_rtv, variant.environment, "{}", variant.name());
+        let has = |name: &str| {
+            module
+                .functions
+                .iter()
+                .any(|(_, f)| f.name.as_deref() == Some(name))
+        };
+        assert_eq!(
+            has("march"),
+            variant.codec == GdmCodec::Occupancy,
+            "{}",
+            variant.name()
+        );
+        assert_eq!(
+            has("gdm_lookup"),
+            variant.codec == GdmCodec::PaperSvd,
+            "{}",
+            variant.name()
+        );
         count += 1;
     }
-    assert_eq!(count, 72);
+    // paper-svd: 4 effect combinations × 9 refinement counts × early-z or not; occupancy:
+    // 4 × 1 × 2.
+    assert_eq!(count, 80);
 }
 
 /// A scene without shadows builds the pipeline of the variant without shadow code; with

@@ -93,6 +93,7 @@ fn spec(sample: &str, rank: usize, dirs: [u32; 2]) -> JobSpec {
             "shell": { "thickness": 0.1, "tiles_per_uv": [2, 2] },
             "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 8, "height": 8 }
         },
+        "codec": "paper-svd",
         "rank": rank,
     }))
     .unwrap()

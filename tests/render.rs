@@ -603,7 +603,8 @@ fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
     };
     let info =
         mesobake::package::bake::bake_info(&raw, gdm::Method::Exact, Default::default(), false);
-    let package = Package::parse(Package::encode(input, info, &c.unwrap())).unwrap();
+    let payload = mesobake::package::GdmPayload::PaperSvd(c.unwrap());
+    let package = Package::parse(Package::encode(input, info, &payload)).unwrap();
     (raw, package)
 }
 
@@ -636,7 +637,7 @@ fn package_lookups_decide_escapes_like_raw_lookups() {
     // distance).
     use mesobake::render::gdm_lookup::{GdmLookup, Lookup, PackageLookup};
     let (raw, package) = packaged(&slab(3), 1);
-    let (from_package, from_raw) = (PackageLookup::new(&package), RawLookup::new(&raw));
+    let (from_package, from_raw) = (PackageLookup::new(&package).unwrap(), RawLookup::new(&raw));
     let (mut hits, mut escapes) = (0, 0);
     for (t, v) in random_queries(20_000) {
         let mixed = v.z > 0.0 && (2.5..=3.5).contains(&t.z);
@@ -673,7 +674,7 @@ fn package_lookups_interpolate_like_raw_lookups_at_full_rank() {
     })
     .unwrap();
     let (raw, package) = packaged(&steps, 128);
-    let (from_package, from_raw) = (PackageLookup::new(&package), RawLookup::new(&raw));
+    let (from_package, from_raw) = (PackageLookup::new(&package).unwrap(), RawLookup::new(&raw));
     let mut worst = 0.0f64;
     let mut checked = 0;
     for (t, v) in random_queries(5_000) {
@@ -690,5 +691,43 @@ fn package_lookups_interpolate_like_raw_lookups_at_full_rank() {
     assert!(
         checked > 1000 && worst < 1e-4,
         "{checked} queries, worst {worst}"
+    );
+}
+
+#[test]
+fn occupancy_lookups_are_exact_on_a_slab_against_the_closed_form() {
+    // Solid below z = 3 across the whole (periodic) tile: from t above it a downward ray hits
+    // after (t.z − 3)/(−v.z) and an upward one escapes; inside it the distance is 0. The
+    // closed form knows nothing of voxels, DDA or empty-space distances; the march must
+    // agree to round-off (1e-9 voxel), and a segment shorter than the distance misses.
+    use mesobake::compress::occupancy::OccupancyField;
+    use mesobake::render::gdm_lookup::{GdmLookup, Lookup, OccupancyLookup};
+    let lookup = OccupancyLookup::new(&OccupancyField::new(&slab(3).occupancy()));
+    let (mut hits, mut escapes) = (0, 0);
+    for (t, v) in random_queries(20_000) {
+        let expected = if t.z <= 3.0 {
+            Lookup::Hit(0.0)
+        } else if v.z < 0.0 {
+            Lookup::Hit((t.z - 3.0) / -v.z)
+        } else {
+            Lookup::Escape
+        };
+        match (lookup.lookup(t, v), expected) {
+            (Lookup::Hit(a), Lookup::Hit(b)) => {
+                assert!((a - b).abs() < 1e-9, "{t} {v}: {a} vs {b}");
+                let within = lookup.segment_hit(t, v, b + 0.01, 0);
+                assert!(within.is_some_and(|d| (d - b).abs() < 1e-9), "{t} {v}");
+                if b > 0.01 {
+                    assert_eq!(lookup.segment_hit(t, v, b - 0.01, 0), None, "{t} {v}");
+                }
+                hits += 1;
+            }
+            (Lookup::Escape, Lookup::Escape) => escapes += 1,
+            other => panic!("{t} {v}: march vs closed form {other:?}"),
+        }
+    }
+    assert!(
+        hits > 5000 && escapes > 5000,
+        "{hits} hits, {escapes} escapes"
     );
 }

@@ -102,7 +102,7 @@ async fn jobs_bake_once_report_progress_and_reuse_results() {
         let stop = Arc::new(AtomicBool::new(false));
         spawn_workers(&s.state, 1, &stop);
         let volume = upload(&s, SampleKind::Weave, [16, 16, 8]).await;
-        let spec = json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]), "rank": 4 });
+        let spec = json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]), "codec": "paper-svd", "rank": 4 });
         let (status, queued) = submit(&s, &spec).await;
         assert_eq!(status, 202, "{url}: {queued}");
         let id = queued["id"].as_str().unwrap().to_owned();
@@ -139,7 +139,7 @@ async fn jobs_bake_once_report_progress_and_reuse_results() {
         );
         let package = fetch_package(&s, &done).await;
         assert_eq!(package.dims(), Dims::new(16, 16, 8).unwrap());
-        assert_eq!(package.manifest().gdm.rank, 4);
+        assert_eq!(package.manifest().gdm.as_ref().unwrap().rank, 4);
         // Identical inputs: the same job, not a second bake; a different camera changes
         // nothing a package holds.
         let (status, again) = submit(&s, &spec).await;
@@ -226,14 +226,14 @@ async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
         "environment": { "exr": "sky.exr" },
         "effects": ["environment_lighting", "macro_shadows", "environment_gloss"]
     });
-    let (status, queued) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
+    let (status, queued) = submit(&s, &json!({ "scene": scene })).await;
     assert_eq!(status, 202, "{queued}");
     assert_eq!(
         queued["plan"]["stages"],
         json!([
             "load",
             "bake_gdm",
-            "compress",
+            "occupancy",
             "bake_prt",
             "bake_rtv",
             "compress_rtv",
@@ -257,14 +257,14 @@ async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
     // material changes the RTV, so it does not.
     scene["environment"] =
         json!({ "sky": { "overcast": { "zenith": [1, 1, 1], "ground": [0, 0, 0] } } });
-    let (_, same) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
+    let (_, same) = submit(&s, &json!({ "scene": scene })).await;
     assert_eq!(same["id"], id.as_str());
     // The preview renders the package under the scene's sky; an EXR environment, which the
     // server cannot take, is refused before any job is queued.
     let preview = |scene: &Value| {
         reqwest::Client::new()
             .post(s.url("/api/v1/preview"))
-            .json(&json!({ "scene": scene, "rank": 4 }))
+            .json(&json!({ "scene": scene }))
             .send()
     };
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() != Ok("1") {
@@ -278,7 +278,7 @@ async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
     assert_eq!(r.status(), 422);
     assert!(r.text().await.unwrap().contains("EXR"));
     scene["material"]["albedo"] = json!([0.5, 0.5, 0.5]);
-    let (_, other) = submit(&s, &json!({ "scene": scene, "rank": 4 })).await;
+    let (_, other) = submit(&s, &json!({ "scene": scene })).await;
     assert_ne!(other["id"], id.as_str());
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
@@ -375,7 +375,8 @@ async fn previews_render_once_the_package_is_baked() {
     let data = tempfile::tempdir().unwrap();
     let s = TestServer::start(&url, data.path(), 1 << 24).await;
     let volume = upload(&s, SampleKind::Weave, [16, 16, 8]).await;
-    let spec = json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]), "rank": 4 });
+    let spec =
+        json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]), "codec": "paper-svd", "rank": 4 });
     let client = reqwest::Client::new();
     let ask = || client.post(s.url("/api/v1/preview")).json(&spec).send();
     // No worker yet: the package is not baked, and the answer says which job bakes it.
@@ -528,6 +529,8 @@ async fn the_ci_client_bakes_on_the_server_and_verifies_downloads() {
         input.to_str().unwrap(),
         "--dirs",
         "8x16",
+        "--gdm-codec",
+        "paper-svd",
         "--rank",
         "3",
         "--out",
@@ -543,7 +546,13 @@ async fn the_ci_client_bakes_on_the_server_and_verifies_downloads() {
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(mesobake::server::blobs::key_of(&bytes), digest);
     assert_eq!(
-        Package::parse(bytes.clone()).unwrap().manifest().gdm.rank,
+        Package::parse(bytes.clone())
+            .unwrap()
+            .manifest()
+            .gdm
+            .as_ref()
+            .unwrap()
+            .rank,
         3
     );
     // Without a key the server refuses, and the client says so.

@@ -290,7 +290,7 @@ async fn the_queue_has_a_cap_and_resubmissions_pass_it() {
         let first = json!({ "scene": scene() });
         let (status, _, _) = post_json(&s, "/api/v1/jobs", &first).await;
         assert_eq!(status, 202);
-        let second = json!({ "scene": scene(), "rank": 4 });
+        let second = json!({ "scene": scene(), "codec": "paper-svd", "rank": 4 });
         let (status, answer, headers) = post_json(&s, "/api/v1/jobs", &second).await;
         assert_eq!(status, 429, "{answer}");
         assert!(

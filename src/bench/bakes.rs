@@ -15,8 +15,8 @@ use crate::error::Result;
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::samples::{self, SampleKind};
-use crate::package::Package;
 use crate::package::manifest::InputInfo;
+use crate::package::{GdmPayload, Package};
 use crate::util::limits::Limits;
 use std::time::Instant;
 
@@ -380,7 +380,7 @@ pub fn run_package(limits: &Limits) -> Result<Vec<PackageRow>> {
             setting,
             rank: c.svd.rank,
             quantization: q,
-            bytes: Package::encode(input.clone(), info, &c).len(),
+            bytes: Package::encode(input.clone(), info, &GdmPayload::PaperSvd(c.clone())).len(),
             accuracy: c.accuracy,
         })
     };

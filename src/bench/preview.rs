@@ -1,12 +1,13 @@
 //! `mesobake bench preview`: the real-time pipeline's frame time against the CPU GDM software
-//! renderer on the same scene and package, in the same run, over image sizes and volume
-//! depths, with and without the early depth test.
+//! renderer on the same scene and package, in the same run, over every GDM codec, image sizes
+//! and volume depths, with and without the early depth test.
 
 use crate::bake::gdm::BakeObserver;
 use crate::error::Result;
+use crate::package::manifest::GdmCodec;
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
-use crate::render::gdm_lookup::PackageLookup;
+use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::render_image;
 use crate::scene::package::{ScenePackageParams, scene_package};
@@ -19,6 +20,8 @@ use std::time::Instant;
 /// One measured configuration.
 #[derive(Clone, Debug, Serialize)]
 pub struct PreviewBenchRow {
+    /// The package's GDM codec.
+    pub codec: GdmCodec,
     /// Image side in pixels (square images).
     pub size: u32,
     /// Volume depth Z (layers).
@@ -49,47 +52,48 @@ pub fn run(
         let mut scene = base.clone();
         scene.resolution[2] = depth;
         let mut loaded = LoadedScene::load(scene, dir, limits)?;
-        let package = scene_package(
-            &loaded,
-            dir,
-            ScenePackageParams::default(),
-            limits,
-            observer,
-        )?;
-        let lookup = PackageLookup::new(&package);
-        for &size in sizes {
-            loaded.scene.camera.width = size;
-            loaded.scene.camera.height = size;
-            let scene = &loaded.scene;
-            let start = Instant::now();
-            let r = GdmRenderer::new(
-                &loaded.shell,
-                &lookup,
-                &loaded.material,
-                scene.gdm_refinements,
-            );
-            render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
-            let cpu_seconds = start.elapsed().as_secs_f64();
-            let time = |early_z: bool| -> Result<(bool, f64)> {
-                let preview = Preview::new(&gpu, &loaded, &package, early_z)?;
-                Ok((
-                    preview.variant().early_depth_test,
-                    preview.time_frames(frames)?,
-                ))
+        for codec in GdmCodec::ALL {
+            let params = ScenePackageParams {
+                codec,
+                ..ScenePackageParams::default()
             };
-            let (has_early_z, gpu_seconds) = time(true)?;
-            let gpu_seconds_without_early_z = if has_early_z {
-                Some(time(false)?.1)
-            } else {
-                None
-            };
-            rows.push(PreviewBenchRow {
-                size,
-                depth,
-                cpu_seconds,
-                gpu_seconds,
-                gpu_seconds_without_early_z,
-            });
+            let package = scene_package(&loaded, dir, params, limits, observer)?;
+            let lookup = package_lookup(&package)?;
+            for &size in sizes {
+                loaded.scene.camera.width = size;
+                loaded.scene.camera.height = size;
+                let scene = &loaded.scene;
+                let start = Instant::now();
+                let r = GdmRenderer::new(
+                    &loaded.shell,
+                    &*lookup,
+                    &loaded.material,
+                    scene.gdm_refinements,
+                );
+                render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+                let cpu_seconds = start.elapsed().as_secs_f64();
+                let time = |early_z: bool| -> Result<(bool, f64)> {
+                    let preview = Preview::new(&gpu, &loaded, &package, early_z)?;
+                    Ok((
+                        preview.variant().early_depth_test,
+                        preview.time_frames(frames)?,
+                    ))
+                };
+                let (has_early_z, gpu_seconds) = time(true)?;
+                let gpu_seconds_without_early_z = if has_early_z {
+                    Some(time(false)?.1)
+                } else {
+                    None
+                };
+                rows.push(PreviewBenchRow {
+                    codec,
+                    size,
+                    depth,
+                    cpu_seconds,
+                    gpu_seconds,
+                    gpu_seconds_without_early_z,
+                });
+            }
         }
     }
     Ok((gpu.adapter, rows))
@@ -101,11 +105,11 @@ pub fn markdown(adapter: &AdapterDescription, rows: &[PreviewBenchRow]) -> Strin
         "Adapter: {} ({}, {}, {})\n\n",
         adapter.name, adapter.backend, adapter.device_type, adapter.driver
     );
-    out += "| image | Z | CPU GDM renderer (s) | real-time frame (ms) | FPS | CPU / real-time | frame without early-z (ms) |\n";
-    out += "|---:|---:|---:|---:|---:|---:|---:|\n";
+    out += "| codec | image | Z | CPU GDM renderer (s) | real-time frame (ms) | FPS | CPU / real-time | frame without early-z (ms) |\n";
+    out += "|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         out += &format!(
-            "| {0}×{0} | {1} | {2:.3} | {3:.2} | {4:.1} | {5:.2} | {6} |\n",
+            "| {7} | {0}×{0} | {1} | {2:.3} | {3:.2} | {4:.1} | {5:.2} | {6} |\n",
             r.size,
             r.depth,
             r.cpu_seconds,
@@ -113,7 +117,8 @@ pub fn markdown(adapter: &AdapterDescription, rows: &[PreviewBenchRow]) -> Strin
             1.0 / r.gpu_seconds,
             r.cpu_seconds / r.gpu_seconds,
             r.gpu_seconds_without_early_z
-                .map_or("—".to_owned(), |t| format!("{:.2}", t * 1e3))
+                .map_or("—".to_owned(), |t| format!("{:.2}", t * 1e3)),
+            r.codec
         );
     }
     out

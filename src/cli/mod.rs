@@ -3,6 +3,7 @@
 //! JSON summaries).
 
 pub mod bench;
+pub mod codec;
 pub mod explicit;
 pub mod gdm;
 pub mod output;

@@ -2,16 +2,16 @@
 //! server), `mesobake fetch` (a verified download) and `mesobake unpack` (a package back to
 //! `.npy` and EXR).
 
+use super::codec::CodecOptions;
 use super::gdm::BakeOptions;
 use super::output::{Progress, print_json};
 use mesobake::bake::gdm::Method;
 use mesobake::client::Client;
-use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::RankChoice;
 use mesobake::grid::Dims;
-use mesobake::package::Package;
 use mesobake::package::bake::{PackageParams, bake_package};
-use mesobake::scene::package::{ScenePackageParams, bake_scene_package};
+use mesobake::package::{GdmPayload, Package};
+use mesobake::scene::package::bake_scene_package;
 use mesobake::scene::render::load_scene;
 use mesobake::util::fs::write_atomic;
 use mesobake::util::limits::Limits;
@@ -33,15 +33,12 @@ pub struct BakeArgs {
     /// Output package (.mbpkg).
     #[arg(long)]
     out: PathBuf,
-    /// SVD components to keep [default: 8].
-    #[arg(long, conflicts_with = "max_rmse")]
-    rank: Option<usize>,
-    /// Keep the fewest components whose optimal RMSE (voxels) is at most this.
-    #[arg(long)]
+    #[command(flatten)]
+    codec: CodecOptions,
+    /// Keep the fewest SVD components whose optimal RMSE (voxels) is at most this, paper-svd
+    /// only.
+    #[arg(long, conflicts_with = "rank")]
     max_rmse: Option<f64>,
-    /// Number format of weight maps and eigenmaps: f32, f16, or u8 (per-map scale and bias).
-    #[arg(long, default_value = "f16")]
-    quant: Quantization,
     /// Print a JSON summary (sizes, rank, errors, seconds per stage) on stdout.
     #[arg(long)]
     json: bool,
@@ -56,6 +53,8 @@ pub struct BakeArgs {
 
 /// Bakes a scene's package, an input's package on a server, or an input's package here.
 pub fn bake(args: BakeArgs, limits: &Limits) -> Result<()> {
+    args.codec
+        .check(args.max_rmse.is_some().then_some("--max-rmse"))?;
     if let Some(scene) = &args.scene {
         return bake_scene(scene, &args, limits);
     }
@@ -67,16 +66,13 @@ pub fn bake(args: BakeArgs, limits: &Limits) -> Result<()> {
 
 /// `bake --scene`: the stages the scene's effects call for.
 fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
-    let (out, quant) = (&args.out, args.quant);
+    let out = &args.out;
     let start = Instant::now();
     let loaded = load_scene(scene, limits)?;
     let load_s = start.elapsed().as_secs_f64();
-    let params = ScenePackageParams {
-        rank: RankChoice::Rank(args.rank.unwrap_or(8)),
-        quantization: quant,
-    };
+    let params = args.codec.scene_params();
     let dir = scene.parent().unwrap_or(Path::new("."));
-    let progress = Progress::new("baking GDM");
+    let progress = Progress::new("baking");
     let baked = bake_scene_package(&loaded, dir, params, limits, &progress)?;
     progress.finish();
     let start = Instant::now();
@@ -101,12 +97,7 @@ fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
             "bytes": baked.bytes.len(),
             "plan": baked.plan,
             "seconds": seconds,
-            "gdm": {
-                "rank": baked.gdm.svd.rank,
-                "quantization": quant,
-                "accuracy": baked.gdm.accuracy,
-                "svd_rmse": baked.gdm.svd.optimal_rmse(baked.gdm.svd.rank),
-            },
+            "gdm": payload_summary(&baked.gdm),
             "gi": baked.gi,
         }));
     }
@@ -134,7 +125,14 @@ fn bake_on_server(server: &str, api_key: Option<String>, args: &BakeArgs) -> Res
                 .map_err(|_| Error::InvalidParameter("--res is required for OBJ tiles".into()))?
         }
     };
-    let job = client.submit(&asset, res, bake.dirs, args.rank.unwrap_or(8), args.quant)?;
+    let job = client.submit(
+        &asset,
+        res,
+        bake.dirs,
+        args.codec.gdm_codec,
+        args.codec.rank(),
+        args.codec.quant.unwrap_or_default(),
+    )?;
     let id = job["id"].as_str().unwrap_or_default().to_owned();
     let bar = Progress::new(&format!("job {}", &id[..8.min(id.len())]));
     let done = client.wait(&id, |j| {
@@ -160,47 +158,72 @@ fn bake_on_server(server: &str, api_key: Option<String>, args: &BakeArgs) -> Res
     Ok(())
 }
 
+/// What a package's GDM payload is, for `--json`: the codec, and the SVD's rank, format and
+/// measured error, or the occupancy's solid voxels.
+fn payload_summary(payload: &GdmPayload) -> serde_json::Value {
+    match payload {
+        GdmPayload::PaperSvd(g) => serde_json::json!({
+            "codec": payload.codec(),
+            "rank": g.svd.rank,
+            "quantization": g.weights.format,
+            "accuracy": g.accuracy,
+            "svd_rmse": g.svd.optimal_rmse(g.svd.rank),
+        }),
+        GdmPayload::Occupancy(field) => serde_json::json!({
+            "codec": payload.codec(),
+            "solid_voxels": field.solid_voxels(),
+        }),
+    }
+}
+
 /// `bake --input`: bake, compress, measure and write here.
 fn bake_input(args: &BakeArgs, limits: &Limits) -> Result<()> {
-    let (bake, out, quant) = (&args.bake, &args.out, args.quant);
+    let (bake, out) = (&args.bake, &args.out);
     let params = PackageParams {
         res: bake.res,
         dirs: bake.dirs,
+        codec: args.codec.gdm_codec,
         method: bake.method,
         fast: bake.fast(),
         rank: match args.max_rmse {
             Some(e) => RankChoice::MaxRmse(e),
-            None => RankChoice::Rank(args.rank.unwrap_or(8)),
+            None => RankChoice::Rank(args.codec.rank()),
         },
-        quantization: quant,
+        quantization: args.codec.quant.unwrap_or_default(),
         allow_open: bake.allow_open,
     };
-    let progress = Progress::new("baking GDM");
+    let progress = Progress::new("baking");
     let baked = bake_package(bake.input()?, &params, limits, &progress)?;
     progress.finish();
     let start = Instant::now();
     write_atomic(out, &baked.bytes)?;
     let write_s = start.elapsed().as_secs_f64();
-    let a = &baked.gdm.accuracy;
-    eprintln!(
-        "wrote {} ({} bytes): rank {}, {quant}, RMSE {:.4} voxel, max {:.3}, \
-         hit/escape flips {:.4} %",
-        out.display(),
-        baked.bytes.len(),
-        baked.gdm.svd.rank,
-        a.rmse,
-        a.max_abs,
-        100.0 * a.flip_rate
-    );
+    match &baked.gdm {
+        GdmPayload::PaperSvd(g) => eprintln!(
+            "wrote {} ({} bytes): paper-svd, rank {}, {}, RMSE {:.4} voxel, max {:.3}, \
+             hit/escape flips {:.4} %",
+            out.display(),
+            baked.bytes.len(),
+            g.svd.rank,
+            g.weights.format,
+            g.accuracy.rmse,
+            g.accuracy.max_abs,
+            100.0 * g.accuracy.flip_rate
+        ),
+        GdmPayload::Occupancy(field) => eprintln!(
+            "wrote {} ({} bytes): occupancy, {} solid voxels of {}",
+            out.display(),
+            baked.bytes.len(),
+            field.solid_voxels(),
+            field.dims().voxel_count()
+        ),
+    }
     if args.json {
         print_json(&serde_json::json!({
             "input": bake.input,
             "output": out,
             "bytes": baked.bytes.len(),
-            "rank": baked.gdm.svd.rank,
-            "quantization": quant,
-            "accuracy": a,
-            "svd_rmse": baked.gdm.svd.optimal_rmse(baked.gdm.svd.rank),
+            "gdm": payload_summary(&baked.gdm),
             "seconds": {
                 "load": baked.seconds.load,
                 "bake": baked.seconds.bake,

@@ -1,12 +1,11 @@
 //! `mesobake preview`: a scene through the real-time pipeline (WGSL on wgpu, headless).
 
+use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
 use mesobake::Result;
-use mesobake::compress::quantize::Quantization;
-use mesobake::compress::svd::RankChoice;
 use mesobake::package::Package;
 use mesobake::realtime::gpu::Gpu;
-use mesobake::scene::package::{ScenePackageParams, scene_package};
+use mesobake::scene::package::scene_package;
 use mesobake::scene::preview::preview as render_preview;
 use mesobake::scene::render::load_scene;
 use mesobake::util::limits::Limits;
@@ -25,12 +24,9 @@ pub struct PreviewArgs {
     /// Render from this package (its grid must be the scene's) instead of baking one.
     #[arg(long)]
     package: Option<PathBuf>,
-    /// SVD components of the baked package.
-    #[arg(long, default_value_t = 8, conflicts_with = "package")]
-    rank: usize,
-    /// Number format of the baked package: f32, f16 or u8.
-    #[arg(long, default_value = "f16", conflicts_with = "package")]
-    quant: Quantization,
+    /// How the package baked for the scene (without --package) answers GDM queries.
+    #[command(flatten)]
+    codec: CodecOptions,
     /// Also render this many frames and report the mean frame time.
     #[arg(long, default_value_t = 0)]
     frames: u32,
@@ -49,12 +45,21 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         scene,
         out,
         package,
-        rank,
-        quant,
+        codec,
         frames,
         adapter,
         json,
     } = args;
+    codec.check(None)?;
+    if package.is_some()
+        && (codec.rank.is_some() || codec.quant.is_some() || codec.gdm_codec != Default::default())
+    {
+        return Err(mesobake::Error::InvalidParameter(
+            "--gdm-codec, --rank and --quant choose the package baked for the scene; \
+             --package renders a package as it is"
+                .into(),
+        ));
+    }
     let start = Instant::now();
     let loaded = load_scene(&scene, limits)?;
     let load_s = start.elapsed().as_secs_f64();
@@ -62,13 +67,9 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     let package = match &package {
         Some(path) => Package::read(path, limits)?,
         None => {
-            let progress = Progress::new("baking GDM (exact)");
-            let params = ScenePackageParams {
-                rank: RankChoice::Rank(rank),
-                quantization: quant,
-            };
+            let progress = Progress::new("baking the package");
             let dir = scene.parent().unwrap_or(Path::new("."));
-            let p = scene_package(&loaded, dir, params, limits, &progress)?;
+            let p = scene_package(&loaded, dir, codec.scene_params(), limits, &progress)?;
             progress.finish();
             p
         }

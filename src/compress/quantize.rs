@@ -9,13 +9,16 @@
 use crate::error::{Error, Result};
 use half::f16;
 
-/// The number format of quantized maps.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+/// The number format of quantized maps (f16 by default).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
 #[serde(rename_all = "lowercase")]
 pub enum Quantization {
     /// 32-bit float (no quantization).
     F32,
     /// 16-bit float (IEEE binary16, round to nearest even).
+    #[default]
     F16,
     /// 8-bit unsigned normalized code with a per-map scale and bias.
     U8,

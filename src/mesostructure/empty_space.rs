@@ -62,6 +62,11 @@ impl EmptySpace {
         }
     }
 
+    /// Every voxel's distance, x fastest, then y, then z.
+    pub fn distances(&self) -> &[u8] {
+        &self.distance
+    }
+
     /// Distance at voxel (i, j, k) with i, j wrapped and 0 ≤ k < Z.
     #[inline]
     pub fn get(&self, i: i64, j: i64, k: i64) -> u8 {

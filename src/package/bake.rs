@@ -1,17 +1,20 @@
-//! From an input file to a package: load, bake, compress, encode. The stages `mesobake bake`
+//! From an input file to a package: load, bake, compress, encode (or, for the occupancy
+//! codec, load, encode the occupancy field, encode). The stages `mesobake bake`
 //! runs (and that the server will queue), with the time each takes.
 
 use crate::bake::gdm::fast::FastParams;
 use crate::bake::gdm::{self, BakeObserver, EscapeConvention, Gdm, Method};
 use crate::compress::gdm::{CompressedGdm, compress};
 use crate::compress::layout::GdmRows;
+use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::{GramEigen, RankChoice};
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::input::{self, Mesostructure};
-use crate::package::Package;
+use crate::package::manifest::GdmCodec;
 use crate::package::manifest::{BakeInfo, InputInfo};
+use crate::package::{GdmPayload, Package};
 use crate::util::limits::Limits;
 use std::path::Path;
 use std::time::Instant;
@@ -23,7 +26,9 @@ pub struct PackageParams {
     pub res: Option<Dims>,
     /// Direction grid.
     pub dirs: DirectionGrid,
-    /// Baking algorithm.
+    /// What answers the renderers' GDM queries.
+    pub codec: GdmCodec,
+    /// Baking algorithm (of `paper-svd`'s GDM).
     pub method: Method,
     /// Knobs of [`Method::Fast`].
     pub fast: FastParams,
@@ -35,12 +40,39 @@ pub struct PackageParams {
     pub allow_open: bool,
 }
 
+/// The largest SVD rank a bake may ask for, on the command line and on the server alike.
+pub const MAX_RANK: usize = 64;
+
+/// Checks the codec options a bake asks for, the same for every door (CLI and server): an SVD
+/// size (`rank`, `quantization`) only with `paper-svd`, and a rank in 1..=[`MAX_RANK`].
+pub fn check_codec_options(
+    codec: GdmCodec,
+    rank: Option<usize>,
+    quantization: Option<Quantization>,
+) -> Result<()> {
+    if codec != GdmCodec::PaperSvd {
+        let given = [rank.map(|_| "rank"), quantization.map(|_| "quantization")];
+        if let Some(option) = given.into_iter().flatten().next() {
+            return Err(Error::InvalidParameter(format!(
+                "{option} sizes the paper-svd codec's SVD, but the codec is {codec}: ask for \
+                 the paper-svd codec, or leave {option} out"
+            )));
+        }
+    }
+    match rank {
+        Some(k) if !(1..=MAX_RANK).contains(&k) => Err(Error::InvalidParameter(format!(
+            "rank must be in 1..={MAX_RANK}, got {k}"
+        ))),
+        _ => Ok(()),
+    }
+}
+
 /// Seconds spent in each stage.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct StageSeconds {
     /// Reading, hashing and preparing the input.
     pub load: f64,
-    /// Baking the GDM.
+    /// Baking the GDM (`paper-svd`), or encoding the occupancy field (`occupancy`).
     pub bake: f64,
     /// The truncated SVD (Gram matrix, eigendecomposition and projection).
     pub svd: f64,
@@ -54,8 +86,8 @@ pub struct StageSeconds {
 pub struct BakedPackage {
     /// The package's bytes.
     pub bytes: Vec<u8>,
-    /// The compressed GDM they encode.
-    pub gdm: CompressedGdm,
+    /// The GDM payload they encode.
+    pub gdm: GdmPayload,
     /// Time per stage.
     pub seconds: StageSeconds,
 }
@@ -111,6 +143,27 @@ pub fn bake_package(
     seconds.load = start.elapsed().as_secs_f64();
 
     let start = Instant::now();
+    if params.codec == GdmCodec::Occupancy {
+        observer.stage("occupancy");
+        let field = OccupancyField::new(meso.caster().centres_inside());
+        let info = BakeInfo {
+            res: [field.dims().x, field.dims().y, field.dims().z],
+            dirs: [params.dirs.n_theta, params.dirs.n_phi],
+            method: params.method,
+            fast: None,
+            allow_open: params.allow_open,
+        };
+        let gdm = GdmPayload::Occupancy(field);
+        seconds.bake = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let bytes = Package::encode(input, info, &gdm);
+        seconds.encode = start.elapsed().as_secs_f64();
+        return Ok(BakedPackage {
+            bytes,
+            gdm,
+            seconds,
+        });
+    }
     let mut g = gdm::bake(
         meso.caster(),
         params.dirs,
@@ -123,7 +176,7 @@ pub fn bake_package(
     seconds.bake = start.elapsed().as_secs_f64();
 
     let info = bake_info(&g, params.method, params.fast, params.allow_open);
-    let gdm = compress_gdm(&g, params, limits, observer, &mut seconds)?;
+    let gdm = GdmPayload::PaperSvd(compress_gdm(&g, params, limits, observer, &mut seconds)?);
     let start = Instant::now();
     let bytes = Package::encode(input, info, &gdm);
     seconds.encode = start.elapsed().as_secs_f64();

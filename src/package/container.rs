@@ -9,7 +9,7 @@ use crate::error::{Error, Result};
 pub const MAGIC: [u8; 8] = *b"\x89MBPKG\r\n";
 
 /// The container version this build writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// Bytes in the fixed header.
 pub const HEADER_BYTES: usize = 64;
@@ -83,7 +83,7 @@ pub fn parse(bytes: &[u8]) -> Result<Manifest> {
     let version = u32_at(8);
     if version != VERSION {
         return Err(invalid(format!(
-            "unsupported package version {version} (this build reads version {VERSION})"
+            "package format version {version} is not supported (this build reads version {VERSION}; bake the package again)"
         )));
     }
     if u32_at(12) != HEADER_BYTES as u32

@@ -32,7 +32,13 @@ fn column(values: &[f32], rank: usize, c: usize) -> Vec<f32> {
 /// Writes the weight maps and eigenmaps of `package` to `path`.
 pub fn write_factors(package: &Package, path: &Path) -> Result<()> {
     let (dims, dirs) = (package.dims(), package.dirs());
-    let (w, e) = package.factors();
+    let Some((w, e)) = package.factors() else {
+        return Err(Error::InvalidParameter(format!(
+            "the package's codec is {}: it has no factor maps to export (bake it with \
+             --gdm-codec paper-svd)",
+            package.manifest().codec
+        )));
+    };
     let rank = w.rank;
     if rank == 0 {
         return Err(Error::InvalidParameter(

@@ -100,16 +100,7 @@ pub(super) fn sections(gi: &GiPayload, dims: Dims, dirs: DirectionGrid) -> Vec<(
     textures(&gi.info, dims, dirs)
         .into_iter()
         .zip(payloads)
-        .map(|((name, texture), bytes)| {
-            let section = Section {
-                name: name.into(),
-                offset: 0,
-                bytes: 0,
-                crc32: 0,
-                texture,
-            };
-            (section, bytes)
-        })
+        .map(|((name, texture), bytes)| (Section::new(name, texture), bytes))
         .collect()
 }
 

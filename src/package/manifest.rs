@@ -28,8 +28,15 @@ pub struct Manifest {
     pub input: InputInfo,
     /// How the GDM was baked.
     pub bake: BakeInfo,
-    /// The compressed GDM.
-    pub gdm: GdmInfo,
+    /// What answers the renderers' GDM queries: `gdm` for `paper-svd`, `occupancy` for
+    /// `occupancy`.
+    pub codec: GdmCodec,
+    /// The SVD-compressed GDM (codec `paper-svd`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gdm: Option<GdmInfo>,
+    /// The voxel occupancy with its empty-space distances (codec `occupancy`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occupancy: Option<OccupancyInfo>,
     /// The radiance transfer, present when the scene called for environment lighting.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gi: Option<GiInfo>,
@@ -47,6 +54,67 @@ pub struct InputInfo {
     pub bytes: u64,
     /// BLAKE3 hash of the input file's bytes, lowercase hex.
     pub blake3: String,
+}
+
+/// How a package answers the per-pixel algorithm's GDM queries d(x, y, z, θ, φ).
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum GdmCodec {
+    /// The paper's: the baked GDM as one truncated SVD, weight maps W(x, y, φ) times
+    /// eigenmaps E(θ, z), each query an interpolated reconstruction.
+    PaperSvd,
+    /// The voxel occupancy with its empty-space distances, ray-marched exactly along each
+    /// query (see `compress::occupancy`): the default.
+    #[default]
+    Occupancy,
+}
+
+impl GdmCodec {
+    /// Every codec, the default first.
+    pub const ALL: [GdmCodec; 2] = [GdmCodec::Occupancy, GdmCodec::PaperSvd];
+
+    /// The name used in manifests, on the command line and in job requests.
+    pub fn name(self) -> &'static str {
+        match self {
+            GdmCodec::PaperSvd => "paper-svd",
+            GdmCodec::Occupancy => "occupancy",
+        }
+    }
+}
+
+impl std::str::FromStr for GdmCodec {
+    type Err = crate::error::Error;
+
+    fn from_str(text: &str) -> crate::error::Result<GdmCodec> {
+        GdmCodec::ALL
+            .into_iter()
+            .find(|c| c.name() == text)
+            .ok_or_else(|| {
+                crate::error::Error::InvalidParameter(format!(
+                    "GDM codec {text:?}: expected occupancy or paper-svd"
+                ))
+            })
+    }
+}
+
+impl std::fmt::Display for GdmCodec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The occupancy codec's section.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OccupancyInfo {
+    /// The section holding one `r8uint` texel per voxel: 0 solid, else the Chebyshev
+    /// distance in voxels to the nearest solid voxel (periodic in x and y, layers outside the
+    /// grid empty), 255 meaning at least 255.
+    pub section: String,
+    /// Solid voxels (the zeros of the section).
+    pub solid_voxels: u64,
 }
 
 /// The bake parameters.
@@ -139,6 +207,19 @@ pub struct Section {
     pub texture: Texture,
 }
 
+impl Section {
+    /// A section named `name` holding `texture`, placed by [`super::container::assemble`].
+    pub fn new(name: &str, texture: Texture) -> Section {
+        Section {
+            name: name.into(),
+            offset: 0,
+            bytes: 0,
+            crc32: 0,
+            texture,
+        }
+    }
+}
+
 /// A texture with tightly packed texels: `width` texels per row (x fastest), `height` rows
 /// per image, `depth` images.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -185,6 +266,7 @@ pub enum TexelFormat {
     R8unorm,
     Rg8unorm,
     Rgba8unorm,
+    R8uint,
     R32uint,
 }
 
@@ -208,7 +290,7 @@ impl TexelFormat {
     pub fn channels(self) -> u32 {
         use TexelFormat::*;
         match self {
-            R32float | R16float | R8unorm | R32uint => 1,
+            R32float | R16float | R8unorm | R8uint | R32uint => 1,
             Rg32float | Rg16float | Rg8unorm => 2,
             Rgba32float | Rgba16float | Rgba8unorm => 4,
         }
@@ -220,7 +302,7 @@ impl TexelFormat {
         let per_channel = match self {
             R32float | Rg32float | Rgba32float | R32uint => 4,
             R16float | Rg16float | Rgba16float => 2,
-            R8unorm | Rg8unorm | Rgba8unorm => 1,
+            R8unorm | Rg8unorm | Rgba8unorm | R8uint => 1,
         };
         per_channel * self.channels()
     }

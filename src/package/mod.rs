@@ -8,17 +8,19 @@ pub mod exr_export;
 pub mod gi;
 pub mod manifest;
 
-use crate::bake::gdm::{EscapeConvention, Gdm};
+use crate::bake::gdm::volume_caster::VolumeCaster;
+use crate::bake::gdm::{EscapeConvention, Gdm, exact};
 use crate::compress::accuracy::{MAX_MARGIN, resolve_escapes};
 use crate::compress::gdm::CompressedGdm;
+use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::{Quantization, QuantizedFactor};
 use crate::compress::svd::gemm;
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::util::limits::Limits;
 use manifest::{
-    BakeInfo, FORMAT_NAME, FactorInfo, GdmInfo, InputInfo, Manifest, Section, TexelFormat, Texture,
-    TextureDimension,
+    BakeInfo, FORMAT_NAME, FactorInfo, GdmCodec, GdmInfo, InputInfo, Manifest, OccupancyInfo,
+    Section, TexelFormat, Texture, TextureDimension,
 };
 use rayon::prelude::*;
 use std::path::Path;
@@ -77,9 +79,150 @@ fn pack(factor: &QuantizedFactor, group: usize, texture: &Texture) -> Vec<u8> {
     bytes
 }
 
+/// What a package holds to answer GDM queries, by codec.
+#[derive(Clone, Debug)]
+pub enum GdmPayload {
+    /// [`GdmCodec::PaperSvd`]: the compressed GDM.
+    PaperSvd(CompressedGdm),
+    /// [`GdmCodec::Occupancy`]: the occupancy field.
+    Occupancy(OccupancyField),
+}
+
+impl GdmPayload {
+    /// The codec.
+    pub fn codec(&self) -> GdmCodec {
+        match self {
+            GdmPayload::PaperSvd(_) => GdmCodec::PaperSvd,
+            GdmPayload::Occupancy(_) => GdmCodec::Occupancy,
+        }
+    }
+
+    /// The compressed GDM, for [`GdmCodec::PaperSvd`].
+    pub fn compressed(&self) -> Option<&CompressedGdm> {
+        match self {
+            GdmPayload::PaperSvd(gdm) => Some(gdm),
+            GdmPayload::Occupancy(_) => None,
+        }
+    }
+}
+
+/// The name of the occupancy codec's section.
+pub const OCCUPANCY_SECTION: &str = "occupancy.distance";
+
+/// The texture of the occupancy codec's section on the grid `dims`.
+fn occupancy_texture(dims: Dims) -> Texture {
+    Texture {
+        dimension: TextureDimension::D3,
+        format: TexelFormat::R8uint,
+        width: dims.x,
+        height: dims.y,
+        depth: dims.z,
+    }
+}
+
+/// The sections and manifest entry of a compressed GDM.
+fn svd_sections(
+    gdm: &CompressedGdm,
+    dims: Dims,
+    dirs: DirectionGrid,
+    sections: &mut Vec<Section>,
+    payloads: &mut Vec<Vec<u8>>,
+) -> GdmInfo {
+    let (q, rank) = (gdm.weights.format, gdm.svd.rank);
+    let groups = rank.div_ceil(CHANNELS);
+    let mut factor_info = |name: &str, factor: &QuantizedFactor, weights: bool| {
+        let names: Vec<String> = (0..groups).map(|g| format!("gdm.{name}.{g}")).collect();
+        for (g, section) in names.iter().enumerate() {
+            let texture = factor_texture(weights, q, rank, g, dims, dirs);
+            payloads.push(pack(factor, g, &texture));
+            sections.push(Section::new(section, texture));
+        }
+        FactorInfo {
+            sections: names,
+            scale: factor.scale.clone(),
+            bias: factor.bias.clone(),
+        }
+    };
+    let weights = factor_info("weights", &gdm.weights, true);
+    let eigen = factor_info("eigen", &gdm.eigen, false);
+    GdmInfo {
+        rank_choice: gdm.rank_choice,
+        rank: gdm.svd.rank as u32,
+        spectrum: gdm.svd.spectrum.clone(),
+        quantization: gdm.weights.format,
+        weights,
+        eigen,
+        accuracy: gdm.accuracy,
+        svd_rmse: gdm.svd.optimal_rmse(gdm.svd.rank),
+    }
+}
+
+/// Checks the manifest entry of a compressed GDM against the grids and the sections.
+fn validate_svd(
+    g: &GdmInfo,
+    sections: &[Section],
+    dims: Dims,
+    dirs: DirectionGrid,
+    bad: impl Fn(String) -> Error,
+) -> Result<()> {
+    let (m, n) = (
+        dims.x as u64 * dims.y as u64 * dirs.n_phi as u64,
+        dims.z as u64 * dirs.n_theta as u64,
+    );
+    let rank = g.rank as usize;
+    if g.rank as u64 > m.min(n) {
+        return Err(bad(format!("rank {} exceeds the matrix's {m}×{n}", g.rank)));
+    }
+    if g.spectrum.len() as u64 != m.min(n)
+        || g.spectrum.iter().any(|s| !(s.is_finite() && *s >= 0.0))
+    {
+        return Err(bad(
+            "the spectrum must hold min(m, n) finite values ≥ 0".into()
+        ));
+    }
+    let a = &g.accuracy;
+    if !(0.0..=MAX_MARGIN).contains(&a.escape_margin) {
+        return Err(bad(format!("escape margin {} is invalid", a.escape_margin)));
+    }
+    for (name, info, weights) in [("weights", &g.weights, true), ("eigen", &g.eigen, false)] {
+        if info.sections.len() != rank.div_ceil(CHANNELS)
+            || info.scale.len() != rank
+            || info.bias.len() != rank
+            || info.scale.iter().chain(&info.bias).any(|v| !v.is_finite())
+        {
+            return Err(bad(format!(
+                "the {name} factor must list {} sections and {rank} finite scales and biases",
+                rank.div_ceil(CHANNELS)
+            )));
+        }
+        for (group, section) in info.sections.iter().enumerate() {
+            let expected = factor_texture(weights, g.quantization, rank, group, dims, dirs);
+            expect_section(sections, section, expected, &bad)?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks that section `name` exists with texture `expected`.
+fn expect_section(
+    sections: &[Section],
+    name: &str,
+    expected: Texture,
+    bad: impl Fn(String) -> Error,
+) -> Result<()> {
+    match sections.iter().find(|s| s.name == name) {
+        Some(s) if s.texture == expected => Ok(()),
+        Some(s) => Err(bad(format!(
+            "section {name:?} has texture {:?}, expected {expected:?}",
+            s.texture
+        ))),
+        None => Err(bad(format!("section {name:?} is missing"))),
+    }
+}
+
 impl Package {
-    /// Encodes a compressed GDM with its provenance into package bytes.
-    pub fn encode(input: InputInfo, bake: BakeInfo, gdm: &CompressedGdm) -> Vec<u8> {
+    /// Encodes a GDM payload with its provenance into package bytes.
+    pub fn encode(input: InputInfo, bake: BakeInfo, gdm: &GdmPayload) -> Vec<u8> {
         Package::encode_with(input, bake, gdm, None)
     }
 
@@ -87,7 +230,7 @@ impl Package {
     pub fn encode_with(
         input: InputInfo,
         bake: BakeInfo,
-        gdm: &CompressedGdm,
+        payload: &GdmPayload,
         gi: Option<&gi::GiPayload>,
     ) -> Vec<u8> {
         let (dims, dirs) = (
@@ -101,31 +244,23 @@ impl Package {
                 n_phi: bake.dirs[1],
             },
         );
-        let (q, rank) = (gdm.weights.format, gdm.svd.rank);
-        let groups = rank.div_ceil(CHANNELS);
         let mut sections = Vec::new();
         let mut payloads = Vec::new();
-        let mut factor_info = |name: &str, factor: &QuantizedFactor, weights: bool| {
-            let names: Vec<String> = (0..groups).map(|g| format!("gdm.{name}.{g}")).collect();
-            for (g, section) in names.iter().enumerate() {
-                let texture = factor_texture(weights, q, rank, g, dims, dirs);
-                payloads.push(pack(factor, g, &texture));
-                sections.push(Section {
-                    name: section.clone(),
-                    offset: 0,
-                    bytes: 0,
-                    crc32: 0,
-                    texture,
-                });
-            }
-            FactorInfo {
-                sections: names,
-                scale: factor.scale.clone(),
-                bias: factor.bias.clone(),
+        let (gdm, occupancy) = match payload {
+            GdmPayload::PaperSvd(gdm) => (
+                Some(svd_sections(gdm, dims, dirs, &mut sections, &mut payloads)),
+                None,
+            ),
+            GdmPayload::Occupancy(field) => {
+                sections.push(Section::new(OCCUPANCY_SECTION, occupancy_texture(dims)));
+                payloads.push(field.bytes().to_vec());
+                let info = OccupancyInfo {
+                    section: OCCUPANCY_SECTION.into(),
+                    solid_voxels: field.solid_voxels(),
+                };
+                (None, Some(info))
             }
         };
-        let weights = factor_info("weights", &gdm.weights, true);
-        let eigen = factor_info("eigen", &gdm.eigen, false);
         if let Some(gi) = gi {
             for (section, bytes) in gi::sections(gi, dims, dirs) {
                 sections.push(section);
@@ -139,16 +274,9 @@ impl Package {
             units: "voxel".into(),
             input,
             bake,
-            gdm: GdmInfo {
-                rank_choice: gdm.rank_choice,
-                rank: gdm.svd.rank as u32,
-                spectrum: gdm.svd.spectrum.clone(),
-                quantization: gdm.weights.format,
-                weights,
-                eigen,
-                accuracy: gdm.accuracy,
-                svd_rmse: gdm.svd.optimal_rmse(gdm.svd.rank),
-            },
+            codec: payload.codec(),
+            gdm,
+            occupancy,
             gi: gi.map(|g| g.info.clone()),
             sections,
         };
@@ -156,7 +284,8 @@ impl Package {
     }
 
     /// Validates `bytes` as a package: the container (see [`container::parse`]) and the GDM
-    /// it describes (grids, ranks, decode parameters, and every section's texture shape).
+    /// it describes (grids, the codec's entry, ranks, decode parameters, every section's
+    /// texture shape, and an occupancy field's distances).
     pub fn parse(bytes: Vec<u8>) -> Result<Package> {
         let manifest = container::parse(&bytes)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
@@ -164,49 +293,21 @@ impl Package {
         let dims = Dims::new(x, y, z).map_err(|e| bad(e.to_string()))?;
         let [n_theta, n_phi] = manifest.bake.dirs;
         let dirs = DirectionGrid::new(n_theta, n_phi).map_err(|e| bad(e.to_string()))?;
-        let g = &manifest.gdm;
-        let (m, n) = (
-            dims.x as u64 * dims.y as u64 * dirs.n_phi as u64,
-            dims.z as u64 * dirs.n_theta as u64,
-        );
-        let rank = g.rank as usize;
-        if g.rank as u64 > m.min(n) {
-            return Err(bad(format!("rank {} exceeds the matrix's {m}×{n}", g.rank)));
-        }
-        if g.spectrum.len() as u64 != m.min(n)
-            || g.spectrum.iter().any(|s| !(s.is_finite() && *s >= 0.0))
-        {
-            return Err(bad(
-                "the spectrum must hold min(m, n) finite values ≥ 0".into()
-            ));
-        }
-        let a = &g.accuracy;
-        if !(0.0..=MAX_MARGIN).contains(&a.escape_margin) {
-            return Err(bad(format!("escape margin {} is invalid", a.escape_margin)));
-        }
-        for (name, info, weights) in [("weights", &g.weights, true), ("eigen", &g.eigen, false)] {
-            if info.sections.len() != rank.div_ceil(CHANNELS)
-                || info.scale.len() != rank
-                || info.bias.len() != rank
-                || info.scale.iter().chain(&info.bias).any(|v| !v.is_finite())
-            {
-                return Err(bad(format!(
-                    "the {name} factor must list {} sections and {rank} finite scales and biases",
-                    rank.div_ceil(CHANNELS)
-                )));
+        match (manifest.codec, &manifest.gdm, &manifest.occupancy) {
+            (GdmCodec::PaperSvd, Some(g), None) => {
+                validate_svd(g, &manifest.sections, dims, dirs, bad)?
             }
-            for (group, section) in info.sections.iter().enumerate() {
-                let expected = factor_texture(weights, g.quantization, rank, group, dims, dirs);
-                match manifest.sections.iter().find(|s| &s.name == section) {
-                    Some(s) if s.texture == expected => {}
-                    Some(s) => {
-                        return Err(bad(format!(
-                            "section {section:?} has texture {:?}, expected {expected:?}",
-                            s.texture
-                        )));
+            (GdmCodec::Occupancy, None, Some(o)) => {
+                expect_section(&manifest.sections, &o.section, occupancy_texture(dims), bad)?
+            }
+            (codec, _, _) => {
+                return Err(bad(format!(
+                    "codec {codec} needs exactly its own entry ({})",
+                    match codec {
+                        GdmCodec::PaperSvd => "gdm",
+                        GdmCodec::Occupancy => "occupancy",
                     }
-                    None => return Err(bad(format!("section {section:?} is missing"))),
-                }
+                )));
             }
         }
         if let Some(info) = &manifest.gi {
@@ -218,24 +319,17 @@ impl Package {
                 )));
             }
             for (name, expected) in gi::textures(info, dims, dirs) {
-                match manifest.sections.iter().find(|s| s.name == name) {
-                    Some(s) if s.texture == expected => {}
-                    Some(s) => {
-                        return Err(bad(format!(
-                            "section {name:?} has texture {:?}, expected {expected:?}",
-                            s.texture
-                        )));
-                    }
-                    None => return Err(bad(format!("section {name:?} is missing"))),
-                }
+                expect_section(&manifest.sections, &name, expected, bad)?;
             }
         }
-        Ok(Package {
+        let package = Package {
             manifest,
             bytes,
             dims,
             dirs,
-        })
+        };
+        package.occupancy().transpose()?;
+        Ok(package)
     }
 
     /// Reads and validates the package at `path`, refusing files over the memory limit.
@@ -270,8 +364,8 @@ impl Package {
     }
 
     /// The quantized weight maps and eigenmaps, unpacked from their textures.
-    pub fn factors(&self) -> (QuantizedFactor, QuantizedFactor) {
-        let g = &self.manifest.gdm;
+    pub fn factors(&self) -> Option<(QuantizedFactor, QuantizedFactor)> {
+        let g = self.manifest.gdm.as_ref()?;
         let rows_w = self.dims.x as usize * self.dims.y as usize * self.dirs.n_phi as usize;
         let rows_e = self.dims.z as usize * self.dirs.n_theta as usize;
         let unpack = |info: &FactorInfo, rows: usize| {
@@ -305,16 +399,29 @@ impl Package {
                 codes,
             }
         };
-        (unpack(&g.weights, rows_w), unpack(&g.eigen, rows_e))
+        Some((unpack(&g.weights, rows_w), unpack(&g.eigen, rows_e)))
     }
 
-    /// The dense GDM a renderer sees: W·Eᵀ with the escape rule applied (escapes +∞, the
-    /// [`EscapeConvention::Infinite`] of `mesobake gdm`).
+    /// The occupancy field, for [`GdmCodec::Occupancy`] (validated: its distances are those
+    /// its solid voxels imply).
+    pub fn occupancy(&self) -> Option<Result<OccupancyField>> {
+        let info = self.manifest.occupancy.as_ref()?;
+        let bytes = self.section(&info.section).expect("validated");
+        Some(OccupancyField::from_bytes(self.dims, bytes))
+    }
+
+    /// The dense GDM a renderer sees on the package's grids, escapes +∞ (the
+    /// [`EscapeConvention::Infinite`] of `mesobake gdm`): for `paper-svd` W·Eᵀ with the escape
+    /// rule applied; for `occupancy` the exact bake of its voxels.
     pub fn reconstruct(&self, limits: &Limits) -> Result<Gdm> {
         let (dims, dirs) = (self.dims, self.dirs);
         let count = dims.voxel_count() * dirs.count() as u64;
         limits.check("the reconstructed GDM", count, 4)?;
-        let (w, e) = self.factors();
+        let Some((w, e)) = self.factors() else {
+            let field = self.occupancy().expect("one codec entry")?;
+            let caster = VolumeCaster::from_occupancy(field.occupancy(), true);
+            return exact::bake(&caster, dirs, limits, &());
+        };
         let (w, e, k) = (w.dequantize(), e.dequantize(), w.rank);
         let layer = (dims.x * dims.y) as usize;
         let stride = dims.voxel_count() as usize;
@@ -339,6 +446,13 @@ impl Package {
                 });
         }
         let gdm = Gdm::from_values(dims, dirs, EscapeConvention::Boundary, values)?;
-        resolve_escapes(gdm, self.manifest.gdm.accuracy.escape_margin)
+        let margin = self
+            .manifest
+            .gdm
+            .as_ref()
+            .expect("factors")
+            .accuracy
+            .escape_margin;
+        resolve_escapes(gdm, margin)
     }
 }

@@ -11,6 +11,7 @@ use super::resources::{
 use super::variant::ShaderVariant;
 use crate::error::{Error, Result};
 use crate::package::Package;
+use crate::package::manifest::GdmCodec;
 use crate::render::gdm_renderer::prepare_prisms;
 use crate::render::image::Image;
 use crate::scene::{Camera, Light, LoadedScene};
@@ -174,7 +175,8 @@ impl<'g> Preview<'g> {
                 .device
                 .features()
                 .contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST);
-        let variant = ShaderVariant::for_scene(scene, early_depth_test);
+        let codec = package.manifest().codec;
+        let variant = ShaderVariant::for_scene(scene, codec, early_depth_test);
         let (width, height) = (scene.camera.width, scene.camera.height);
         let max_side = gpu.device.limits().max_texture_dimension_2d;
         if width > max_side || height > max_side {
@@ -192,9 +194,8 @@ impl<'g> Preview<'g> {
                 layout_entry(2, frag, storage()),
             ],
         });
-        let package_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("package"),
-            entries: &[
+        let package_entries = match codec {
+            GdmCodec::PaperSvd => vec![
                 layout_entry(0, frag, uniform()),
                 layout_entry(1, frag, texture(wgpu::TextureViewDimension::D3)),
                 layout_entry(2, frag, texture(wgpu::TextureViewDimension::D3)),
@@ -202,6 +203,15 @@ impl<'g> Preview<'g> {
                 layout_entry(4, frag, texture(wgpu::TextureViewDimension::D2)),
                 layout_entry(5, frag, storage()),
             ],
+            GdmCodec::Occupancy => vec![layout_entry(
+                0,
+                frag,
+                uint_texture(wgpu::TextureViewDimension::D3),
+            )],
+        };
+        let package_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("package"),
+            entries: &package_entries,
         });
         let material_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("material"),

@@ -286,6 +286,7 @@ fn wgpu_format(f: TexelFormat) -> wgpu::TextureFormat {
         TexelFormat::R8unorm => W::R8Unorm,
         TexelFormat::Rg8unorm => W::Rg8Unorm,
         TexelFormat::Rgba8unorm => W::Rgba8Unorm,
+        TexelFormat::R8uint => W::R8Uint,
         TexelFormat::R32uint => W::R32Uint,
     }
 }
@@ -378,14 +379,53 @@ fn extent(width: u32, height: u32, depth: u32) -> wgpu::Extent3d {
     }
 }
 
-/// Uploads `package`'s factors for the pipeline's group 1 (`layout`).
+/// Uploads what `package`'s codec answers GDM queries with, for the pipeline's group 1
+/// (`layout`): the factors (`paper-svd`, [`upload_factors`]) or the occupancy field (an
+/// `r8uint` 3D texture).
 pub fn upload_package(
     gpu: &Gpu,
     layout: &wgpu::BindGroupLayout,
     package: &Package,
 ) -> Result<GpuPackage> {
+    let Some(info) = &package.manifest().occupancy else {
+        return upload_factors(gpu, layout, package);
+    };
+    let dims = package.dims();
+    let field = Slabs::new(
+        gpu,
+        "occupancy",
+        wgpu::TextureDimension::D3,
+        TexelFormat::R8uint,
+        extent(dims.x, dims.y, dims.z),
+    )?;
+    let bytes = package.section(&info.section).expect("validated package");
+    field.write(gpu, bytes, wgpu::Origin3d::ZERO, dims.y, dims.z);
+    let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("package"),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::TextureView(&field.view()),
+        }],
+    });
+    Ok(GpuPackage {
+        bind_group,
+        bytes: field.bytes(),
+    })
+}
+
+/// Uploads a `paper-svd` package's factors for the pipeline's group 1 (`layout`).
+fn upload_factors(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    package: &Package,
+) -> Result<GpuPackage> {
     let (dims, dirs) = (package.dims(), package.dirs());
-    let g = &package.manifest().gdm;
+    let g = package
+        .manifest()
+        .gdm
+        .as_ref()
+        .expect("a paper-svd package");
     let rank = g.rank as usize;
     let (full_groups, has_tail) = ((rank / 4) as u32, !rank.is_multiple_of(4));
     let section_of = |name: &str| -> (&[u8], TexelFormat) {

@@ -2,10 +2,13 @@
 //! scene calls for, so that an effect it does not call for is absent from the pipeline (not
 //! switched off at run time). The variant matrix is documented in ARCHITECTURE.md.
 
+use crate::package::manifest::GdmCodec;
 use crate::scene::{Effect, MAX_GDM_REFINEMENTS, Scene};
 use serde::Serialize;
 
 const PIPELINE: &str = include_str!("../../shaders/gdm_preview.wgsl");
+const QUERY_SVD: &str = include_str!("../../shaders/query_svd.wgsl");
+const QUERY_OCCUPANCY: &str = include_str!("../../shaders/query_occupancy.wgsl");
 const SHADOWS_ON: &str = include_str!("../../shaders/shadows_on.wgsl");
 const SHADOWS_OFF: &str = include_str!("../../shaders/shadows_off.wgsl");
 const GI_ON: &str = include_str!("../../shaders/gi_on.wgsl");
@@ -23,11 +26,14 @@ pub const GI_BINDING: &str = "rtv_weights";
 /// One variant of the preview's shader.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 pub struct ShaderVariant {
+    /// The package's GDM codec: which query file answers `segment_hit` and `escapes`.
+    pub codec: GdmCodec,
     /// Shadow queries along the lights (the scene's `shadows` effect).
     pub shadows: bool,
     /// Environment light through the PRT and the RTV (the scene's `environment_lighting`).
     pub environment: bool,
-    /// GDM refinement queries per hit (the scene's `gdm_refinements`), unrolled as a constant.
+    /// GDM refinement queries per hit (the scene's `gdm_refinements`; 0 for the occupancy
+    /// codec, whose march is exact), unrolled as a constant.
     pub refinements: u32,
     /// Declares the fragment depth conservative (`greater_equal`: a hit lies behind the face
     /// it was found through), so that the depth test can run before the fragment shader
@@ -36,35 +42,47 @@ pub struct ShaderVariant {
 }
 
 impl ShaderVariant {
-    /// The variant a scene calls for.
-    pub fn for_scene(scene: &Scene, early_depth_test: bool) -> ShaderVariant {
+    /// The variant a scene calls for with a package of `codec`.
+    pub fn for_scene(scene: &Scene, codec: GdmCodec, early_depth_test: bool) -> ShaderVariant {
         ShaderVariant {
+            codec,
             shadows: scene.wants(Effect::Shadows),
             environment: scene.wants(Effect::EnvironmentLighting),
-            refinements: scene.gdm_refinements,
+            refinements: match codec {
+                GdmCodec::PaperSvd => scene.gdm_refinements,
+                GdmCodec::Occupancy => 0,
+            },
             early_depth_test,
         }
     }
 
-    /// Every variant a valid scene can ask for.
+    /// Every variant a valid scene and package can ask for.
     pub fn all() -> impl Iterator<Item = ShaderVariant> {
         let flags = [(false, false), (false, true), (true, false), (true, true)];
-        flags.into_iter().flat_map(|(shadows, environment)| {
-            (0..=MAX_GDM_REFINEMENTS).flat_map(move |refinements| {
-                [false, true].map(|early_depth_test| ShaderVariant {
-                    shadows,
-                    environment,
-                    refinements,
-                    early_depth_test,
+        GdmCodec::ALL.into_iter().flat_map(move |codec| {
+            let refinements = match codec {
+                GdmCodec::PaperSvd => MAX_GDM_REFINEMENTS,
+                GdmCodec::Occupancy => 0,
+            };
+            flags.into_iter().flat_map(move |(shadows, environment)| {
+                (0..=refinements).flat_map(move |refinements| {
+                    [false, true].map(|early_depth_test| ShaderVariant {
+                        codec,
+                        shadows,
+                        environment,
+                        refinements,
+                        early_depth_test,
+                    })
                 })
             })
         })
     }
 
-    /// A short name, e.g. `shadows+env+refine2+earlyz`.
+    /// A short name, e.g. `paper-svd+shadows+env+refine2+earlyz`.
     pub fn name(&self) -> String {
         format!(
-            "{}{}+refine{}{}",
+            "{}+{}{}+refine{}{}",
+            self.codec,
             if self.shadows { "shadows" } else { "noshadows" },
             if self.environment { "+env" } else { "" },
             self.refinements,
@@ -87,8 +105,12 @@ impl ShaderVariant {
         } else {
             PIPELINE.to_owned()
         };
+        let query = match self.codec {
+            GdmCodec::PaperSvd => QUERY_SVD,
+            GdmCodec::Occupancy => QUERY_OCCUPANCY,
+        };
         format!(
-            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{pipeline}\n{shadows}\n{}",
+            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{pipeline}\n{query}\n{shadows}\n{}",
             self.name(),
             self.refinements,
             if self.environment { GI_ON } else { GI_OFF }

@@ -12,10 +12,17 @@
 //!   own (trilinear in the weight maps' 3D textures, bilinear in the eigenmaps' 2D ones), and
 //!   applies the package's escape rule d̃ ≥ (1 − μ)·b̃ with the boundary distance b̃
 //!   interpolated like the eigenmaps.
+//! - An occupancy package marches its voxels exactly ([`OccupancyLookup`]): no interpolation
+//!   and no escape rule, the exact GDM of the voxel grid at any position and direction.
 
+use super::gdm_renderer::{REFINEMENT_BACKOFF, advance_to_samples};
+use crate::bake::gdm::caster::{Caster, Trace};
+use crate::bake::gdm::volume_caster::VolumeCaster;
 use crate::bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use crate::compress::accuracy::is_escape;
+use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::QuantizedFactor;
+use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::package::Package;
 use glam::DVec3;
@@ -36,6 +43,85 @@ pub trait GdmLookup: Sync {
     fn dims(&self) -> Dims;
     /// d(`t`, `v`): `t` in voxel units, `v` a unit texture-space direction.
     fn lookup(&self, t: DVec3, v: DVec3) -> Lookup;
+
+    /// Steps 3–5 of the per-pixel algorithm (`render::gdm_renderer`) on the texture-space
+    /// segment from `start` along `view` of length `d_t`: the hit distance, or `None` when
+    /// the ray leaves the segment first. By default the paper's query on a table of
+    /// distances: one lookup from the sample layers ([`advance_to_samples`]), then up to
+    /// `refinements` more from [`REFINEMENT_BACKOFF`] voxel short of the last hit.
+    fn segment_hit(&self, start: DVec3, view: DVec3, d_t: f64, refinements: u32) -> Option<f64> {
+        let mut travelled = advance_to_samples(start, view, self.dims().z as f64, d_t);
+        let mut answer = self.lookup(start + view * travelled, view);
+        for _ in 0..refinements {
+            let Lookup::Hit(d) = answer else { break };
+            let step = d - REFINEMENT_BACKOFF;
+            if step <= 0.0 || travelled + d >= d_t {
+                break;
+            }
+            let next = self.lookup(start + view * (travelled + step), view);
+            if next == Lookup::Escape {
+                break;
+            }
+            travelled += step;
+            answer = next;
+        }
+        match answer {
+            Lookup::Hit(d) if travelled + d < d_t => Some(travelled + d),
+            _ => None,
+        }
+    }
+}
+
+/// The lookup a package's codec calls for: [`OccupancyLookup`] or [`PackageLookup`].
+pub fn package_lookup(package: &Package) -> Result<Box<dyn GdmLookup>> {
+    Ok(match package.occupancy() {
+        Some(field) => Box::new(OccupancyLookup::new(&field?)),
+        None => Box::new(PackageLookup::new(package)?),
+    })
+}
+
+/// Queries answered exactly by ray marching a package's occupancy field (the `occupancy`
+/// codec): the voxel traversal of the GDM bake ([`VolumeCaster`], closed voxel boxes,
+/// empty-space skipping), from the query point (z clamped into the grid) along the query
+/// direction. Segment queries march only as far as the segment; no refinement applies.
+pub struct OccupancyLookup {
+    caster: VolumeCaster,
+}
+
+impl OccupancyLookup {
+    /// Prepares `field` for marching.
+    pub fn new(field: &OccupancyField) -> Self {
+        OccupancyLookup {
+            caster: VolumeCaster::from_occupancy(field.occupancy(), true),
+        }
+    }
+
+    fn march(&self, t: DVec3, v: DVec3, max: f64) -> Option<f64> {
+        let z = self.caster.dims().z as f64;
+        match self
+            .caster
+            .trace(t.with_z(t.z.clamp(0.0, z)).to_array(), v.to_array(), max)
+        {
+            Trace::Inside => Some(0.0),
+            Trace::Hit(s) => Some(s),
+            Trace::Escape(_) | Trace::Limit => None,
+        }
+    }
+}
+
+impl GdmLookup for OccupancyLookup {
+    fn dims(&self) -> Dims {
+        self.caster.dims()
+    }
+
+    fn lookup(&self, t: DVec3, v: DVec3) -> Lookup {
+        self.march(t, v, f64::INFINITY)
+            .map_or(Lookup::Escape, Lookup::Hit)
+    }
+
+    fn segment_hit(&self, start: DVec3, view: DVec3, d_t: f64, _refinements: u32) -> Option<f64> {
+        self.march(start, view, d_t).filter(|&d| d < d_t)
+    }
 }
 
 /// Linear interpolation taps along one axis: two indices and the weight of the second.
@@ -180,11 +266,22 @@ pub struct PackageLookup {
 }
 
 impl PackageLookup {
-    /// Unpacks `package`'s factors.
-    pub fn new(package: &Package) -> Self {
-        let (w, e) = package.factors();
-        let margin = package.manifest().gdm.accuracy.escape_margin;
-        Self::from_factors(package.dims(), package.dirs(), &w, &e, margin)
+    /// Unpacks `package`'s factors (codec `paper-svd`).
+    pub fn new(package: &Package) -> Result<Self> {
+        let (Some((w, e)), Some(g)) = (package.factors(), &package.manifest().gdm) else {
+            return Err(Error::Package(format!(
+                "the package's codec is {}, not paper-svd",
+                package.manifest().codec
+            )));
+        };
+        let margin = g.accuracy.escape_margin;
+        Ok(Self::from_factors(
+            package.dims(),
+            package.dirs(),
+            &w,
+            &e,
+            margin,
+        ))
     }
 
     /// From quantized factors as a package holds them (weight maps rows (φ, y, x), eigenmaps

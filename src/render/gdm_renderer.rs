@@ -21,6 +21,10 @@
 //!    to N times, keeping the last answer that hits (a refinement moves a hit, it never turns
 //!    it into a miss); near the surface the interpolated neighbours agree, so blends of near
 //!    and far hits (which land in empty space beside silhouettes) move onto a surface;
+//!
+//!    With a package of the `occupancy` codec, steps 3–4 are one exact march of its voxels
+//!    along the segment instead ([`GdmLookup::segment_hit`] of `OccupancyLookup`), and every
+//!    later query (the shadow test) marches too;
 //! 5. hit iff the query does not escape and d < d_t: T = T_in + d·V_t and, by proportion,
 //!    P = P_in + (d/d_t)·(P_out − P_in);
 //! 6. the nearest hit over all fragments is shaded (depth test); no hit shows the background
@@ -402,25 +406,7 @@ impl<'a> GdmRenderer<'a> {
             let z = self.lookup.dims().z as f64;
             return truth.cast(start.with_z(start.z.clamp(0.0, z)), view, d_t);
         }
-        let mut travelled = advance_to_samples(start, view, self.lookup.dims().z as f64, d_t);
-        let mut answer = self.lookup.lookup(start + view * travelled, view);
-        for _ in 0..self.refinements {
-            let Lookup::Hit(d) = answer else { break };
-            let step = d - REFINEMENT_BACKOFF;
-            if step <= 0.0 || travelled + d >= d_t {
-                break;
-            }
-            let next = self.lookup.lookup(start + view * (travelled + step), view);
-            if next == Lookup::Escape {
-                break;
-            }
-            travelled += step;
-            answer = next;
-        }
-        match answer {
-            Lookup::Hit(d) if travelled + d < d_t => Some(travelled + d),
-            _ => None,
-        }
+        self.lookup.segment_hit(start, view, d_t, self.refinements)
     }
 
     /// Step 6: the shaded radiance along the camera ray, or `None` for a miss.

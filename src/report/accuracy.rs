@@ -9,8 +9,8 @@ use crate::compress::quantize::Quantization;
 use crate::compress::svd::{GramEigen, RankChoice};
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
-use crate::package::Package;
 use crate::package::bake::{bake_info, load_input};
+use crate::package::{GdmPayload, Package};
 use crate::util::limits::Limits;
 use std::path::Path;
 use std::time::Instant;
@@ -96,7 +96,7 @@ pub fn accuracy(
                 }
                 let c = quantize(&g, svd.clone(), RankChoice::Rank(rank), q)?;
                 let info = bake_info(&g, Method::Exact, Default::default(), false);
-                let bytes = Package::encode(input.clone(), info, &c);
+                let bytes = Package::encode(input.clone(), info, &GdmPayload::PaperSvd(c.clone()));
                 rows.push(AccuracyRow {
                     dirs: dirs.to_string(),
                     rank: c.svd.rank,

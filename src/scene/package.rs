@@ -2,9 +2,10 @@
 //! ([`bake_scene_package`]). Used by `mesobake bake --scene`, `mesobake preview` and the
 //! server's bake jobs.
 //!
-//! Always: the exact GDM on the scene's grids and its SVD compression. With
-//! `environment_lighting`: the macro-scale PRT of the base mesh (shadowed with
-//! `macro_shadows`), the RTV (glossy with `environment_gloss`) and its compression. The
+//! Always what the codec needs: the occupancy field, or the exact GDM on the scene's grids and
+//! its SVD compression (`paper-svd`). With `environment_lighting`: the macro-scale PRT of the
+//! base mesh (shadowed with `macro_shadows`), the exact GDM for the RTV's visibility, the RTV
+//! (glossy with `environment_gloss`) and its compression. The
 //! environment itself is not baked in: packages hold transfer, which any environment lights.
 
 use crate::bake::gdm::fast::FastParams;
@@ -12,14 +13,15 @@ use crate::bake::gdm::{BakeObserver, EscapeConvention, Method};
 use crate::bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
 use crate::bake::gi::prt::geometry_hash;
 use crate::bake::gi::rtv::{self, RtvStats};
-use crate::compress::gdm::CompressedGdm;
+use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
-use crate::package::Package;
-use crate::package::bake::{PackageParams, StageSeconds, bake_info, compress_gdm};
+use crate::package::bake::{PackageParams, StageSeconds, compress_gdm};
 use crate::package::gi::GiPayload;
+use crate::package::manifest::{BakeInfo, GdmCodec};
 use crate::package::manifest::{GiInfo, InputInfo};
+use crate::package::{GdmPayload, Package};
 use crate::scene::gi::{prt_matrices, rtv_params};
 use crate::scene::plan::{Plan, plan};
 use crate::scene::{Effect, LoadedScene, MesostructureSource, Scene};
@@ -31,16 +33,19 @@ use std::time::Instant;
 /// How a package is made for a scene that names none.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ScenePackageParams {
-    /// SVD components.
+    /// What answers the renderers' GDM queries.
+    pub codec: GdmCodec,
+    /// SVD components (`paper-svd`).
     pub rank: RankChoice,
-    /// Number format of the factors.
+    /// Number format of the factors (`paper-svd`).
     pub quantization: Quantization,
 }
 
 impl Default for ScenePackageParams {
-    /// Rank 8 in f16, the defaults of `mesobake bake`.
+    /// The defaults of `mesobake bake`: the occupancy codec (for `paper-svd`: rank 8 in f16).
     fn default() -> Self {
         ScenePackageParams {
+            codec: GdmCodec::default(),
             rank: RankChoice::Rank(8),
             quantization: Quantization::F16,
         }
@@ -62,8 +67,8 @@ pub struct GiBake {
 pub struct ScenePackage {
     /// The package's bytes.
     pub bytes: Vec<u8>,
-    /// Its compressed GDM.
-    pub gdm: CompressedGdm,
+    /// Its GDM payload.
+    pub gdm: GdmPayload,
     /// The stages run and skipped.
     pub plan: Plan,
     /// Seconds per stage run (`load` is the caller's), in `plan` order.
@@ -83,28 +88,53 @@ pub fn bake_scene_package(
     observer: &dyn BakeObserver,
 ) -> Result<ScenePackage> {
     let scene = &loaded.scene;
-    let plan = plan(scene);
+    let plan = plan(scene, params.codec);
     let input = input_identity(scene, scene_dir)?;
     let mut seconds = Vec::new();
-    let mut stage = StageSeconds::default();
-    let start = Instant::now();
-    observer.stage("bake_gdm");
-    let mut g = loaded.bake_gdm(limits, observer)?;
-    seconds.push(("bake_gdm".to_owned(), start.elapsed().as_secs_f64()));
-    g.set_escape_convention(EscapeConvention::Boundary);
-    let package_params = PackageParams {
-        res: Some(g.dims()),
-        dirs: g.dirs(),
+    let (dims, dirs) = (scene.dims()?, scene.dirs()?);
+    let info = BakeInfo {
+        res: [dims.x, dims.y, dims.z],
+        dirs: [dirs.n_theta, dirs.n_phi],
         method: Method::Exact,
-        fast: FastParams::default(),
-        rank: params.rank,
-        quantization: params.quantization,
+        fast: None,
         allow_open: false,
     };
-    let info = bake_info(&g, Method::Exact, FastParams::default(), false);
-    observer.stage("compress");
-    let gdm = compress_gdm(&g, &package_params, limits, observer, &mut stage)?;
-    seconds.push(("compress".to_owned(), stage.svd + stage.quantize));
+    let gdm = if plan.runs("bake_gdm") {
+        let start = Instant::now();
+        observer.stage("bake_gdm");
+        let mut g = loaded.bake_gdm(limits, observer)?;
+        seconds.push(("bake_gdm".to_owned(), start.elapsed().as_secs_f64()));
+        g.set_escape_convention(EscapeConvention::Boundary);
+        Some(g)
+    } else {
+        None
+    };
+    let payload = match (params.codec, &gdm) {
+        (GdmCodec::PaperSvd, Some(g)) => {
+            let package_params = PackageParams {
+                res: Some(dims),
+                dirs,
+                codec: params.codec,
+                method: Method::Exact,
+                fast: FastParams::default(),
+                rank: params.rank,
+                quantization: params.quantization,
+                allow_open: false,
+            };
+            let mut stage = StageSeconds::default();
+            observer.stage("compress");
+            let compressed = compress_gdm(g, &package_params, limits, observer, &mut stage)?;
+            seconds.push(("compress".to_owned(), stage.svd + stage.quantize));
+            GdmPayload::PaperSvd(compressed)
+        }
+        _ => {
+            let start = Instant::now();
+            observer.stage("occupancy");
+            let field = OccupancyField::new(loaded.mesostructure.caster().centres_inside());
+            seconds.push(("occupancy".to_owned(), start.elapsed().as_secs_f64()));
+            GdmPayload::Occupancy(field)
+        }
+    };
 
     let transfer = if scene.wants(Effect::EnvironmentLighting) {
         let start = Instant::now();
@@ -114,11 +144,12 @@ pub fn bake_scene_package(
         let start = Instant::now();
         let rtv_params = rtv_params(scene);
         observer.stage("bake_rtv");
-        let (rtv, stats) = rtv::bake(&g, &loaded.material, &rtv_params, limits, observer)?;
+        let g = gdm.as_ref().expect("the plan bakes the GDM for the RTV");
+        let (rtv, stats) = rtv::bake(g, &loaded.material, &rtv_params, limits, observer)?;
         seconds.push(("bake_rtv".to_owned(), start.elapsed().as_secs_f64()));
         observer.stage("compress_rtv");
         let (compressed, compression, compress_s) =
-            CompressedRtv::compress(&rtv, g.dirs(), scene.gi.rtv_rank, limits)?;
+            CompressedRtv::compress(&rtv, dirs, scene.gi.rtv_rank, limits)?;
         seconds.push(("compress_rtv".to_owned(), compress_s));
         let macro_shadows = scene.wants(Effect::MacroShadows);
         let info = GiInfo {
@@ -141,17 +172,17 @@ pub fn bake_scene_package(
     };
     let start = Instant::now();
     observer.stage("encode");
-    let payload = transfer.as_ref().map(|(info, rtv, prt, _)| GiPayload {
+    let transfer_payload = transfer.as_ref().map(|(info, rtv, prt, _)| GiPayload {
         info: info.clone(),
         rtv,
         prt,
     });
-    let bytes = Package::encode_with(input, info, &gdm, payload.as_ref());
+    let bytes = Package::encode_with(input, info, &payload, transfer_payload.as_ref());
     seconds.push(("encode".to_owned(), start.elapsed().as_secs_f64()));
     let gi = transfer.map(|t| t.3);
     Ok(ScenePackage {
         bytes,
-        gdm,
+        gdm: payload,
         plan,
         seconds,
         gi,

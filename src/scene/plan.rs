@@ -1,6 +1,7 @@
 //! The planner: the stages a scene's package needs, derived from the effects the scene calls
 //! for, and the stages it skips with the reason. Nothing else is baked.
 
+use crate::package::manifest::GdmCodec;
 use crate::scene::{Effect, Scene};
 use serde::{Deserialize, Serialize};
 
@@ -22,11 +23,19 @@ pub struct Plan {
     pub skipped: Vec<Skipped>,
 }
 
-/// The stages of `scene`'s package: `load`, `bake_gdm`, `compress` always; `bake_prt`,
-/// `bake_rtv`, `compress_rtv` with environment lighting; `encode` last. Parts of stages the
-/// scene does not call for (`prt_visibility`, `rtv_gloss`) are listed as skipped too.
-pub fn plan(scene: &Scene) -> Plan {
-    let mut stages = vec!["load", "bake_gdm", "compress"];
+impl Plan {
+    /// Whether the plan runs `stage`.
+    pub fn runs(&self, stage: &str) -> bool {
+        self.stages.iter().any(|s| s == stage)
+    }
+}
+
+/// The stages of `scene`'s package with `codec`: `load`; `bake_gdm`, `compress` for
+/// `paper-svd`, `occupancy` for the occupancy codec; `bake_prt`, `bake_rtv` (after `bake_gdm`,
+/// which it needs), `compress_rtv` with environment lighting; `encode` last. Parts of stages
+/// the scene does not call for (`prt_visibility`, `rtv_gloss`) are listed as skipped too.
+pub fn plan(scene: &Scene, codec: GdmCodec) -> Plan {
+    let mut stages = vec!["load"];
     let mut skipped = Vec::new();
     let mut skip = |stage: &str, reason: &str| {
         skipped.push(Skipped {
@@ -34,7 +43,30 @@ pub fn plan(scene: &Scene) -> Plan {
             reason: reason.into(),
         })
     };
-    if scene.wants(Effect::EnvironmentLighting) {
+    let environment = scene.wants(Effect::EnvironmentLighting);
+    match codec {
+        GdmCodec::PaperSvd => {
+            stages.extend(["bake_gdm", "compress"]);
+            skip(
+                "occupancy",
+                "the codec is paper-svd: queries read the compressed GDM",
+            );
+        }
+        GdmCodec::Occupancy => {
+            if environment {
+                stages.push("bake_gdm");
+            } else {
+                skip(
+                    "bake_gdm",
+                    "the occupancy codec answers GDM queries by ray marching, and the scene \
+                     calls for no environment_lighting (whose RTV needs the baked GDM)",
+                );
+            }
+            stages.push("occupancy");
+            skip("compress", "the codec is occupancy: no GDM is stored");
+        }
+    }
+    if environment {
         stages.extend(["bake_prt", "bake_rtv", "compress_rtv"]);
         if !scene.wants(Effect::MacroShadows) {
             skip(

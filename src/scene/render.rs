@@ -4,7 +4,7 @@
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::package::Package;
-use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
+use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
 use crate::render::image::Image;
 use crate::render::path_tracer::PathTracer;
@@ -132,7 +132,7 @@ pub fn render_substituted(
         }
         RenderMethod::Gdm => {
             let start = Instant::now();
-            let (raw, raw_lookup, package_lookup);
+            let (raw, raw_lookup, from_package);
             let mut gi = None;
             let lookup: &dyn GdmLookup = match source {
                 GdmSource::Bake => {
@@ -158,8 +158,8 @@ pub fn render_substituted(
                     if environment {
                         gi = Some(GiShading::from_package(loaded, &pkg)?);
                     }
-                    package_lookup = PackageLookup::new(&pkg);
-                    &package_lookup
+                    from_package = package_lookup(&pkg)?;
+                    &*from_package
                 }
             };
             seconds.gdm = start.elapsed().as_secs_f64();

@@ -14,6 +14,7 @@ use super::db::{Db, db_error, now_ms};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
+use crate::package::manifest::GdmCodec;
 use crate::scene::package::ScenePackageParams;
 use crate::scene::plan::Plan;
 use crate::scene::{Effect, Scene};
@@ -32,29 +33,26 @@ pub struct JobSpec {
     /// are the digests of uploaded assets.
     #[schema(value_type = Object)]
     pub scene: Scene,
-    /// SVD components of the package.
-    #[serde(default = "default_rank")]
-    pub rank: usize,
-    /// Number format of the package's factors.
-    #[serde(default = "default_quantization")]
+    /// What answers the renderers' GDM queries: `occupancy` (the default) or `paper-svd`.
+    #[serde(default)]
     #[schema(value_type = String)]
-    pub quantization: Quantization,
-}
-
-fn default_rank() -> usize {
-    8
-}
-
-fn default_quantization() -> Quantization {
-    Quantization::F16
+    pub codec: GdmCodec,
+    /// SVD components of the package (`paper-svd` only; default 8).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rank: Option<usize>,
+    /// Number format of the package's factors (`paper-svd` only; default f16).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<String>)]
+    pub quantization: Option<Quantization>,
 }
 
 impl JobSpec {
     /// The package parameters.
     pub fn package_params(&self) -> ScenePackageParams {
         ScenePackageParams {
-            rank: RankChoice::Rank(self.rank),
-            quantization: self.quantization,
+            codec: self.codec,
+            rank: RankChoice::Rank(self.rank.unwrap_or(8)),
+            quantization: self.quantization.unwrap_or_default(),
         }
     }
 
@@ -65,13 +63,17 @@ impl JobSpec {
     pub fn dedup_key(&self) -> String {
         let s = &self.scene;
         let mut key = serde_json::json!({
-            "version": 1,
+            "version": crate::package::container::VERSION,
             "mesostructure": s.mesostructure,
             "resolution": s.resolution,
             "directions": s.directions,
-            "rank": self.rank,
-            "quantization": self.quantization,
+            "codec": self.codec,
         });
+        if self.codec == GdmCodec::PaperSvd {
+            let p = self.package_params();
+            key["rank"] = serde_json::json!(p.rank);
+            key["quantization"] = serde_json::json!(p.quantization);
+        }
         if s.wants(Effect::EnvironmentLighting) {
             let effects: Vec<Effect> = [Effect::MacroShadows, Effect::EnvironmentGloss]
                 .into_iter()
@@ -94,7 +96,7 @@ impl JobSpec {
 /// The stages of a bake job for `spec`: the scene's ([`crate::scene::plan::plan`]), then
 /// `store`.
 pub fn plan(spec: &JobSpec) -> Plan {
-    let mut plan = crate::scene::plan::plan(&spec.scene);
+    let mut plan = crate::scene::plan::plan(&spec.scene, spec.codec);
     plan.stages.push("store".into());
     plan
 }

@@ -5,6 +5,7 @@ use super::api_error::{ApiError, ApiResult};
 use super::jobs::{JobSpec, JobView, check_job_id};
 use super::json_body::JsonBody;
 use super::request_limits::check_scene_cost;
+use crate::package::bake::check_codec_options;
 use crate::scene::{BaseMeshSource, MesostructureSource, Scene};
 use axum::Json;
 use axum::extract::{Path, State};
@@ -61,17 +62,14 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
 }
 
 /// Checks a job specification: the scene is valid and within the server's cost limits, the
-/// rank in 1..=64 and every asset it names uploaded as the right kind.
+/// codec options as the CLI checks them ([`check_codec_options`]), and every asset it names
+/// uploaded as the right kind.
 pub async fn check_spec(state: &AppState, spec: &JobSpec) -> ApiResult<()> {
     // Deserializing does not validate a scene; parsing its text does.
     let text = serde_json::to_string(&spec.scene).expect("scenes serialize");
     Scene::from_json(&text)?;
-    if spec.rank == 0 || spec.rank > 64 {
-        return Err(ApiError::new(
-            StatusCode::UNPROCESSABLE_ENTITY,
-            format!("rank must be in 1..=64, got {}", spec.rank),
-        ));
-    }
+    check_codec_options(spec.codec, spec.rank, spec.quantization)
+        .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
     check_scene_cost(&spec.scene, &state.config, &state.limits)?;
     check_assets(state, &spec.scene).await
 }
