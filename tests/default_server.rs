@@ -14,6 +14,7 @@ use mesobake::grid::Dims;
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
+use mesobake::package::manifest::GdmCodec;
 use mesobake::util::limits::Limits;
 use serde_json::{Value, json};
 use std::process::Command;
@@ -125,6 +126,11 @@ async fn the_default_server_bakes_an_upload_end_to_end_from_an_empty_directory()
         .unwrap();
     let package = Package::parse(package.to_vec()).unwrap();
     assert_eq!(package.manifest().bake.res, [16, 16, 8]);
+    assert_eq!(
+        package.manifest().codec,
+        GdmCodec::Occupancy,
+        "the default codec"
+    );
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() != Ok("1") {
         let r = client
             .post(s.url("/api/v1/preview"))
@@ -154,7 +160,7 @@ async fn the_default_server_bakes_an_upload_end_to_end_from_an_empty_directory()
         "{metrics}"
     );
     assert!(
-        metrics.contains("mesobake_stage_seconds_count{stage=\"bake_gdm\"}"),
+        metrics.contains("mesobake_stage_seconds_count{stage=\"occupancy\"}"),
         "{metrics}"
     );
     assert!(
@@ -189,7 +195,10 @@ async fn sigterm_hands_the_running_job_back_and_exits_within_the_grace_period() 
     )
     .await;
     // A bake of several seconds: 128×128×32 voxels × 16×32 directions.
-    let spec = json!({ "scene": scene(json!({ "sample": "chain" }), [128, 128, 32], [16, 32]) });
+    let spec = json!({
+        "scene": scene(json!({ "sample": "chain" }), [128, 128, 32], [16, 32]),
+        "codec": "paper-svd"
+    });
     let id = submit(&s, &spec).await;
     wait_for_job(&s, &id, |j| j["stage"] == "bake_gdm").await;
     // An open event stream must not hold the shutdown up either.

@@ -45,7 +45,7 @@ const GI: &[&str] = &[
 #[test]
 fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
     let dir = tempfile::tempdir().unwrap();
-    let stages = |effects: &[&str]| {
+    let stages_with = |effects: &[&str], options: &[&str]| {
         let scene = write_scene(dir.path(), effects, 8);
         let out = dir.path().join("p.mbpkg");
         let args = [
@@ -55,7 +55,7 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
             "--out",
             out.to_str().unwrap(),
         ];
-        let stdout = succeeds(&[&args[..], &["--json", "--rank", "4"]].concat()).stdout;
+        let stdout = succeeds(&[&args[..], &["--json"], options].concat()).stdout;
         let summary: serde_json::Value = serde_json::from_slice(&stdout).unwrap();
         let manifest = Package::read(&out, &Limits::default())
             .unwrap()
@@ -63,6 +63,7 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
             .clone();
         (summary, manifest)
     };
+    let stages = |effects: &[&str]| stages_with(effects, &[]);
     let names = |v: &serde_json::Value| -> Vec<String> {
         v.as_array()
             .unwrap()
@@ -77,14 +78,17 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
         [
             "load",
             "bake_gdm",
-            "compress",
+            "occupancy",
             "bake_prt",
             "bake_rtv",
             "compress_rtv",
             "encode"
         ]
     );
-    assert_eq!(summary["plan"]["skipped"], serde_json::json!([]));
+    let no_compress = serde_json::json!({
+        "stage": "compress", "reason": "the codec is occupancy: no GDM is stored"
+    });
+    assert_eq!(summary["plan"]["skipped"], serde_json::json!([no_compress]));
     for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
         assert!(
             summary["seconds"][stage].as_f64().unwrap() >= 0.0,
@@ -103,6 +107,7 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
     assert_eq!(
         skipped,
         &serde_json::json!([
+            no_compress,
             { "stage": "prt_visibility",
               "reason": "the scene calls for no macro_shadows: the PRT is a pure rotation" },
             { "stage": "rtv_gloss",
@@ -116,24 +121,43 @@ fn a_scene_bake_runs_exactly_the_stages_its_effects_call_for() {
         "a Lambertian RTV is view-independent"
     );
 
-    // No environment lighting: no radiance-transfer stage runs and the package has none.
-    let (summary, manifest) = stages(&["silhouettes", "shadows"]);
-    assert_eq!(
-        names(&summary["plan"]["stages"]),
-        ["load", "bake_gdm", "compress", "encode"]
-    );
-    for (s, stage) in summary["plan"]["skipped"].as_array().unwrap().iter().zip([
-        "bake_prt",
-        "bake_rtv",
-        "compress_rtv",
-    ]) {
-        assert_eq!(s["stage"], stage);
-        assert_eq!(s["reason"], "the scene calls for no environment_lighting");
-        assert!(summary["seconds"].get(stage).is_none());
+    // No environment lighting: no radiance-transfer stage runs and the package has none;
+    // the occupancy codec needs no GDM at all, the paper's codec bakes and compresses one.
+    for (options, stages_run, skipped_first, prefix) in [
+        (
+            &[][..],
+            &["load", "occupancy", "encode"][..],
+            &["bake_gdm", "compress"][..],
+            "occupancy.",
+        ),
+        (
+            &["--gdm-codec", "paper-svd", "--rank", "4"][..],
+            &["load", "bake_gdm", "compress", "encode"][..],
+            &["occupancy"][..],
+            "gdm.",
+        ),
+    ] {
+        let (summary, manifest) = stages_with(&["silhouettes", "shadows"], options);
+        assert_eq!(names(&summary["plan"]["stages"]), stages_run);
+        let skipped = summary["plan"]["skipped"].as_array().unwrap();
+        let gi_stages = ["bake_prt", "bake_rtv", "compress_rtv"];
+        assert_eq!(
+            skipped
+                .iter()
+                .map(|s| s["stage"].as_str().unwrap())
+                .collect::<Vec<_>>(),
+            [skipped_first, &gi_stages[..]].concat()
+        );
+        for s in &skipped[skipped_first.len()..] {
+            assert_eq!(s["reason"], "the scene calls for no environment_lighting");
+        }
+        for stage in skipped.iter().map(|s| s["stage"].as_str().unwrap()) {
+            assert!(summary["seconds"].get(stage).is_none(), "{stage}");
+        }
+        assert!(manifest.gi.is_none());
+        assert!(manifest.sections.iter().all(|s| s.name.starts_with(prefix)));
+        assert!(summary["gi"].is_null());
     }
-    assert!(manifest.gi.is_none());
-    assert!(manifest.sections.iter().all(|s| s.name.starts_with("gdm.")));
-    assert!(summary["gi"].is_null());
 }
 
 #[test]
