@@ -20,11 +20,17 @@ fn distance_at(cell: vec3<i32>, dims: vec3<u32>) -> u32 {
 
 // The distance to the first solid voxel along o + s·v (unit v) for 0 ≤ s ≤ max_s, or −1
 // when the ray leaves the volume through its top or bottom plane, or passes max_s, first.
+// Written on whole vectors (no per-axis loop): the axis the ray leaves a box by is the first
+// of x, y, z with the smallest crossing time, as in the CPU traversal.
 fn march(o_in: vec3<f32>, v: vec3<f32>, max_s: f32) -> f32 {
     let dims = textureDimensions(occupancy);
     let nz = i32(dims.z);
     let o = vec3<f32>(o_in.xy, clamp(o_in.z, 0.0, f32(dims.z)));
     let f = floor(o);
+    let moving = v != vec3<f32>(0.0);
+    let up = v > vec3<f32>(0.0);
+    let dir = select(vec3<i32>(-1), vec3<i32>(1), up);
+    let inv = 1.0 / select(vec3<f32>(1.0), v, moving);
     // A start on a voxel plane, moving down that axis, is in the voxel behind the plane.
     var cell = vec3<i32>(f) - vec3<i32>((o == f) & (v < vec3<f32>(0.0)));
     if cell.z >= 0 && cell.z < nz && distance_at(cell, dims) == 0u {
@@ -35,36 +41,25 @@ fn march(o_in: vec3<f32>, v: vec3<f32>, max_s: f32) -> f32 {
             return -1.0;
         }
         let r = i32(max(distance_at(cell, dims), 1u));
-        // Leave the empty box of voxels within r − 1 of `cell`.
-        var t_exit = NEVER;
-        var exit_axis = 0;
-        for (var a = 0; a < 3; a++) {
-            if v[a] == 0.0 {
-                continue;
-            }
-            var plane = select(cell[a] - r + 1, cell[a] + r, v[a] > 0.0);
-            if a == 2 {
-                plane = clamp(plane, 0, nz);
-            }
-            let t = (f32(plane) - o[a]) / v[a];
-            if t < t_exit {
-                t_exit = t;
-                exit_axis = a;
-            }
-        }
+        // Leave the empty box of voxels within r − 1 of `cell` (clipped to the volume in z).
+        var plane = select(cell - vec3<i32>(r - 1), cell + vec3<i32>(r), up);
+        plane.z = clamp(plane.z, 0, nz);
+        let t = select(vec3<f32>(NEVER), (vec3<f32>(plane) - o) * inv, moving);
+        let t_exit = min(t.x, min(t.y, t.z));
         if t_exit > max_s {
             return -1.0;
         }
+        let exit_x = t.x <= t.y && t.x <= t.z;
+        let exit_y = !exit_x && t.y <= t.z;
+        let exit = vec3<bool>(exit_x, exit_y, !exit_x && !exit_y);
         // The voxel entered next: one past the box on the exit axis, the crossing point's
         // voxel (within the box) on the others.
-        for (var a = 0; a < 3; a++) {
-            if a == exit_axis {
-                cell[a] = select(cell[a] - r, cell[a] + r, v[a] > 0.0);
-            } else if r > 1 && v[a] != 0.0 {
-                let p = i32(floor(o[a] + t_exit * v[a]));
-                cell[a] = clamp(p, cell[a] - r + 1, cell[a] + r - 1);
-            }
-        }
+        let inside = clamp(
+            vec3<i32>(floor(o + t_exit * v)),
+            cell - vec3<i32>(r - 1),
+            cell + vec3<i32>(r - 1),
+        );
+        cell = select(inside, cell + dir * r, exit);
         if cell.z >= 0 && cell.z < nz && distance_at(cell, dims) == 0u {
             return t_exit;
         }

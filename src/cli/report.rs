@@ -5,7 +5,7 @@ use super::output::Progress;
 use clap::Subcommand;
 use mesobake::compress::quantize::Quantization;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::report::{accuracy, gi, render};
+use mesobake::report::{accuracy, codecs, gi, render};
 use mesobake::scene::render::load_scene;
 use mesobake::util::fs::write_atomic;
 use mesobake::util::limits::Limits;
@@ -34,6 +34,32 @@ pub enum ReportCommand {
         /// Quantizations, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "f32,f16")]
         quants: Vec<Quantization>,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
+    /// Every GDM codec and size on scenes: package bytes and bake seconds, sample flips and
+    /// distance error against the exact GDM, the CPU renderer's PSNR and mask against the
+    /// ground truth and its time, the real-time frame time and PSNR (where an adapter exists),
+    /// with the uncompressed GDM as the reference: Markdown on stdout; codecs.md, codecs.json
+    /// and codecs.svg (PSNR against bytes) in --out.
+    Codecs {
+        /// Scene files, comma-separated.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "scenes/torus-chain.json,scenes/plane-weave.json"
+        )]
+        scenes: Vec<PathBuf>,
+        /// paper-svd ranks, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "4,8,16")]
+        ranks: Vec<usize>,
+        /// paper-svd quantization.
+        #[arg(long, default_value = "f16")]
+        quant: Quantization,
+        /// Real-time frames to time per setting (0: none).
+        #[arg(long, default_value_t = 5)]
+        frames: u32,
         /// Output directory.
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
@@ -157,6 +183,44 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
                     ("accuracy.md", &table),
                     ("accuracy.csv", &csv),
                     ("accuracy.svg", &svg),
+                ],
+            )
+        }
+        ReportCommand::Codecs {
+            scenes,
+            ranks,
+            quant,
+            frames,
+            out,
+        } => {
+            let loaded = scenes
+                .iter()
+                .map(|path| {
+                    let name = path
+                        .file_stem()
+                        .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+                    let dir = path.parent().unwrap_or(Path::new("."));
+                    Ok((name, load_scene(path, limits)?, dir))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let sweep = codecs::CodecSweep {
+                ranks,
+                quantization: quant,
+                frames,
+            };
+            let progress = Progress::new("codec report");
+            let report = codecs::codec_report(&loaded, &sweep, limits, &progress)?;
+            progress.finish();
+            let table = codecs::markdown(&report);
+            let json = serde_json::to_string_pretty(&report).expect("reports serialize");
+            let svg = codecs::svg_plot(&report)?;
+            publish(
+                &out,
+                &table,
+                &[
+                    ("codecs.md", &table),
+                    ("codecs.json", &json),
+                    ("codecs.svg", &svg),
                 ],
             )
         }

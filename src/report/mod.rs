@@ -1,7 +1,9 @@
 //! What each setting costs and buys, measured against exact references: `mesobake report
-//! accuracy` ([`accuracy`]: GDM compression), `report render` ([`render`]: the GDM renderer
+//! accuracy` ([`accuracy`]: GDM compression), `report codecs` ([`codecs`]: every GDM codec
+//! and size on scenes, samples and images), `report render` ([`render`]: the GDM renderer
 //! against the truth, and its error budget) and `report gi` ([`gi`]: radiance transfer).
 
 pub mod accuracy;
+pub mod codecs;
 pub mod gi;
 pub mod render;

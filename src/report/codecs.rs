@@ -1,0 +1,335 @@
+//! `mesobake report codecs`: every GDM codec and size on the same scenes, against the same
+//! ground truth. Per scene the truth and the exact uncompressed GDM are made once; then each
+//! codec setting bakes the scene's package as `mesobake bake --scene` would, and is measured
+//! on the samples (hit/escape flips and distance error of what the package answers, against
+//! the exact GDM), on the CPU renderer's image (PSNR and mask against the truth, render time)
+//! and, where an adapter exists, on the real-time pipeline (mean frame time, and its image
+//! against the truth). The uncompressed GDM is the reference row: what the paper's algorithm
+//! reaches with no compression at all.
+
+use crate::bake::gdm::{BakeObserver, EscapeConvention, Gdm};
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::RankChoice;
+use crate::error::{Error, Result};
+use crate::package::manifest::GdmCodec;
+use crate::realtime::gpu::Gpu;
+use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
+use crate::render::gdm_renderer::GdmRenderer;
+use crate::render::image::{Image, compare};
+use crate::render::render_image;
+use crate::render::truth::TruthRenderer;
+use crate::report::accuracy::table;
+use crate::scene::LoadedScene;
+use crate::scene::package::{ScenePackageParams, bake_scene_package};
+use crate::util::limits::Limits;
+use std::path::Path;
+use std::time::Instant;
+
+/// The settings the report covers: the occupancy codec, and `paper-svd` at each rank.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CodecSweep {
+    /// `paper-svd` ranks.
+    pub ranks: Vec<usize>,
+    /// `paper-svd` quantization.
+    pub quantization: Quantization,
+    /// Real-time frames to time per setting (0: no real-time rows).
+    pub frames: u32,
+}
+
+/// One codec setting on one scene.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CodecRow {
+    /// The scene's file stem.
+    pub scene: String,
+    /// `occupancy`, `paper-svd` or `uncompressed` (the exact GDM as baked, f32).
+    pub codec: String,
+    /// The codec's size setting (`rank 8 f16`), empty when it has none.
+    pub setting: String,
+    /// Bytes of the package (for `uncompressed`, of the f32 GDM).
+    pub bytes: u64,
+    /// Seconds to make it: the package's stages, or the exact bake.
+    pub bake_s: f64,
+    /// Fraction of the GDM's samples whose hit-or-escape answer differs from the exact GDM's.
+    pub flip_rate: f64,
+    /// Root-mean-square d − d_exact over the samples where both hit, voxels.
+    pub hit_rmse: f64,
+    /// CPU GDM renderer: seconds for the image.
+    pub render_s: f64,
+    /// CPU image against the truth: PSNR (dB, sRGB).
+    pub psnr_db: f64,
+    /// CPU image against the truth: fraction of pixels whose hit mask differs.
+    pub mask_disagreement: f64,
+    /// Real-time pipeline: mean milliseconds per frame (none without an adapter, and for
+    /// `uncompressed`, which it cannot hold).
+    pub frame_ms: Option<f64>,
+    /// Real-time image against the truth: PSNR (dB).
+    pub realtime_psnr_db: Option<f64>,
+}
+
+/// The report.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CodecReport {
+    /// The adapter the real-time rows ran on, if any.
+    pub adapter: Option<String>,
+    /// Per scene: its file stem and the seconds its ground truth took.
+    pub truth_s: Vec<(String, f64)>,
+    /// Per scene: uncompressed, occupancy, then `paper-svd` by rank.
+    pub rows: Vec<CodecRow>,
+}
+
+/// Runs the sweep on each of `scenes` (file stem, loaded scene, its directory), reporting
+/// progress as (settings done, settings in all).
+pub fn codec_report(
+    scenes: &[(String, LoadedScene, &Path)],
+    sweep: &CodecSweep,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<CodecReport> {
+    let gpu = if sweep.frames > 0 {
+        Gpu::open(None).ok()
+    } else {
+        None
+    };
+    // Each setting with its label.
+    let settings: Vec<(ScenePackageParams, String)> =
+        std::iter::once((ScenePackageParams::default(), String::new()))
+            .chain(sweep.ranks.iter().map(|&k| {
+                let params = ScenePackageParams {
+                    codec: GdmCodec::PaperSvd,
+                    rank: RankChoice::Rank(k),
+                    quantization: sweep.quantization,
+                };
+                (params, format!("rank {k} {}", sweep.quantization))
+            }))
+            .collect();
+    let total = (scenes.len() * (2 + settings.len())) as u64;
+    let mut done = 0;
+    let mut step = || {
+        if observer.cancelled() {
+            return Err(Error::Cancelled);
+        }
+        done += 1;
+        observer.progress(done, total);
+        Ok(())
+    };
+    let mut report = CodecReport {
+        adapter: gpu.as_ref().map(|g| g.adapter.name.clone()),
+        truth_s: Vec::new(),
+        rows: Vec::new(),
+    };
+    for (name, loaded, dir) in scenes {
+        let scene = &loaded.scene;
+        let start = Instant::now();
+        let caster = loaded.mesostructure.caster();
+        let truth_renderer = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
+        let truth = render_image(&scene.camera, |o, d| truth_renderer.radiance(scene, o, d));
+        report
+            .truth_s
+            .push((name.clone(), start.elapsed().as_secs_f64()));
+        step()?;
+        let cpu_render = |lookup: &dyn GdmLookup| -> Result<(f64, Image)> {
+            let start = Instant::now();
+            let r = GdmRenderer::new(
+                &loaded.shell,
+                lookup,
+                &loaded.material,
+                scene.gdm_refinements,
+            );
+            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            Ok((start.elapsed().as_secs_f64(), image))
+        };
+
+        let start = Instant::now();
+        let mut exact = loaded.bake_gdm(limits, &())?;
+        exact.set_escape_convention(EscapeConvention::Infinite);
+        let bake_s = start.elapsed().as_secs_f64();
+        let (render_s, image) = cpu_render(&RawLookup::new(&exact))?;
+        let c = compare(&truth, &image)?;
+        report.rows.push(CodecRow {
+            scene: name.clone(),
+            codec: "uncompressed".into(),
+            setting: "f32".into(),
+            bytes: exact.data().len() as u64 * 4,
+            bake_s,
+            flip_rate: 0.0,
+            hit_rmse: 0.0,
+            render_s,
+            psnr_db: c.psnr_db,
+            mask_disagreement: c.mask_disagreement,
+            frame_ms: None,
+            realtime_psnr_db: None,
+        });
+        step()?;
+
+        for (params, setting) in &settings {
+            let start = Instant::now();
+            let baked = bake_scene_package(loaded, dir, *params, limits, &())?;
+            let bake_s = start.elapsed().as_secs_f64();
+            let bytes = baked.bytes.len() as u64;
+            let package = crate::package::Package::parse(baked.bytes)?;
+            let (flip_rate, hit_rmse) = sample_errors(&package.reconstruct(limits)?, &exact);
+            let lookup = package_lookup(&package)?;
+            let (render_s, image) = cpu_render(&*lookup)?;
+            let c = compare(&truth, &image)?;
+            let (frame_ms, realtime_psnr_db) = match &gpu {
+                Some(gpu) => {
+                    let (image, preview) =
+                        crate::scene::preview::preview(gpu, loaded, &package, sweep.frames)?;
+                    let c = compare(&truth, &image)?;
+                    (preview.mean_frame_seconds.map(|s| s * 1e3), Some(c.psnr_db))
+                }
+                None => (None, None),
+            };
+            report.rows.push(CodecRow {
+                scene: name.clone(),
+                codec: params.codec.to_string(),
+                setting: setting.clone(),
+                bytes,
+                bake_s,
+                flip_rate,
+                hit_rmse,
+                render_s,
+                psnr_db: c.psnr_db,
+                mask_disagreement: c.mask_disagreement,
+                frame_ms,
+                realtime_psnr_db,
+            });
+            step()?;
+        }
+    }
+    Ok(report)
+}
+
+/// Hit/escape flips of `approx` against `exact` (same grids, escapes +∞), as a fraction of
+/// all samples, and the RMSE over the samples where both hit.
+fn sample_errors(approx: &Gdm, exact: &Gdm) -> (f64, f64) {
+    let (mut flips, mut both, mut sum_sq) = (0u64, 0u64, 0.0f64);
+    for (&a, &e) in approx.data().iter().zip(exact.data()) {
+        if a.is_finite() != e.is_finite() {
+            flips += 1;
+        } else if a.is_finite() {
+            both += 1;
+            sum_sq += (a as f64 - e as f64).powi(2);
+        }
+    }
+    let samples = exact.data().len().max(1) as f64;
+    (flips as f64 / samples, (sum_sq / both.max(1) as f64).sqrt())
+}
+
+/// The report as Markdown: one table over all scenes.
+pub fn markdown(report: &CodecReport) -> String {
+    let truths: Vec<String> = report
+        .truth_s
+        .iter()
+        .map(|(scene, s)| format!("{scene} {s:.2} s"))
+        .collect();
+    let opt = |v: Option<f64>, digits: usize| v.map_or("—".into(), |v| format!("{v:.digits$}"));
+    let rows = report.rows.iter().map(|r| {
+        vec![
+            r.scene.clone(),
+            r.codec.clone(),
+            r.setting.clone(),
+            r.bytes.to_string(),
+            format!("{:.2}", r.bake_s),
+            format!("{:.3}", 100.0 * r.flip_rate),
+            format!("{:.3}", r.hit_rmse),
+            format!("{:.2}", r.render_s),
+            format!("{:.2}", r.psnr_db),
+            format!("{:.3}", 100.0 * r.mask_disagreement),
+            opt(r.frame_ms, 1),
+            opt(r.realtime_psnr_db, 2),
+        ]
+    });
+    format!(
+        "Ground truth: {}. Real-time adapter: {}.\n\n{}",
+        truths.join(", "),
+        report.adapter.as_deref().unwrap_or("none"),
+        table(
+            &[
+                "scene",
+                "codec",
+                "setting",
+                "bytes",
+                "bake s",
+                "sample flips %",
+                "hit RMSE (voxel)",
+                "CPU render s",
+                "CPU PSNR dB",
+                "CPU mask %",
+                "real-time frame ms",
+                "real-time PSNR dB",
+            ],
+            rows,
+        )
+    )
+}
+
+/// An SVG plot per scene: CPU render PSNR against the truth over bytes (log), one line per
+/// codec through its sizes.
+pub fn svg_plot(report: &CodecReport) -> Result<String> {
+    use plotters::prelude::*;
+    let plot_error = |e: String| Error::InvalidParameter(format!("plotting failed: {e}"));
+    let scenes: Vec<&str> = report.truth_s.iter().map(|(s, _)| s.as_str()).collect();
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (600 * scenes.len().max(1) as u32, 480))
+            .into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_error(e.to_string()))?;
+        for (panel, scene) in root
+            .split_evenly((1, scenes.len().max(1)))
+            .iter()
+            .zip(&scenes)
+        {
+            let rows: Vec<&CodecRow> = report.rows.iter().filter(|r| r.scene == *scene).collect();
+            let (lo, hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+                (lo.min(r.bytes as f64), hi.max(r.bytes as f64))
+            });
+            let (p_lo, p_hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+                (lo.min(r.psnr_db), hi.max(r.psnr_db))
+            });
+            let mut chart = ChartBuilder::on(panel)
+                .caption(
+                    format!("{scene}: PSNR against the truth"),
+                    ("sans-serif", 18),
+                )
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(56)
+                .build_cartesian_2d(
+                    ((lo / 2.0)..(hi * 2.0)).log_scale(),
+                    (p_lo - 2.0)..(p_hi + 2.0),
+                )
+                .map_err(|e| plot_error(e.to_string()))?;
+            chart
+                .configure_mesh()
+                .x_desc("bytes")
+                .y_desc("CPU render PSNR (dB)")
+                .draw()
+                .map_err(|e| plot_error(e.to_string()))?;
+            for (i, codec) in ["uncompressed", "occupancy", "paper-svd"]
+                .iter()
+                .enumerate()
+            {
+                let color = Palette99::pick(i).to_rgba();
+                let points: Vec<(f64, f64)> = rows
+                    .iter()
+                    .filter(|r| r.codec == *codec)
+                    .map(|r| (r.bytes as f64, r.psnr_db))
+                    .collect();
+                chart
+                    .draw_series(LineSeries::new(points, color.stroke_width(2)).point_size(4))
+                    .map_err(|e| plot_error(e.to_string()))?
+                    .label(*codec)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
+            }
+            chart
+                .configure_series_labels()
+                .border_style(BLACK)
+                .background_style(WHITE.mix(0.8))
+                .draw()
+                .map_err(|e| plot_error(e.to_string()))?;
+        }
+        root.present().map_err(|e| plot_error(e.to_string()))?;
+    }
+    Ok(svg)
+}
