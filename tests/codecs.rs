@@ -13,7 +13,7 @@ use mesobake::util::limits::Limits;
 use std::path::Path;
 
 mod common;
-use common::succeeds;
+use common::{each_fails_with, succeeds};
 
 #[test]
 fn the_default_package_renders_like_the_uncompressed_gdm_on_every_sample_scene() {
@@ -126,4 +126,25 @@ fn report_codecs_writes_the_table_json_and_plot() {
         svg.starts_with("<svg") && svg.contains("paper-svd"),
         "{svg:.200}"
     );
+    let (scene, out) = (path.to_str().unwrap(), out.to_str().unwrap());
+    let missing = dir.path().join("missing.json");
+    each_fails_with(&[
+        (
+            vec![
+                "report", "codecs", "--scenes", scene, "--ranks", "0", "--out", out,
+            ],
+            "rank must be in 1..=64, got 0",
+        ),
+        (
+            vec![
+                "report",
+                "codecs",
+                "--scenes",
+                missing.to_str().unwrap(),
+                "--out",
+                out,
+            ],
+            "missing.json",
+        ),
+    ]);
 }

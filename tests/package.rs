@@ -52,7 +52,7 @@ fn small_package() -> Vec<u8> {
     Package::encode(
         input_info(),
         bake_info(&g, Method::Exact, Default::default(), false),
-        &GdmPayload::PaperSvd(c),
+        &GdmPayload::PaperSvd(Box::new(c)),
     )
 }
 
@@ -64,7 +64,7 @@ fn round_trip_gives_back_the_measured_reconstruction() {
         let bytes = Package::encode(
             input_info(),
             bake_info(&g, Method::Exact, Default::default(), false),
-            &GdmPayload::PaperSvd(c.clone()),
+            &GdmPayload::PaperSvd(Box::new(c.clone())),
         );
         let pkg = Package::parse(bytes).unwrap();
         // The unpacked codes are the quantized factors, bit for bit.
@@ -337,7 +337,7 @@ fn a_huge_declared_grid_fails_on_the_memory_limit_not_on_allocation() {
     let bytes = Package::encode(
         input_info(),
         bake_info(&g, Method::Exact, Default::default(), false),
-        &GdmPayload::PaperSvd(c),
+        &GdmPayload::PaperSvd(Box::new(c)),
     );
     let bytes = with_manifest(&bytes, |m| {
         m["bake"]["res"] = serde_json::json!([65536, 65536, 65536]);

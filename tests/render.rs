@@ -603,7 +603,7 @@ fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
     };
     let info =
         mesobake::package::bake::bake_info(&raw, gdm::Method::Exact, Default::default(), false);
-    let payload = mesobake::package::GdmPayload::PaperSvd(c.unwrap());
+    let payload = mesobake::package::GdmPayload::PaperSvd(Box::new(c.unwrap()));
     let package = Package::parse(Package::encode(input, info, &payload)).unwrap();
     (raw, package)
 }

@@ -380,7 +380,12 @@ pub fn run_package(limits: &Limits) -> Result<Vec<PackageRow>> {
             setting,
             rank: c.svd.rank,
             quantization: q,
-            bytes: Package::encode(input.clone(), info, &GdmPayload::PaperSvd(c.clone())).len(),
+            bytes: Package::encode(
+                input.clone(),
+                info,
+                &GdmPayload::PaperSvd(Box::new(c.clone())),
+            )
+            .len(),
             accuracy: c.accuracy,
         })
     };

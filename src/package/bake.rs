@@ -176,7 +176,13 @@ pub fn bake_package(
     seconds.bake = start.elapsed().as_secs_f64();
 
     let info = bake_info(&g, params.method, params.fast, params.allow_open);
-    let gdm = GdmPayload::PaperSvd(compress_gdm(&g, params, limits, observer, &mut seconds)?);
+    let gdm = GdmPayload::PaperSvd(Box::new(compress_gdm(
+        &g,
+        params,
+        limits,
+        observer,
+        &mut seconds,
+    )?));
     let start = Instant::now();
     let bytes = Package::encode(input, info, &gdm);
     seconds.encode = start.elapsed().as_secs_f64();

@@ -83,7 +83,7 @@ fn pack(factor: &QuantizedFactor, group: usize, texture: &Texture) -> Vec<u8> {
 #[derive(Clone, Debug)]
 pub enum GdmPayload {
     /// [`GdmCodec::PaperSvd`]: the compressed GDM.
-    PaperSvd(CompressedGdm),
+    PaperSvd(Box<CompressedGdm>),
     /// [`GdmCodec::Occupancy`]: the occupancy field.
     Occupancy(OccupancyField),
 }
@@ -319,7 +319,7 @@ impl Package {
                 )));
             }
             for (name, expected) in gi::textures(info, dims, dirs) {
-                expect_section(&manifest.sections, &name, expected, bad)?;
+                expect_section(&manifest.sections, name, expected, bad)?;
             }
         }
         let package = Package {

@@ -96,7 +96,11 @@ pub fn accuracy(
                 }
                 let c = quantize(&g, svd.clone(), RankChoice::Rank(rank), q)?;
                 let info = bake_info(&g, Method::Exact, Default::default(), false);
-                let bytes = Package::encode(input.clone(), info, &GdmPayload::PaperSvd(c.clone()));
+                let bytes = Package::encode(
+                    input.clone(),
+                    info,
+                    &GdmPayload::PaperSvd(Box::new(c.clone())),
+                );
                 rows.push(AccuracyRow {
                     dirs: dirs.to_string(),
                     rank: c.svd.rank,

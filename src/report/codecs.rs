@@ -11,6 +11,7 @@ use crate::bake::gdm::{BakeObserver, EscapeConvention, Gdm};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
+use crate::package::bake::check_codec_options;
 use crate::package::manifest::GdmCodec;
 use crate::realtime::gpu::Gpu;
 use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
@@ -85,6 +86,9 @@ pub fn codec_report(
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<CodecReport> {
+    for &k in &sweep.ranks {
+        check_codec_options(GdmCodec::PaperSvd, Some(k), None)?;
+    }
     let gpu = if sweep.frames > 0 {
         Gpu::open(None).ok()
     } else {

@@ -125,7 +125,7 @@ pub fn bake_scene_package(
             observer.stage("compress");
             let compressed = compress_gdm(g, &package_params, limits, observer, &mut stage)?;
             seconds.push(("compress".to_owned(), stage.svd + stage.quantize));
-            GdmPayload::PaperSvd(compressed)
+            GdmPayload::PaperSvd(Box::new(compressed))
         }
         _ => {
             let start = Instant::now();
