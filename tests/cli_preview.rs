@@ -210,7 +210,73 @@ fn bad_preview_requests_fail_clearly() {
     std::fs::write(path("junk.mbpkg"), b"not a package").unwrap();
     let scene = path("scene.json");
     let out = path("out.png");
+    // A package of another mesostructure on the scene's grid: refused unless --force.
+    succeeds(&[
+        "sample",
+        "weave",
+        "--res",
+        "16x16x8",
+        "--out",
+        &path("weave.mbvol"),
+    ]);
+    succeeds(&[
+        "bake",
+        "--input",
+        &path("weave.mbvol"),
+        "--dirs",
+        "8x16",
+        "--out",
+        &path("weave.mbpkg"),
+    ]);
+    let other = path("weave.mbpkg");
+    let forced_out = path("forced.png");
+    let forced = |command: &str| {
+        let mut args = vec![
+            command,
+            "--scene",
+            &scene,
+            "--package",
+            &other,
+            "--out",
+            &forced_out,
+        ];
+        if command == "render" {
+            args.extend(["--method", "gdm"]);
+        }
+        succeeds(&[&args[..], &["--force"]].concat());
+    };
+    forced("preview");
+    forced("render");
+    assert!(Path::new(&forced_out).is_file());
     each_fails_with(&[
+        (
+            vec![
+                "preview",
+                "--scene",
+                &scene,
+                "--out",
+                &out,
+                "--package",
+                &other,
+            ],
+            "weave.mbpkg: the package was baked from another mesostructure (volume input",
+        ),
+        (
+            vec![
+                "render",
+                "--scene",
+                &scene,
+                "--out",
+                &out,
+                "--package",
+                &other,
+            ],
+            "pass --force to render it anyway",
+        ),
+        (
+            vec!["preview", "--scene", &scene, "--out", &out, "--force"],
+            "--package",
+        ),
         (
             vec![
                 "preview",

@@ -5,7 +5,7 @@ use super::output::{Progress, print_json};
 use mesobake::Result;
 use mesobake::package::Package;
 use mesobake::realtime::gpu::Gpu;
-use mesobake::scene::package::scene_package;
+use mesobake::scene::package::{check_package_input, scene_package};
 use mesobake::scene::preview::preview as render_preview;
 use mesobake::scene::render::load_scene;
 use mesobake::util::limits::Limits;
@@ -21,9 +21,13 @@ pub struct PreviewArgs {
     /// Output image (.png or .exr).
     #[arg(long)]
     out: PathBuf,
-    /// Render from this package (its grid must be the scene's) instead of baking one.
+    /// Render from this package (its grid must be the scene's, and it must have been baked
+    /// from the scene's mesostructure unless --force) instead of baking one.
     #[arg(long)]
     package: Option<PathBuf>,
+    /// Render --package even when it was baked from another mesostructure than the scene's.
+    #[arg(long, requires = "package")]
+    force: bool,
     /// How the package baked for the scene (without --package) answers GDM queries.
     #[command(flatten)]
     codec: CodecOptions,
@@ -45,6 +49,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         scene,
         out,
         package,
+        force,
         codec,
         frames,
         adapter,
@@ -65,7 +70,15 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     let load_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let package = match &package {
-        Some(path) => Package::read(path, limits)?,
+        Some(path) => {
+            let package = Package::read(path, limits)?;
+            if !force {
+                let dir = scene.parent().unwrap_or(Path::new("."));
+                check_package_input(&package, &loaded.scene, dir)
+                    .map_err(|e| e.context(path.display()))?;
+            }
+            package
+        }
         None => {
             let progress = Progress::new("baking the package");
             let dir = scene.parent().unwrap_or(Path::new("."));

@@ -2,12 +2,14 @@
 //! compare` (PSNR, error and mask disagreement of two images).
 
 use super::output::{Progress, print_json};
+use mesobake::package::Package;
 use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
+use mesobake::scene::package::check_package_input;
 use mesobake::scene::render::{GdmSource, RenderMethod, load_scene, render_substituted};
 use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Options of `mesobake render`.
@@ -19,9 +21,13 @@ pub struct RenderArgs {
     /// truth: exact mapping into the real mesostructure; gdm: the real-time algorithm.
     #[arg(long, default_value = "gdm")]
     method: RenderMethod,
-    /// For --method gdm: render from this package instead of baking the exact GDM.
+    /// For --method gdm: render from this package instead of baking the exact GDM. It must
+    /// have been baked from the scene's mesostructure (unless --force).
     #[arg(long)]
     package: Option<PathBuf>,
+    /// Render --package even when it was baked from another mesostructure than the scene's.
+    #[arg(long, requires = "package")]
+    force: bool,
     /// Output image (.png or .exr).
     #[arg(long)]
     out: PathBuf,
@@ -41,6 +47,7 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         scene,
         method,
         package,
+        force,
         out,
         json,
         substitute,
@@ -48,15 +55,24 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     let start = Instant::now();
     let loaded = load_scene(&scene, limits)?;
     let load_s = start.elapsed().as_secs_f64();
-    let source = match (&package, method) {
-        (Some(path), RenderMethod::Gdm) => GdmSource::Package(path),
-        (None, _) => GdmSource::Bake,
+    let package = match (&package, method) {
+        (Some(path), RenderMethod::Gdm) => {
+            let package = Package::read(path, limits)?;
+            if !force {
+                let dir = scene.parent().unwrap_or(Path::new("."));
+                check_package_input(&package, &loaded.scene, dir)
+                    .map_err(|e| e.context(path.display()))?;
+            }
+            Some(package)
+        }
+        (None, _) => None,
         (Some(_), RenderMethod::Truth) => {
             return Err(Error::InvalidParameter(
                 "--package only applies to --method gdm".into(),
             ));
         }
     };
+    let source = package.as_ref().map_or(GdmSource::Bake, GdmSource::Package);
     let progress = Progress::new("baking GDM (exact)");
     let mut rendered = render_substituted(&loaded, method, source, substitute, limits, &progress)?;
     progress.finish();

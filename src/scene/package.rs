@@ -200,6 +200,35 @@ pub fn scene_package(
     Package::parse(bake_scene_package(loaded, scene_dir, params, limits, observer)?.bytes)
 }
 
+/// Checks that `package` was baked from `scene`'s mesostructure: its grid is the scene's
+/// resolution and its manifest's input identity is the one [`bake_scene_package`] records for the scene (files it names resolved
+/// against `scene_dir`). Another mesostructure's package would render the scene's shell with
+/// the wrong geometry, silently.
+pub fn check_package_input(package: &Package, scene: &Scene, scene_dir: &Path) -> Result<()> {
+    if package.dims() != scene.dims()? {
+        return Err(Error::Scene(format!(
+            "the package holds a {} grid but the scene's resolution is {}",
+            package.dims(),
+            scene.dims()?
+        )));
+    }
+    let expected = input_identity(scene, scene_dir)?;
+    let found = &package.manifest().input;
+    if found.blake3 == expected.blake3 {
+        return Ok(());
+    }
+    let short = |h: &str| h.chars().take(12).collect::<String>();
+    Err(Error::Scene(format!(
+        "the package was baked from another mesostructure ({} input, BLAKE3 {}…) than the \
+         scene names ({} input, BLAKE3 {}…); bake it for this scene, or pass --force to \
+         render it anyway",
+        found.kind,
+        short(&found.blake3),
+        expected.kind,
+        short(&expected.blake3)
+    )))
+}
+
 /// The identity of `scene`'s mesostructure input, as a manifest records it.
 fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
     let identity = match &scene.mesostructure {

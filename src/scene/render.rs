@@ -66,8 +66,8 @@ pub struct Rendered {
 pub enum GdmSource<'a> {
     /// Bake the exact GDM of the scene's mesostructure on its grids.
     Bake,
-    /// Read this package (its grid must match the scene's resolution).
-    Package(&'a Path),
+    /// This package (its grid must match the scene's resolution).
+    Package(&'a Package),
 }
 
 /// Reads the scene at `path` and loads its inputs (paths relative to the scene's folder).
@@ -145,20 +145,18 @@ pub fn render_substituted(
                     }
                     &raw_lookup
                 }
-                GdmSource::Package(path) => {
-                    let pkg = Package::read(path, limits)?;
+                GdmSource::Package(pkg) => {
                     if pkg.dims() != scene.dims()? {
                         return Err(Error::Scene(format!(
-                            "{} holds a {} GDM but the scene's resolution is {}",
-                            path.display(),
+                            "the package holds a {} grid but the scene's resolution is {}",
                             pkg.dims(),
                             scene.dims()?
                         )));
                     }
                     if environment {
-                        gi = Some(GiShading::from_package(loaded, &pkg)?);
+                        gi = Some(GiShading::from_package(loaded, pkg)?);
                     }
-                    from_package = package_lookup(&pkg)?;
+                    from_package = package_lookup(pkg)?;
                     &*from_package
                 }
             };
