@@ -38,6 +38,7 @@ fn the_default_package_renders_like_the_uncompressed_gdm_on_every_sample_scene()
     let sweep = CodecSweep {
         ranks: vec![],
         quantization: Default::default(),
+        tiles: vec![],
         frames: 0,
     };
     let report = codec_report(&scenes, &sweep, &limits, &()).unwrap();
@@ -98,6 +99,8 @@ fn report_codecs_writes_the_table_json_and_plot() {
         path.to_str().unwrap(),
         "--ranks",
         "2,4",
+        "--tiles",
+        "8",
         "--frames",
         "0",
         "--out",
@@ -114,9 +117,19 @@ fn report_codecs_writes_the_table_json_and_plot() {
     let codecs: Vec<&str> = rows.iter().map(|r| r["codec"].as_str().unwrap()).collect();
     assert_eq!(
         codecs,
-        ["uncompressed", "occupancy", "paper-svd", "paper-svd"]
+        [
+            "uncompressed",
+            "occupancy",
+            "paper-svd",
+            "paper-svd",
+            "tiled-svd",
+            "tiled-svd"
+        ]
     );
     assert_eq!(rows[2]["setting"], "rank 2 f16");
+    assert_eq!(rows[4]["setting"], "8×8 tiles, rank 2 f16");
+    // Tiles fit better than one basis at the same rank (the weight maps' bytes are equal).
+    assert!(rows[4]["flip_rate"].as_f64() <= rows[2]["flip_rate"].as_f64());
     // The uncompressed GDM is 4 bytes per sample; the SVD flips samples, the march none.
     assert_eq!(rows[0]["bytes"], 16 * 16 * 8 * 4 * 8 * 4);
     assert!(rows[2]["flip_rate"].as_f64().unwrap() > 0.0);

@@ -38,8 +38,8 @@ pub enum ReportCommand {
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
     },
-    /// Every GDM codec and size on scenes: package bytes and bake seconds, sample flips and
-    /// distance error against the exact GDM, the CPU renderer's PSNR and mask against the
+    /// Every GDM codec and size on scenes (and the blockwise SVD, evaluated on the CPU only):
+    /// package bytes and bake seconds, sample flips and distance error against the exact GDM, the CPU renderer's PSNR and mask against the
     /// ground truth and its time, the real-time frame time and PSNR (where an adapter exists),
     /// with the uncompressed GDM as the reference: Markdown on stdout; codecs.md, codecs.json
     /// and codecs.svg (PSNR against bytes) in --out.
@@ -54,9 +54,13 @@ pub enum ReportCommand {
         /// paper-svd ranks, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "4,8,16")]
         ranks: Vec<usize>,
-        /// paper-svd quantization.
+        /// paper-svd and tiled-svd quantization.
         #[arg(long, default_value = "f16")]
         quant: Quantization,
+        /// Tile sides (texels) of the blockwise SVD evaluated beside the codecs, comma-separated
+        /// (each at every rank); an empty list evaluates none.
+        #[arg(long, value_delimiter = ',', default_value = "16")]
+        tiles: Vec<u32>,
         /// Real-time frames to time per setting (0: none).
         #[arg(long, default_value_t = 5)]
         frames: u32,
@@ -190,6 +194,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             scenes,
             ranks,
             quant,
+            tiles,
             frames,
             out,
         } => {
@@ -206,6 +211,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             let sweep = codecs::CodecSweep {
                 ranks,
                 quantization: quant,
+                tiles,
                 frames,
             };
             let progress = Progress::new("codec report");

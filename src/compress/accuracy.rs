@@ -14,7 +14,7 @@
 use super::layout::GdmRows;
 use super::svd::{RowSource, gemm};
 use crate::bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use rayon::prelude::*;
 
 /// Resolution of the relative escape margin.
@@ -98,6 +98,51 @@ pub fn measure(reference: &Gdm, weights: &[f32], eigen: &[f32], rank: usize) -> 
         escape_margin: bin as f32 * MARGIN_STEP,
         flips,
         flip_rate: flips as f64 / samples as f64,
+        samples,
+    })
+}
+
+/// [`measure`] for a reconstruction given densely, `recon[i]` the value at `reference`'s
+/// sample `i` (its own layout).
+pub fn measure_dense(reference: &Gdm, recon: &[f32]) -> Result<Accuracy> {
+    if reference.escape_convention() != EscapeConvention::Boundary
+        || recon.len() != reference.data().len()
+    {
+        return Err(Error::InvalidParameter(
+            "measure a dense reconstruction of the whole GDM against its boundary-convention \
+             reference"
+                .into(),
+        ));
+    }
+    let (dims, dirs) = (reference.dims(), reference.dirs());
+    let (layer, stride) = ((dims.x * dims.y) as usize, reference.direction_stride());
+    let total = reference
+        .data()
+        .par_chunks(stride)
+        .zip(recon.par_chunks(stride))
+        .enumerate()
+        .map(|(d, (exact, recon))| {
+            let a = (d / dirs.n_phi as usize) as u32;
+            let mut tally = Tally::default();
+            for (k, (e, r)) in exact.chunks(layer).zip(recon.chunks(layer)).enumerate() {
+                let bound = reference.boundary_distance(k as u32, a);
+                for (&e, &r) in e.iter().zip(r) {
+                    tally.add(e, r, bound);
+                }
+            }
+            tally
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold(Tally::default(), Tally::merge);
+    let samples = recon.len() as u64;
+    let (bin, flips) = total.best_margin();
+    Ok(Accuracy {
+        rmse: (total.sum_sq / samples.max(1) as f64).sqrt(),
+        max_abs: total.max_abs,
+        escape_margin: bin as f32 * MARGIN_STEP,
+        flips,
+        flip_rate: flips as f64 / samples.max(1) as f64,
         samples,
     })
 }

@@ -8,3 +8,4 @@ pub mod layout;
 pub mod occupancy;
 pub mod quantize;
 pub mod svd;
+pub mod tiled;

@@ -5,11 +5,13 @@
 //! the exact GDM), on the CPU renderer's image (PSNR and mask against the truth, render time)
 //! and, where an adapter exists, on the real-time pipeline (mean frame time, and its image
 //! against the truth). The uncompressed GDM is the reference row: what the paper's algorithm
-//! reaches with no compression at all.
+//! reaches with no compression at all. Blockwise SVD (`tiled-svd`, [`compress_tiled`]) is
+//! evaluated beside the codecs, on the CPU renderer only: it is not a package codec.
 
 use crate::bake::gdm::{BakeObserver, EscapeConvention, Gdm};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
+use crate::compress::tiled::compress_tiled;
 use crate::error::{Error, Result};
 use crate::package::bake::check_codec_options;
 use crate::package::manifest::GdmCodec;
@@ -31,8 +33,10 @@ use std::time::Instant;
 pub struct CodecSweep {
     /// `paper-svd` ranks.
     pub ranks: Vec<usize>,
-    /// `paper-svd` quantization.
+    /// `paper-svd` and `tiled-svd` quantization.
     pub quantization: Quantization,
+    /// `tiled-svd` tile sides in texels (each at every rank; none: no tiled rows).
+    pub tiles: Vec<u32>,
     /// Real-time frames to time per setting (0: no real-time rows).
     pub frames: u32,
 }
@@ -42,7 +46,8 @@ pub struct CodecSweep {
 pub struct CodecRow {
     /// The scene's file stem.
     pub scene: String,
-    /// `occupancy`, `paper-svd` or `uncompressed` (the exact GDM as baked, f32).
+    /// `occupancy`, `paper-svd`, `tiled-svd` (evaluated, not a package codec) or
+    /// `uncompressed` (the exact GDM as baked, f32).
     pub codec: String,
     /// The codec's size setting (`rank 8 f16`), empty when it has none.
     pub setting: String,
@@ -74,7 +79,8 @@ pub struct CodecReport {
     pub adapter: Option<String>,
     /// Per scene: its file stem and the seconds its ground truth took.
     pub truth_s: Vec<(String, f64)>,
-    /// Per scene: uncompressed, occupancy, then `paper-svd` by rank.
+    /// Per scene: uncompressed, occupancy, `paper-svd` by rank, then `tiled-svd` by tile side
+    /// and rank.
     pub rows: Vec<CodecRow>,
 }
 
@@ -106,7 +112,8 @@ pub fn codec_report(
                 (params, format!("rank {k} {}", sweep.quantization))
             }))
             .collect();
-    let total = (scenes.len() * (2 + settings.len())) as u64;
+    let tiled = sweep.tiles.len() * sweep.ranks.len();
+    let total = (scenes.len() * (2 + settings.len() + tiled)) as u64;
     let mut done = 0;
     let mut step = || {
         if observer.cancelled() {
@@ -199,6 +206,34 @@ pub fn codec_report(
                 realtime_psnr_db,
             });
             step()?;
+        }
+
+        let mut boundary = exact.clone();
+        boundary.set_escape_convention(EscapeConvention::Boundary);
+        for &tile in &sweep.tiles {
+            for &rank in &sweep.ranks {
+                let start = Instant::now();
+                let t = compress_tiled(&boundary, tile, rank, sweep.quantization, limits)?;
+                let bake_s = bake_s + start.elapsed().as_secs_f64();
+                let (flip_rate, hit_rmse) = sample_errors(&t.reconstruction, &exact);
+                let (render_s, image) = cpu_render(&RawLookup::new(&t.reconstruction))?;
+                let c = compare(&truth, &image)?;
+                report.rows.push(CodecRow {
+                    scene: name.clone(),
+                    codec: "tiled-svd".into(),
+                    setting: format!("{tile}×{tile} tiles, rank {rank} {}", sweep.quantization),
+                    bytes: t.bytes(),
+                    bake_s,
+                    flip_rate,
+                    hit_rmse,
+                    render_s,
+                    psnr_db: c.psnr_db,
+                    mask_disagreement: c.mask_disagreement,
+                    frame_ms: None,
+                    realtime_psnr_db: None,
+                });
+                step()?;
+            }
         }
     }
     Ok(report)
