@@ -22,6 +22,9 @@ fn the_default_package_renders_like_the_uncompressed_gdm_on_every_sample_scene()
     let mut scenes = Vec::new();
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
         let mut loaded = load_scene(&path, &limits).unwrap();
         if loaded.scene.wants(Effect::EnvironmentLighting) {
             continue;
