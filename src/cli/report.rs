@@ -39,10 +39,10 @@ pub enum ReportCommand {
         out: PathBuf,
     },
     /// Every GDM codec and size on scenes (and the blockwise SVD, evaluated on the CPU only):
-    /// package bytes and bake seconds, sample flips and distance error against the exact GDM, the CPU renderer's PSNR and mask against the
-    /// ground truth and its time, the real-time frame time and PSNR (where an adapter exists),
-    /// with the uncompressed GDM as the reference: Markdown on stdout; codecs.md, codecs.json
-    /// and codecs.svg (PSNR against bytes) in --out.
+    /// package bytes and bake seconds, sample flips and hit RMSE against the exact GDM, the
+    /// CPU renderer's PSNR and mask against the ground truth and its time, the real-time frame
+    /// time and PSNR (where an adapter exists), with the uncompressed GDM as the reference:
+    /// Markdown on stdout; codecs.md, codecs.json and codecs.svg (PSNR against bytes) in --out.
     Codecs {
         /// Scene files, comma-separated.
         #[arg(

@@ -201,9 +201,9 @@ pub fn scene_package(
 }
 
 /// Checks that `package` was baked from `scene`'s mesostructure: its grid is the scene's
-/// resolution and its manifest's input identity is the one [`bake_scene_package`] records for the scene (files it names resolved
-/// against `scene_dir`). Another mesostructure's package would render the scene's shell with
-/// the wrong geometry, silently.
+/// resolution and its manifest's input identity is the one [`bake_scene_package`] records
+/// for the scene (files it names resolved against `scene_dir`). Another mesostructure's
+/// package would render the scene's shell with the wrong geometry, silently.
 pub fn check_package_input(package: &Package, scene: &Scene, scene_dir: &Path) -> Result<()> {
     if package.dims() != scene.dims()? {
         return Err(Error::Scene(format!(
