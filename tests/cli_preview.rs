@@ -318,12 +318,23 @@ fn bad_preview_requests_fail_clearly() {
             "missing.json",
         ),
     ]);
-    // No adapter at all (WGPU_BACKEND names a backend this build lacks): a clear error.
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_mesobake"))
-        .args(["preview", "--scene", &scene, "--out", &out])
-        .env("WGPU_BACKEND", "gl")
-        .output()
-        .unwrap();
+    // No adapter at all (WGPU_BACKEND names a backend this build lacks): by default the CPU
+    // twin renders and says so; with --fallback none, a clear error.
+    let no_adapter = |extra: &[&str], image: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_mesobake"))
+            .args(
+                [
+                    &["preview", "--scene", &scene, "--out", image, "--json"][..],
+                    extra,
+                ]
+                .concat(),
+            )
+            .env("WGPU_BACKEND", "gl")
+            .env_remove("MESOBAKE_ADAPTER")
+            .output()
+            .unwrap()
+    };
+    let o = no_adapter(&["--fallback", "none"], &out);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && err.contains("no GPU adapter available"),
@@ -333,5 +344,36 @@ fn bad_preview_requests_fail_clearly() {
         err.contains("mesa-vulkan-drivers") && !err.contains("panicked"),
         "{err}"
     );
+    let cpu_out = path("cpu.png");
+    let default_package = path("default.mbpkg");
+    succeeds(&["bake", "--scene", &scene, "--out", &default_package]);
+    let o = no_adapter(&["--package", &default_package], &cpu_out);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["renderer"], "cpu", "{json}");
+    assert!(
+        json["fallback_reason"]
+            .as_str()
+            .unwrap()
+            .contains("no GPU adapter available")
+    );
+    assert!(json["preview"].is_null() && json["hit_pixels"].as_u64().unwrap() > 0);
+    // The CPU twin is the renderer the WGSL follows: the image `render --method gdm` draws
+    // from the same package, pixel for pixel.
+    succeeds(&[
+        "render",
+        "--scene",
+        &scene,
+        "--method",
+        "gdm",
+        "--package",
+        &default_package,
+        "--out",
+        &path("gdm.png"),
+    ]);
+    let o = succeeds(&["compare", &cpu_out, &path("gdm.png"), "--json"]);
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(c["mask_disagreement"], 0.0, "{c}");
+    assert_eq!(c["mean_abs_error"], 0.0, "{c}");
     assert!(!Path::new(&out).exists(), "a failed preview wrote an image");
 }

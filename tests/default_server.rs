@@ -139,6 +139,7 @@ async fn the_default_server_bakes_an_upload_end_to_end_from_an_empty_directory()
             .await
             .unwrap();
         assert_eq!(r.status(), 200, "{}", r.text().await.unwrap());
+        assert_eq!(r.headers()["x-mesobake-renderer"], "gpu");
         let png = r.bytes().await.unwrap();
         assert_eq!(&png[..4], b"\x89PNG");
     }
@@ -227,6 +228,50 @@ async fn sigterm_hands_the_running_job_back_and_exits_within_the_grace_period() 
     let job = db.job(&id).await.unwrap().unwrap();
     assert_eq!(job.state, "queued");
     assert_eq!(job.attempts, 0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn without_a_gpu_adapter_previews_render_on_the_cpu_twin_and_say_so() {
+    // WGPU_BACKEND names a backend this build lacks: no adapter at all.
+    for (fallback, status) in [("cpu", 200), ("none", 503)] {
+        let cwd = tempfile::tempdir().unwrap();
+        let s = BinaryServer::start(
+            cwd.path(),
+            &[
+                ("MESOBAKE_SEED_SAMPLE", "false"),
+                ("WGPU_BACKEND", "gl"),
+                ("MESOBAKE_PREVIEW_FALLBACK", fallback),
+            ],
+        )
+        .await;
+        let spec = json!({ "scene": scene(json!({ "sample": "weave" }), [16, 16, 8], [4, 8]) });
+        let id = submit(&s, &spec).await;
+        let done = wait_for_job(&s, &id, |j| j["state"] == "succeeded").await;
+        assert_eq!(done["state"], "succeeded");
+        let ask = || async {
+            reqwest::Client::new()
+                .post(s.url("/api/v1/preview"))
+                .json(&spec)
+                .send()
+                .await
+                .unwrap()
+        };
+        let r = ask().await;
+        assert_eq!(r.status(), status, "{fallback}");
+        if status == 200 {
+            assert_eq!(r.headers()["x-mesobake-renderer"], "cpu");
+            let png = r.bytes().await.unwrap();
+            assert_eq!(&png[..4], b"\x89PNG");
+            // The second answer comes from the cache, and still says who drew it.
+            let again = ask().await;
+            assert_eq!(again.headers()["x-mesobake-renderer"], "cpu");
+            assert_eq!(again.bytes().await.unwrap(), png);
+            assert!(s.log_text().contains("previews render with the CPU twin"));
+        } else {
+            let text = r.text().await.unwrap();
+            assert!(text.contains("no GPU adapter available"), "{text}");
+        }
+    }
 }
 
 /// `mesobake ARGS` in `cwd` with `env`, the configuration's own variables removed.

@@ -9,13 +9,9 @@ use mesobake::compress::svd::RankChoice;
 use mesobake::package::Package;
 use mesobake::package::manifest::GdmCodec;
 use mesobake::realtime::gpu::Gpu;
-use mesobake::render::gdm_lookup::package_lookup;
-use mesobake::render::gdm_renderer::GdmRenderer;
 use mesobake::render::image::{Image, compare};
-use mesobake::render::render_image;
-use mesobake::scene::gi::GiShading;
 use mesobake::scene::package::{ScenePackageParams, scene_package};
-use mesobake::scene::preview::preview;
+use mesobake::scene::preview::{preview, render_on_cpu};
 use mesobake::scene::{Effect, LoadedScene, Scene};
 use mesobake::util::limits::Limits;
 use std::path::Path;
@@ -61,21 +57,7 @@ fn default_package(loaded: &LoadedScene) -> Package {
 /// The CPU twin: the GDM software renderer on the package (with its RTV and PRT when the
 /// scene calls for environment lighting).
 fn cpu_image(loaded: &LoadedScene, package: &Package) -> Image {
-    let lookup = package_lookup(package).unwrap();
-    let scene = &loaded.scene;
-    let gi = scene
-        .wants(Effect::EnvironmentLighting)
-        .then(|| GiShading::from_package(loaded, package).unwrap());
-    let mut r = GdmRenderer::new(
-        &loaded.shell,
-        &*lookup,
-        &loaded.material,
-        scene.gdm_refinements,
-    );
-    if let Some(gi) = &gi {
-        r = r.with_gi(gi);
-    }
-    render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
+    render_on_cpu(loaded, package).unwrap()
 }
 
 /// Renders on both and checks the agreement; returns (PSNR, mask disagreement).

@@ -4,9 +4,8 @@ use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
 use mesobake::Result;
 use mesobake::package::Package;
-use mesobake::realtime::gpu::Gpu;
 use mesobake::scene::package::{check_package_input, scene_package};
-use mesobake::scene::preview::preview as render_preview;
+use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake::scene::render::load_scene;
 use mesobake::util::limits::Limits;
 use std::path::{Path, PathBuf};
@@ -38,6 +37,11 @@ pub struct PreviewArgs {
     /// MESOBAKE_ADAPTER environment variable, else wgpu's choice).
     #[arg(long)]
     adapter: Option<String>,
+    /// Where no GPU adapter exists (and none was named): cpu renders with the real-time
+    /// pipeline's CPU twin (the GDM software renderer, which the WGSL follows), and the JSON
+    /// says "renderer": "cpu"; none fails.
+    #[arg(long, default_value = "cpu")]
+    fallback: PreviewFallback,
     /// Print a JSON summary (adapter, shader variant, GPU memory, seconds) on stdout.
     #[arg(long)]
     json: bool,
@@ -53,6 +57,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         codec,
         frames,
         adapter,
+        fallback,
         json,
     } = args;
     codec.check(None)?;
@@ -88,24 +93,36 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         }
     };
     let package_s = start.elapsed().as_secs_f64();
-    let gpu = Gpu::open(adapter.as_deref())?;
-    let (image, report) = render_preview(&gpu, &loaded, &package, frames)?;
+    let device = PreviewDevice::open(adapter.as_deref(), fallback)?;
+    let (image, outcome) = device.render(&loaded, &package, frames)?;
     image.write(&out)?;
+    let on = match (&outcome.gpu, &outcome.fallback_reason) {
+        (Some(report), _) => format!("{} ({})", report.adapter.name, report.variant.name()),
+        (None, reason) => format!(
+            "the CPU twin of the real-time pipeline, as no GPU adapter is usable ({})",
+            reason.as_deref().unwrap_or("")
+        ),
+    };
     eprintln!(
-        "wrote {} ({}×{}, {} hit pixels) on {} ({})",
+        "wrote {} ({}×{}, {} hit pixels) on {on}",
         out.display(),
         image.width,
         image.height,
         image.hits(),
-        report.adapter.name,
-        report.variant.name()
     );
-    eprintln!(
-        "GPU memory {:.1} MB (package {:.1} MB)",
-        report.memory.total() as f64 / 1e6,
-        report.memory.package as f64 / 1e6
-    );
-    if let Some(t) = report.mean_frame_seconds {
+    if let Some(report) = &outcome.gpu {
+        eprintln!(
+            "GPU memory {:.1} MB (package {:.1} MB)",
+            report.memory.total() as f64 / 1e6,
+            report.memory.package as f64 / 1e6
+        );
+    }
+    let mean = outcome
+        .gpu
+        .as_ref()
+        .and_then(|r| r.mean_frame_seconds)
+        .or(outcome.cpu_mean_frame_seconds);
+    if let Some(t) = mean {
         eprintln!("mean frame time over {frames} frames: {:.3} ms", t * 1e3);
     }
     if json {
@@ -116,7 +133,10 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
             "height": image.height,
             "hit_pixels": image.hits(),
             "seconds": { "load": load_s, "package": package_s },
-            "preview": report,
+            "renderer": outcome.renderer,
+            "fallback_reason": outcome.fallback_reason,
+            "cpu_mean_frame_seconds": outcome.cpu_mean_frame_seconds,
+            "preview": outcome.gpu,
         }));
     }
     Ok(())

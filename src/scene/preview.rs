@@ -1,16 +1,161 @@
-//! Scene → image with the real-time pipeline (`mesobake preview`): renders a scene with its
-//! package ([`crate::scene::package`]) on the GPU and optionally times frames.
+//! Scene → image with the real-time pipeline (`mesobake preview`, the server's previews):
+//! renders a scene with its package ([`crate::scene::package`]) on the GPU and optionally
+//! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::package::Package;
-use crate::realtime::gpu::{AdapterDescription, Gpu};
+use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
 use crate::realtime::resources::GpuMemory;
 use crate::realtime::variant::ShaderVariant;
+use crate::render::gdm_lookup::package_lookup;
+use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::Image;
+use crate::render::render_image;
+use crate::scene::Effect;
 use crate::scene::LoadedScene;
-use serde::Serialize;
+use crate::scene::gi::GiShading;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
+
+/// What a preview does where no GPU adapter exists at all.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PreviewFallback {
+    /// Render with the CPU twin of the real-time pipeline: the GDM software renderer, its
+    /// specification, which the tests hold the WGSL to (≥ 35 dB).
+    #[default]
+    Cpu,
+    /// Fail with the adapter error.
+    None,
+}
+
+impl std::str::FromStr for PreviewFallback {
+    type Err = Error;
+
+    fn from_str(text: &str) -> Result<PreviewFallback> {
+        match text {
+            "cpu" => Ok(PreviewFallback::Cpu),
+            "none" => Ok(PreviewFallback::None),
+            _ => Err(Error::InvalidParameter(format!(
+                "preview fallback {text:?}: expected cpu or none"
+            ))),
+        }
+    }
+}
+
+/// Where previews render: the GPU, or the CPU twin where no adapter exists.
+pub enum PreviewDevice {
+    /// The real-time pipeline on this adapter.
+    Gpu(Gpu),
+    /// The CPU twin, and why (the adapter error).
+    Cpu {
+        /// The error opening an adapter gave.
+        reason: String,
+    },
+}
+
+impl PreviewDevice {
+    /// Opens the adapter as [`Gpu::open`] does. When that fails and no adapter was named
+    /// (`name`, [`ADAPTER_ENV`]), `fallback` decides: the CPU twin, or the error. A named
+    /// adapter that is missing is always an error.
+    pub fn open(name: Option<&str>, fallback: PreviewFallback) -> Result<PreviewDevice> {
+        let named = name.is_some() || std::env::var(ADAPTER_ENV).is_ok_and(|s| !s.is_empty());
+        match Gpu::open(name) {
+            Ok(gpu) => Ok(PreviewDevice::Gpu(gpu)),
+            Err(e) if !named && fallback == PreviewFallback::Cpu => Ok(PreviewDevice::Cpu {
+                reason: e.to_string(),
+            }),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// `gpu` or `cpu`.
+    pub fn renderer(&self) -> &'static str {
+        match self {
+            PreviewDevice::Gpu(_) => "gpu",
+            PreviewDevice::Cpu { .. } => "cpu",
+        }
+    }
+
+    /// Renders `loaded` with `package`; with `frames` > 0, also times that many frames.
+    pub fn render(
+        &self,
+        loaded: &LoadedScene,
+        package: &Package,
+        frames: u32,
+    ) -> Result<(Image, PreviewOutcome)> {
+        match self {
+            PreviewDevice::Gpu(gpu) => {
+                let (image, report) = preview(gpu, loaded, package, frames)?;
+                let outcome = PreviewOutcome {
+                    renderer: self.renderer(),
+                    fallback_reason: None,
+                    gpu: Some(report),
+                    cpu_mean_frame_seconds: None,
+                };
+                Ok((image, outcome))
+            }
+            PreviewDevice::Cpu { reason } => {
+                let image = render_on_cpu(loaded, package)?;
+                let start = Instant::now();
+                for _ in 0..frames {
+                    render_on_cpu(loaded, package)?;
+                }
+                let mean = (frames > 0).then(|| start.elapsed().as_secs_f64() / frames as f64);
+                let outcome = PreviewOutcome {
+                    renderer: self.renderer(),
+                    fallback_reason: Some(reason.clone()),
+                    gpu: None,
+                    cpu_mean_frame_seconds: mean,
+                };
+                Ok((image, outcome))
+            }
+        }
+    }
+}
+
+/// What rendered a preview, and what it measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct PreviewOutcome {
+    /// `gpu` (the WGSL pipeline) or `cpu` (its CPU twin, where no adapter exists).
+    pub renderer: &'static str,
+    /// Why the CPU twin rendered: the adapter error.
+    pub fallback_reason: Option<String>,
+    /// The real-time pipeline's report, for `gpu`.
+    pub gpu: Option<PreviewReport>,
+    /// The CPU twin's mean seconds per frame over the timed frames, for `cpu`.
+    pub cpu_mean_frame_seconds: Option<f64>,
+}
+
+/// The real-time pipeline's CPU twin: the GDM software renderer on `package` (with its RTV
+/// and PRT when the scene calls for environment lighting), the specification the WGSL follows.
+pub fn render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Image> {
+    if package.dims() != loaded.material.dims() {
+        return Err(Error::Scene(format!(
+            "the package holds a {} GDM but the scene's resolution is {}",
+            package.dims(),
+            loaded.material.dims()
+        )));
+    }
+    let scene = &loaded.scene;
+    let lookup = package_lookup(package)?;
+    let gi = if scene.wants(Effect::EnvironmentLighting) {
+        Some(GiShading::from_package(loaded, package)?)
+    } else {
+        None
+    };
+    let mut r = GdmRenderer::new(
+        &loaded.shell,
+        &*lookup,
+        &loaded.material,
+        scene.gdm_refinements,
+    );
+    if let Some(gi) = &gi {
+        r = r.with_gi(gi);
+    }
+    Ok(render_image(&scene.camera, |o, d| r.radiance(scene, o, d)))
+}
 
 /// What a preview ran on, chose and measured.
 #[derive(Clone, Debug, Serialize)]

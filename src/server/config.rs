@@ -58,6 +58,8 @@ pub struct ServerConfig {
     pub busy_wait_ms: u64,
     /// How long a preview render may take before it is abandoned (503).
     pub preview_timeout_ms: u64,
+    /// What previews do where no GPU adapter exists: the CPU twin (`cpu`) or 503 (`none`).
+    pub preview_fallback: crate::scene::preview::PreviewFallback,
     /// Jobs queued or running at once (429 beyond).
     pub max_queued_jobs: u64,
     /// Bytes of preview images kept (least recently used evicted beyond).
@@ -180,6 +182,7 @@ const KEYS: &[&str] = &[
     "max_concurrent_uploads",
     "busy_wait_ms",
     "preview_timeout_ms",
+    "preview_fallback",
     "max_queued_jobs",
     "preview_cache_bytes",
     "header_read_timeout_ms",

@@ -12,8 +12,7 @@ use super::preview_cache;
 use super::worker::resolve_assets;
 use crate::error::{Error, Result};
 use crate::package::Package;
-use crate::realtime::gpu::Gpu;
-use crate::scene::preview::preview;
+use crate::scene::preview::PreviewDevice;
 use crate::scene::{Effect, EnvironmentSource, LoadedScene, Scene};
 use axum::Json;
 use axum::extract::State;
@@ -21,24 +20,32 @@ use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use std::path::Path;
 use std::sync::atomic::Ordering;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 use tokio::sync::Semaphore;
 
 /// The built-in sample scene (`scenes/torus-chain.json`).
 pub const SAMPLE_SCENE: &str = include_str!("../../scenes/torus-chain.json");
 
-/// The GPU, opened on first use and shared by previews, one render at a time.
+/// The header that says which renderer drew a preview: `gpu`, or `cpu` (the CPU twin, where
+/// no GPU adapter exists).
+pub const RENDERER_HEADER: &str = "x-mesobake-renderer";
+
+/// The GPU (or, where none exists, the CPU twin), opened on first use and shared by previews,
+/// one render at a time.
 pub struct PreviewGpu {
-    gpu: Mutex<Option<Gpu>>,
-    /// The right to render: whoever holds it may lock `gpu` without waiting.
+    device: Mutex<Option<PreviewDevice>>,
+    /// `gpu` or `cpu`, once the device is open.
+    renderer: OnceLock<&'static str>,
+    /// The right to render: whoever holds it may lock `device` without waiting.
     slot: Arc<Semaphore>,
 }
 
 impl Default for PreviewGpu {
     fn default() -> Self {
         PreviewGpu {
-            gpu: Mutex::new(None),
+            device: Mutex::new(None),
+            renderer: OnceLock::new(),
             slot: Arc::new(Semaphore::new(1)),
         }
     }
@@ -50,31 +57,45 @@ pub async fn sample_scene() -> impl IntoResponse {
     ([(header::CONTENT_TYPE, "application/json")], SAMPLE_SCENE)
 }
 
+/// Renders the PNG, opening the device on first use; returns it with the renderer's name.
 fn render_png(
     gpu: &PreviewGpu,
     scene: &Scene,
     package: Vec<u8>,
     state: &AppState,
-) -> Result<Vec<u8>> {
+) -> Result<(Vec<u8>, &'static str)> {
     let package = Package::parse(package)?;
     let mut scene = scene.clone();
     resolve_assets(&mut scene, &state.blobs)?;
     let loaded = LoadedScene::load(scene, Path::new("/"), &state.limits)?;
     let mut guard = gpu
-        .gpu
+        .device
         .lock()
         .map_err(|_| Error::Gpu("a previous preview panicked".into()))?;
     if guard.is_none() {
-        *guard = Some(Gpu::open(None)?);
+        let device = PreviewDevice::open(None, state.config.preview_fallback)?;
+        if let PreviewDevice::Cpu { reason } = &device {
+            tracing::warn!(
+                "previews render with the CPU twin of the real-time pipeline: {reason} \
+                 (preview_fallback = \"cpu\")"
+            );
+        }
+        let _ = gpu.renderer.set(device.renderer());
+        *guard = Some(device);
     }
-    let (image, _) = preview(guard.as_ref().expect("opened above"), &loaded, &package, 0)?;
-    image.to_png()
+    let device = guard.as_ref().expect("opened above");
+    let (image, _) = device.render(&loaded, &package, 0)?;
+    Ok((image.to_png()?, device.renderer()))
 }
 
 /// Renders `spec`'s scene from `package` on the GPU: waits at most `busy_wait_ms` for the
 /// GPU and `preview_timeout_ms` for the render (503 beyond either; an abandoned render keeps
 /// the GPU until it ends, and the next waits for it at most `busy_wait_ms`).
-async fn render_on_gpu(state: &AppState, spec: &JobSpec, package: Vec<u8>) -> ApiResult<Vec<u8>> {
+async fn render_on_gpu(
+    state: &AppState,
+    spec: &JobSpec,
+    package: Vec<u8>,
+) -> ApiResult<(Vec<u8>, &'static str)> {
     let config = &state.config;
     let permit = tokio::time::timeout(
         millis(config.busy_wait_ms),
@@ -109,7 +130,7 @@ async fn render_on_gpu(state: &AppState, spec: &JobSpec, package: Vec<u8>) -> Ap
         (status = 413, description = "Body over max_json_bytes"),
         (status = 422, description = "Invalid scene, or a cost over the server's limits"),
         (status = 429, description = "The scene's package is not baked and the queue is full"),
-        (status = 503, description = "No GPU adapter, the GPU busy, or the render past preview_timeout_ms"),
+        (status = 503, description = "No GPU adapter (with preview_fallback = \"none\"), the GPU busy, or the render past preview_timeout_ms"),
     )
 )]
 pub async fn render(
@@ -144,16 +165,24 @@ pub async fn render(
         return Ok((StatusCode::CONFLICT, Json(body)).into_response());
     };
     let scene_text = serde_json::to_string(&spec.scene).expect("scenes serialize");
-    let cache_key = blake3::hash(format!("preview-v1\n{digest}\n{scene_text}").as_bytes())
-        .to_hex()
-        .to_string();
-    let png = match preview_cache::lookup(&state, &cache_key).await? {
-        Some(png) => {
+    let cache_key = |renderer: &str| {
+        let text = format!("preview-v2\n{renderer}\n{digest}\n{scene_text}");
+        blake3::hash(text.as_bytes()).to_hex().to_string()
+    };
+    // Before the device is first opened the renderer is unknown, and so is the cache key.
+    let cached = match state.gpu.renderer.get() {
+        Some(&renderer) => preview_cache::lookup(&state, &cache_key(renderer))
+            .await?
+            .map(|png| (png, renderer)),
+        None => None,
+    };
+    let (png, renderer) = match cached {
+        Some(hit) => {
             state
                 .metrics
                 .preview_cache_hits
                 .fetch_add(1, Ordering::Relaxed);
-            png
+            hit
         }
         None => {
             state
@@ -161,7 +190,7 @@ pub async fn render(
                 .preview_cache_misses
                 .fetch_add(1, Ordering::Relaxed);
             let package = {
-                let blobs = state.blobs.clone();
+                let (blobs, digest) = (state.blobs.clone(), digest.clone());
                 tokio::task::spawn_blocking(move || blobs.get(&digest)).await??
             }
             .ok_or_else(|| {
@@ -170,9 +199,9 @@ pub async fn render(
                     "the package's blob is missing",
                 )
             })?;
-            let png = render_on_gpu(&state, &spec, package).await?;
-            preview_cache::store(&state, &cache_key, png.clone()).await?;
-            png
+            let (png, renderer) = render_on_gpu(&state, &spec, package).await?;
+            preview_cache::store(&state, &cache_key(renderer), png.clone()).await?;
+            (png, renderer)
         }
     };
     state
@@ -182,6 +211,7 @@ pub async fn render(
         [
             (header::CONTENT_TYPE, "image/png"),
             (header::CACHE_CONTROL, "no-cache"),
+            (header::HeaderName::from_static(RENDERER_HEADER), renderer),
         ],
         png,
     )
