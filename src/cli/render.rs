@@ -131,8 +131,10 @@ pub fn compare_images(args: CompareArgs) -> Result<()> {
         print_json(&serde_json::json!(c));
     } else {
         println!(
-            "PSNR {:.2} dB, mean absolute error {:.5}, mask disagreement {:.4} % of {} pixels",
+            "PSNR {:.2} dB, FLIP {:.4}, mean absolute error {:.5}, mask disagreement {:.4} % of \
+             {} pixels",
             c.psnr_db,
+            c.flip_mean,
             c.mean_abs_error,
             100.0 * c.mask_disagreement,
             c.pixels

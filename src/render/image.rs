@@ -221,6 +221,9 @@ pub struct Comparison {
     pub mean_abs_error: f64,
     /// Fraction of pixels whose hit/miss mask differs.
     pub mask_disagreement: f64,
+    /// Mean ꟻLIP error (NVIDIA's perceptual difference, 0 identical to 1 most different) of
+    /// the 8-bit sRGB images, the first as reference, at 67 pixels per degree (`nv-flip`).
+    pub flip_mean: f64,
     /// Pixels compared.
     pub pixels: usize,
 }
@@ -244,6 +247,16 @@ pub fn compare(a: &Image, b: &Image) -> Result<Comparison> {
     let n = a.rgb.len();
     let mse = sq / (3 * n) as f64;
     let differing = a.mask.iter().zip(&b.mask).filter(|(p, q)| p != q).count();
+    let srgb8 = |image: &Image| -> nv_flip::FlipImageRgb8 {
+        let bytes: Vec<u8> = image
+            .rgb
+            .iter()
+            .flat_map(|c| c.map(|v| (linear_to_srgb(v) * 255.0).round() as u8))
+            .collect();
+        nv_flip::FlipImageRgb8::with_data(image.width, image.height, &bytes)
+    };
+    let error = nv_flip::flip(srgb8(a), srgb8(b), nv_flip::DEFAULT_PIXELS_PER_DEGREE);
+    let flip_mean = nv_flip::FlipPool::from_image(&error).mean() as f64;
     Ok(Comparison {
         psnr_db: if mse == 0.0 {
             f64::INFINITY
@@ -252,6 +265,45 @@ pub fn compare(a: &Image, b: &Image) -> Result<Comparison> {
         },
         mean_abs_error: abs / (3 * n) as f64,
         mask_disagreement: differing as f64 / n as f64,
+        flip_mean,
         pixels: n,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 64×64 image: a grey ramp with a bright square, plus `noise` (±, in linear units) on
+    /// a fixed checkerboard of pixels.
+    fn image(noise: f32) -> Image {
+        let mut image = Image::new(64, 64);
+        for (i, px) in image.rgb.iter_mut().enumerate() {
+            let (x, y) = (i % 64, i / 64);
+            let base = if (20..40).contains(&x) && (20..40).contains(&y) {
+                0.8
+            } else {
+                x as f32 / 128.0
+            };
+            let sign = if (x + y) % 2 == 0 { 1.0 } else { -1.0 };
+            *px = [(base + sign * noise).clamp(0.0, 1.0); 3];
+        }
+        image
+    }
+
+    #[test]
+    fn flip_is_zero_for_identical_images_and_grows_with_the_difference() {
+        let reference = image(0.0);
+        assert_eq!(compare(&reference, &reference).unwrap().flip_mean, 0.0);
+        let small = compare(&reference, &image(0.01)).unwrap().flip_mean;
+        let large = compare(&reference, &image(0.2)).unwrap().flip_mean;
+        // FLIP's range is [0, 1]; a faint checkerboard is a small error, a strong one large.
+        assert!(
+            0.0 < small && small < large && large <= 1.0,
+            "{small} {large}"
+        );
+        let black = Image::new(64, 64);
+        let opposite = compare(&reference, &black).unwrap();
+        assert!(opposite.flip_mean > large, "{opposite:?}");
+    }
 }

@@ -63,6 +63,8 @@ pub struct CodecRow {
     pub render_s: f64,
     /// CPU image against the truth: PSNR (dB, sRGB).
     pub psnr_db: f64,
+    /// CPU image against the truth: mean ꟻLIP error.
+    pub flip_mean: f64,
     /// CPU image against the truth: fraction of pixels whose hit mask differs.
     pub mask_disagreement: f64,
     /// Real-time pipeline: mean milliseconds per frame (none without an adapter, and for
@@ -166,6 +168,7 @@ pub fn codec_report(
             hit_rmse: 0.0,
             render_s,
             psnr_db: c.psnr_db,
+            flip_mean: c.flip_mean,
             mask_disagreement: c.mask_disagreement,
             frame_ms: None,
             realtime_psnr_db: None,
@@ -201,6 +204,7 @@ pub fn codec_report(
                 hit_rmse,
                 render_s,
                 psnr_db: c.psnr_db,
+                flip_mean: c.flip_mean,
                 mask_disagreement: c.mask_disagreement,
                 frame_ms,
                 realtime_psnr_db,
@@ -228,6 +232,7 @@ pub fn codec_report(
                     hit_rmse,
                     render_s,
                     psnr_db: c.psnr_db,
+                    flip_mean: c.flip_mean,
                     mask_disagreement: c.mask_disagreement,
                     frame_ms: None,
                     realtime_psnr_db: None,
@@ -274,6 +279,7 @@ pub fn markdown(report: &CodecReport) -> String {
             format!("{:.3}", r.hit_rmse),
             format!("{:.2}", r.render_s),
             format!("{:.2}", r.psnr_db),
+            format!("{:.4}", r.flip_mean),
             format!("{:.3}", 100.0 * r.mask_disagreement),
             opt(r.frame_ms, 1),
             opt(r.realtime_psnr_db, 2),
@@ -294,6 +300,7 @@ pub fn markdown(report: &CodecReport) -> String {
                 "hit RMSE (voxel)",
                 "CPU render s",
                 "CPU PSNR dB",
+                "CPU FLIP",
                 "CPU mask %",
                 "real-time frame ms",
                 "real-time PSNR dB",

@@ -51,6 +51,8 @@ pub struct RenderAccuracyRow {
     pub render_s: f64,
     /// PSNR against the truth, dB (sRGB).
     pub psnr_db: f64,
+    /// Mean ꟻLIP error against the truth.
+    pub flip_mean: f64,
     /// Mean absolute error against the truth (sRGB).
     pub mean_abs_error: f64,
     /// Fraction of pixels whose hit/miss mask differs from the truth's.
@@ -112,6 +114,7 @@ pub fn render_accuracy(
             substituted: subs.label(),
             render_s,
             psnr_db: c.psnr_db,
+            flip_mean: c.flip_mean,
             mean_abs_error: c.mean_abs_error,
             mask_disagreement: c.mask_disagreement,
         })
@@ -176,6 +179,7 @@ pub fn markdown(report: &RenderReport) -> String {
                 format!("{:.3}", r.render_s),
                 format!("{:.2}", report.truth_s / r.render_s),
                 format!("{:.2}", r.psnr_db),
+                format!("{:.4}", r.flip_mean),
                 format!("{:.4}", r.mean_abs_error),
                 format!("{:.3}", 100.0 * r.mask_disagreement),
             ]
@@ -189,6 +193,7 @@ pub fn markdown(report: &RenderReport) -> String {
                 "render s",
                 "truth / GDM time",
                 "PSNR dB",
+                "FLIP",
                 "mean abs error",
                 "mask disagreement %",
             ],
