@@ -352,6 +352,17 @@ impl Package {
         self.dims
     }
 
+    /// Refuses a package whose voxel grid is not a scene's `resolution`.
+    pub fn check_grid(&self, resolution: Dims) -> Result<()> {
+        if self.dims == resolution {
+            return Ok(());
+        }
+        Err(Error::Scene(format!(
+            "the package holds a {} grid but the scene's resolution is {resolution}",
+            self.dims
+        )))
+    }
+
     /// The direction grid.
     pub fn dirs(&self) -> DirectionGrid {
         self.dirs

@@ -163,13 +163,7 @@ impl<'g> Preview<'g> {
         early_depth_test: bool,
     ) -> Result<Preview<'g>> {
         let scene = &loaded.scene;
-        if package.dims() != loaded.material.dims() {
-            return Err(Error::Scene(format!(
-                "the package holds a {} GDM but the scene's resolution is {}",
-                package.dims(),
-                loaded.material.dims()
-            )));
-        }
+        package.check_grid(loaded.material.dims())?;
         let early_depth_test = early_depth_test
             && gpu
                 .device

@@ -18,7 +18,7 @@ use crate::package::manifest::GdmCodec;
 use crate::realtime::gpu::Gpu;
 use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::image::{Image, compare};
+use crate::render::image::compare;
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
@@ -140,7 +140,14 @@ pub fn codec_report(
             .truth_s
             .push((name.clone(), start.elapsed().as_secs_f64()));
         step()?;
-        let cpu_render = |lookup: &dyn GdmLookup| -> Result<(f64, Image)> {
+        // One row: the CPU renderer's image with `lookup` against the truth, with the rest.
+        let row = |codec: String,
+                   setting: String,
+                   (bytes, bake_s): (u64, f64),
+                   (flip_rate, hit_rmse): (f64, f64),
+                   lookup: &dyn GdmLookup,
+                   (frame_ms, realtime_psnr_db): (Option<f64>, Option<f64>)|
+         -> Result<CodecRow> {
             let start = Instant::now();
             let r = GdmRenderer::new(
                 &loaded.shell,
@@ -149,55 +156,12 @@ pub fn codec_report(
                 scene.gdm_refinements,
             );
             let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
-            Ok((start.elapsed().as_secs_f64(), image))
-        };
-
-        let start = Instant::now();
-        let mut exact = loaded.bake_gdm(limits, &())?;
-        exact.set_escape_convention(EscapeConvention::Infinite);
-        let bake_s = start.elapsed().as_secs_f64();
-        let (render_s, image) = cpu_render(&RawLookup::new(&exact))?;
-        let c = compare(&truth, &image)?;
-        report.rows.push(CodecRow {
-            scene: name.clone(),
-            codec: "uncompressed".into(),
-            setting: "f32".into(),
-            bytes: exact.data().len() as u64 * 4,
-            bake_s,
-            flip_rate: 0.0,
-            hit_rmse: 0.0,
-            render_s,
-            psnr_db: c.psnr_db,
-            flip_mean: c.flip_mean,
-            mask_disagreement: c.mask_disagreement,
-            frame_ms: None,
-            realtime_psnr_db: None,
-        });
-        step()?;
-
-        for (params, setting) in &settings {
-            let start = Instant::now();
-            let baked = bake_scene_package(loaded, dir, *params, limits, &())?;
-            let bake_s = start.elapsed().as_secs_f64();
-            let bytes = baked.bytes.len() as u64;
-            let package = crate::package::Package::parse(baked.bytes)?;
-            let (flip_rate, hit_rmse) = sample_errors(&package.reconstruct(limits)?, &exact);
-            let lookup = package_lookup(&package)?;
-            let (render_s, image) = cpu_render(&*lookup)?;
+            let render_s = start.elapsed().as_secs_f64();
             let c = compare(&truth, &image)?;
-            let (frame_ms, realtime_psnr_db) = match &gpu {
-                Some(gpu) => {
-                    let (image, preview) =
-                        crate::scene::preview::preview(gpu, loaded, &package, sweep.frames)?;
-                    let c = compare(&truth, &image)?;
-                    (preview.mean_frame_seconds.map(|s| s * 1e3), Some(c.psnr_db))
-                }
-                None => (None, None),
-            };
-            report.rows.push(CodecRow {
+            Ok(CodecRow {
                 scene: name.clone(),
-                codec: params.codec.to_string(),
-                setting: setting.clone(),
+                codec,
+                setting,
                 bytes,
                 bake_s,
                 flip_rate,
@@ -208,7 +172,47 @@ pub fn codec_report(
                 mask_disagreement: c.mask_disagreement,
                 frame_ms,
                 realtime_psnr_db,
-            });
+            })
+        };
+
+        let start = Instant::now();
+        let mut exact = loaded.bake_gdm(limits, &())?;
+        exact.set_escape_convention(EscapeConvention::Infinite);
+        let bake_s = start.elapsed().as_secs_f64();
+        report.rows.push(row(
+            "uncompressed".into(),
+            "f32".into(),
+            (exact.data().len() as u64 * 4, bake_s),
+            (0.0, 0.0),
+            &RawLookup::new(&exact),
+            (None, None),
+        )?);
+        step()?;
+
+        for (params, setting) in &settings {
+            let start = Instant::now();
+            let baked = bake_scene_package(loaded, dir, *params, limits, &())?;
+            let bake_s = start.elapsed().as_secs_f64();
+            let bytes = baked.bytes.len() as u64;
+            let package = crate::package::Package::parse(baked.bytes)?;
+            let samples = sample_errors(&package.reconstruct(limits)?, &exact);
+            let realtime = match &gpu {
+                Some(gpu) => {
+                    let (image, preview) =
+                        crate::scene::preview::preview(gpu, loaded, &package, sweep.frames)?;
+                    let c = compare(&truth, &image)?;
+                    (preview.mean_frame_seconds.map(|s| s * 1e3), Some(c.psnr_db))
+                }
+                None => (None, None),
+            };
+            report.rows.push(row(
+                params.codec.to_string(),
+                setting.clone(),
+                (bytes, bake_s),
+                samples,
+                &*package_lookup(&package)?,
+                realtime,
+            )?);
             step()?;
         }
 
@@ -219,24 +223,14 @@ pub fn codec_report(
                 let start = Instant::now();
                 let t = compress_tiled(&boundary, tile, rank, sweep.quantization, limits)?;
                 let bake_s = bake_s + start.elapsed().as_secs_f64();
-                let (flip_rate, hit_rmse) = sample_errors(&t.reconstruction, &exact);
-                let (render_s, image) = cpu_render(&RawLookup::new(&t.reconstruction))?;
-                let c = compare(&truth, &image)?;
-                report.rows.push(CodecRow {
-                    scene: name.clone(),
-                    codec: "tiled-svd".into(),
-                    setting: format!("{tile}×{tile} tiles, rank {rank} {}", sweep.quantization),
-                    bytes: t.bytes(),
-                    bake_s,
-                    flip_rate,
-                    hit_rmse,
-                    render_s,
-                    psnr_db: c.psnr_db,
-                    flip_mean: c.flip_mean,
-                    mask_disagreement: c.mask_disagreement,
-                    frame_ms: None,
-                    realtime_psnr_db: None,
-                });
+                report.rows.push(row(
+                    "tiled-svd".into(),
+                    format!("{tile}×{tile} tiles, rank {rank} {}", sweep.quantization),
+                    (t.bytes(), bake_s),
+                    sample_errors(&t.reconstruction, &exact),
+                    &RawLookup::new(&t.reconstruction),
+                    (None, None),
+                )?);
                 step()?;
             }
         }

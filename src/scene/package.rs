@@ -205,13 +205,7 @@ pub fn scene_package(
 /// for the scene (files it names resolved against `scene_dir`). Another mesostructure's
 /// package would render the scene's shell with the wrong geometry, silently.
 pub fn check_package_input(package: &Package, scene: &Scene, scene_dir: &Path) -> Result<()> {
-    if package.dims() != scene.dims()? {
-        return Err(Error::Scene(format!(
-            "the package holds a {} grid but the scene's resolution is {}",
-            package.dims(),
-            scene.dims()?
-        )));
-    }
+    package.check_grid(scene.dims()?)?;
     let expected = input_identity(scene, scene_dir)?;
     let found = &package.manifest().input;
     if found.blake3 == expected.blake3 {

@@ -131,13 +131,7 @@ pub struct PreviewOutcome {
 /// The real-time pipeline's CPU twin: the GDM software renderer on `package` (with its RTV
 /// and PRT when the scene calls for environment lighting), the specification the WGSL follows.
 pub fn render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Image> {
-    if package.dims() != loaded.material.dims() {
-        return Err(Error::Scene(format!(
-            "the package holds a {} GDM but the scene's resolution is {}",
-            package.dims(),
-            loaded.material.dims()
-        )));
-    }
+    package.check_grid(loaded.material.dims())?;
     let scene = &loaded.scene;
     let lookup = package_lookup(package)?;
     let gi = if scene.wants(Effect::EnvironmentLighting) {

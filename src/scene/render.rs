@@ -146,13 +146,7 @@ pub fn render_substituted(
                     &raw_lookup
                 }
                 GdmSource::Package(pkg) => {
-                    if pkg.dims() != scene.dims()? {
-                        return Err(Error::Scene(format!(
-                            "the package holds a {} grid but the scene's resolution is {}",
-                            pkg.dims(),
-                            scene.dims()?
-                        )));
-                    }
+                    pkg.check_grid(scene.dims()?)?;
                     if environment {
                         gi = Some(GiShading::from_package(loaded, pkg)?);
                     }
