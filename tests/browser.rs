@@ -175,6 +175,27 @@ async fn upload_bake_and_preview_in_a_browser() {
     })
     .await;
 
+    // The figures list every codec on the sample scenes, this package's (the default,
+    // occupancy) highlighted, with a plot per scene.
+    let current = eventually(60, "the codec table", || async {
+        let rows = c
+            .find_all(Locator::Css("#codec-table tr.current"))
+            .await
+            .ok()?;
+        let mut texts = Vec::new();
+        for row in rows {
+            texts.push(row.text().await.ok()?);
+        }
+        (!texts.is_empty()).then_some(texts)
+    })
+    .await;
+    assert!(
+        current.iter().all(|t| t.contains("occupancy")),
+        "{current:?}"
+    );
+    let plots = c.find_all(Locator::Css("svg.codec-plot")).await.unwrap();
+    assert_eq!(plots.len(), 2);
+
     // A preview, then another after the orbit control moves.
     let hash = |c: fantoccini::Client| async move {
         let v = c

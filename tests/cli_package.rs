@@ -5,7 +5,7 @@ use mesobake::util::limits::Limits;
 use std::path::Path;
 
 mod common;
-use common::{each_fails_with, succeeds};
+use common::{each_fails_with, small_scene, succeeds};
 
 /// `mesobake bake --input VOL --out PKG` with `options`, returning its JSON summary.
 fn bake(vol: &str, pkg: &Path, options: &[&str]) -> serde_json::Value {
@@ -160,11 +160,29 @@ fn report_accuracy_writes_table_csv_and_plot() {
         "1,4",
         "--quants",
         "f32,f16",
+        "--scenes",
+        small_scene(dir.path()).to_str().unwrap(),
         "--out",
         report.to_str().unwrap(),
     ]);
     let table = String::from_utf8(out.stdout).unwrap();
-    assert_eq!(table.lines().count(), 2 + 2 * 2 * 2, "{table}");
+    let (gdm_table, codec_section) = table.split_once("\n## Codecs\n\n").unwrap();
+    assert_eq!(gdm_table.lines().count(), 2 + 2 * 2 * 2, "{table}");
+    // The codec section is the codecs report at its defaults: uncompressed, occupancy,
+    // paper-svd at 3 ranks, tiled-svd (one tile side) at 3, split-svd (two visibility grids,
+    // two bases) at 3.
+    let codecs: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("codecs.json")).unwrap())
+            .unwrap();
+    let rows = codecs["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2 + 3 + 3 + 12, "{codec_section}");
+    for codec in ["occupancy", "paper-svd", "tiled-svd", "split-svd"] {
+        assert!(
+            codec_section.contains(&format!("| {codec} |")),
+            "{codec_section}"
+        );
+    }
+    assert!(report.join("codecs.svg").exists());
     let csv = std::fs::read_to_string(report.join("accuracy.csv")).unwrap();
     let rows: Vec<Vec<&str>> = csv
         .lines()
@@ -182,7 +200,10 @@ fn report_accuracy_writes_table_csv_and_plot() {
     }
     let svg = std::fs::read_to_string(report.join("accuracy.svg")).unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("RMSE against"));
-    assert!(report.join("accuracy.md").exists());
+    assert_eq!(
+        std::fs::read_to_string(report.join("accuracy.md")).unwrap(),
+        table
+    );
 }
 
 #[test]

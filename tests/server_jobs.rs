@@ -413,6 +413,32 @@ async fn previews_render_once_the_package_is_baked() {
         .await
         .unwrap();
     assert_eq!(sample["mesostructure"]["sample"], "chain");
+    // The figures' codec table is the committed report, and on each of its scenes the
+    // default codec meets the packages target against the uncompressed GDM.
+    let codecs = reqwest::get(s.url("/api/v1/reports/codecs"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    let committed = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/codecs.json");
+    assert_eq!(codecs, std::fs::read_to_string(committed).unwrap());
+    let codecs: Value = serde_json::from_str(&codecs).unwrap();
+    let rows = codecs["rows"].as_array().unwrap();
+    for scene in ["torus-chain", "plane-weave"] {
+        let row = |codec: &str| {
+            rows.iter()
+                .find(|r| r["scene"] == scene && r["codec"] == codec)
+                .unwrap_or_else(|| panic!("{scene}: no {codec} row"))
+        };
+        let (default, reference) = (row("occupancy"), row("uncompressed"));
+        let f = |r: &Value, k: &str| r[k].as_f64().unwrap();
+        assert!(f(default, "psnr_db") >= f(reference, "psnr_db") - 0.5, "{scene}");
+        assert!(
+            f(default, "mask_disagreement") <= f(reference, "mask_disagreement") + 0.003,
+            "{scene}"
+        );
+    }
     let page = reqwest::get(s.url("/"))
         .await
         .unwrap()

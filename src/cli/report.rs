@@ -16,8 +16,9 @@ use std::path::{Path, PathBuf};
 #[derive(Subcommand)]
 pub enum ReportCommand {
     /// Accuracy against time and bytes over direction resolutions × ranks × quantizations,
-    /// against the exact uncompressed GDM: Markdown on stdout; accuracy.md, accuracy.csv and
-    /// accuracy.svg in --out.
+    /// against the exact uncompressed GDM, then every codec on --scenes (the codecs report at
+    /// its defaults): Markdown on stdout; accuracy.md, accuracy.csv and accuracy.svg, and
+    /// codecs.json and codecs.svg, in --out.
     Accuracy {
         /// A .mbvol volume or a closed OBJ tile.
         #[arg(long)]
@@ -34,6 +35,13 @@ pub enum ReportCommand {
         /// Quantizations, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "f32,f16")]
         quants: Vec<Quantization>,
+        /// Scene files for the codec section, comma-separated; an empty list skips it.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "scenes/torus-chain.json,scenes/plane-weave.json"
+        )]
+        scenes: Vec<PathBuf>,
         /// Output directory.
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
@@ -61,6 +69,10 @@ pub enum ReportCommand {
         /// (each at every rank); an empty list evaluates none.
         #[arg(long, value_delimiter = ',', default_value = "16")]
         tiles: Vec<u32>,
+        /// Direction grids of the split GDM's escape bits, comma-separated (each at every rank,
+        /// with the global basis and each tile side); an empty list evaluates none.
+        #[arg(long, value_delimiter = ',', default_value = "4x8,8x16")]
+        visibility: Vec<DirectionGrid>,
         /// Real-time frames to time per setting (0: none).
         #[arg(long, default_value_t = 5)]
         frames: u32,
@@ -140,6 +152,33 @@ fn publish(out: &Path, table: &str, files: &[(&str, &str)]) -> Result<()> {
     Ok(())
 }
 
+/// The codecs report on the scene files `scenes`, with a progress bar.
+fn run_codecs(
+    scenes: &[PathBuf],
+    sweep: &codecs::CodecSweep,
+    limits: &Limits,
+) -> Result<codecs::CodecReport> {
+    let loaded = scenes
+        .iter()
+        .map(|path| {
+            let name = path
+                .file_stem()
+                .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+            let dir = path.parent().unwrap_or(Path::new("."));
+            Ok((name, load_scene(path, limits)?, dir))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let progress = Progress::new("codec report");
+    let report = codecs::codec_report(&loaded, sweep, limits, &progress)?;
+    progress.finish();
+    Ok(report)
+}
+
+/// A report as pretty JSON.
+fn to_json(report: &impl serde::Serialize) -> String {
+    serde_json::to_string_pretty(report).expect("reports serialize")
+}
+
 /// Writes `STEM.md` (the table) and `STEM.json` (the report) into `out`, prints the table.
 fn publish_report(
     out: &Path,
@@ -147,7 +186,7 @@ fn publish_report(
     table: &str,
     report: &impl serde::Serialize,
 ) -> Result<()> {
-    let json = serde_json::to_string_pretty(report).expect("reports serialize");
+    let json = to_json(report);
     publish(
         out,
         table,
@@ -167,6 +206,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             dirs,
             ranks,
             quants,
+            scenes,
             out,
         } => {
             let sweep = accuracy::Sweep {
@@ -177,48 +217,43 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             let progress = Progress::new("accuracy report");
             let rows = accuracy::accuracy(&input, res, &sweep, limits, &progress)?;
             progress.finish();
-            let table = accuracy::markdown(&rows);
+            let mut table = accuracy::markdown(&rows);
             let csv = accuracy::csv(&rows);
             let svg = accuracy::svg_plot(&rows)?;
-            publish(
-                &out,
-                &table,
-                &[
-                    ("accuracy.md", &table),
-                    ("accuracy.csv", &csv),
-                    ("accuracy.svg", &svg),
-                ],
-            )
+            let mut files = vec![("accuracy.csv", csv), ("accuracy.svg", svg)];
+            let scenes: Vec<PathBuf> = scenes
+                .into_iter()
+                .filter(|p| !p.as_os_str().is_empty())
+                .collect();
+            if !scenes.is_empty() {
+                let report = run_codecs(&scenes, &codecs::CodecSweep::default(), limits)?;
+                table += &format!("\n## Codecs\n\n{}", codecs::markdown(&report));
+                files.push(("codecs.json", to_json(&report)));
+                files.push(("codecs.svg", codecs::svg_plot(&report)?));
+            }
+            files.push(("accuracy.md", table.clone()));
+            let files: Vec<(&str, &str)> = files.iter().map(|(n, c)| (*n, c.as_str())).collect();
+            publish(&out, &table, &files)
         }
         ReportCommand::Codecs {
             scenes,
             ranks,
             quant,
             tiles,
+            visibility,
             frames,
             out,
         } => {
-            let loaded = scenes
-                .iter()
-                .map(|path| {
-                    let name = path
-                        .file_stem()
-                        .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
-                    let dir = path.parent().unwrap_or(Path::new("."));
-                    Ok((name, load_scene(path, limits)?, dir))
-                })
-                .collect::<Result<Vec<_>>>()?;
             let sweep = codecs::CodecSweep {
                 ranks,
                 quantization: quant,
                 tiles,
+                visibility,
                 frames,
             };
-            let progress = Progress::new("codec report");
-            let report = codecs::codec_report(&loaded, &sweep, limits, &progress)?;
-            progress.finish();
+            let report = run_codecs(&scenes, &sweep, limits)?;
             let table = codecs::markdown(&report);
-            let json = serde_json::to_string_pretty(&report).expect("reports serialize");
+            let json = to_json(&report);
             let svg = codecs::svg_plot(&report)?;
             publish(
                 &out,

@@ -7,5 +7,6 @@ pub mod gdm;
 pub mod layout;
 pub mod occupancy;
 pub mod quantize;
+pub mod split;
 pub mod svd;
 pub mod tiled;

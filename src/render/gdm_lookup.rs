@@ -14,6 +14,8 @@
 //!   interpolated like the eigenmaps.
 //! - An occupancy package marches its voxels exactly ([`OccupancyLookup`]): no interpolation
 //!   and no escape rule, the exact GDM of the voxel grid at any position and direction.
+//! - A split GDM ([`SplitLookup`]) answers segment queries from its capped distances and
+//!   shadow queries from its escape bits, both as a raw GDM.
 
 use super::gdm_renderer::{REFINEMENT_BACKOFF, advance_to_samples};
 use crate::bake::gdm::caster::{Caster, Trace};
@@ -22,6 +24,7 @@ use crate::bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
 use crate::compress::accuracy::is_escape;
 use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::QuantizedFactor;
+use crate::compress::split::SplitGdm;
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::package::Package;
@@ -69,6 +72,12 @@ pub trait GdmLookup: Sync {
             Lookup::Hit(d) if travelled + d < d_t => Some(travelled + d),
             _ => None,
         }
+    }
+
+    /// The shadow query: whether the ray from `t` along the unit direction `v` leaves the
+    /// volume without a hit. By default [`GdmLookup::lookup`]'s answer.
+    fn escapes(&self, t: DVec3, v: DVec3) -> bool {
+        self.lookup(t, v) == Lookup::Escape
     }
 }
 
@@ -248,6 +257,38 @@ impl GdmLookup for RawLookup<'_> {
         } else {
             Lookup::Hit(sum / hit)
         }
+    }
+}
+
+/// Queries on a split GDM ([`SplitGdm`]): lookups and segment queries on the capped primary
+/// distances (no hit within the cap reads as an escape), shadow queries on the escape bits,
+/// both with the raw lookup's interpolation.
+pub struct SplitLookup<'a> {
+    primary: RawLookup<'a>,
+    visibility: RawLookup<'a>,
+}
+
+impl<'a> SplitLookup<'a> {
+    /// Wraps `split`.
+    pub fn new(split: &'a SplitGdm) -> Self {
+        SplitLookup {
+            primary: RawLookup::new(&split.primary.reconstruction),
+            visibility: RawLookup::new(&split.visibility),
+        }
+    }
+}
+
+impl GdmLookup for SplitLookup<'_> {
+    fn dims(&self) -> Dims {
+        self.primary.dims()
+    }
+
+    fn lookup(&self, t: DVec3, v: DVec3) -> Lookup {
+        self.primary.lookup(t, v)
+    }
+
+    fn escapes(&self, t: DVec3, v: DVec3) -> bool {
+        self.visibility.escapes(t, v)
     }
 }
 

@@ -37,7 +37,7 @@
 //! as in the paper).
 
 use super::accel::BoxBvh;
-use super::gdm_lookup::{GdmLookup, Lookup};
+use super::gdm_lookup::GdmLookup;
 use super::lighting::{SHADOW_OFFSET, shade};
 use super::truth::{TruthRenderer, light_start};
 use crate::error::{Error, Result};
@@ -205,6 +205,23 @@ pub fn prepare_prisms(shell: &Shell, dims: Dims) -> Vec<PreparedPrism> {
             frame: DMat3::from_diagonal(scale) * p.to_texture,
         })
         .collect()
+}
+
+/// The longest texture-space segment (voxel units) a fragment of any of `prisms` can have.
+/// In texture space a prism is the convex hull of its six corners (its base triangle's texture
+/// coordinates at w = 0 and w = Z), a fragment's segment joins two points of its boundary,
+/// so no segment is longer than the largest distance between two corners.
+pub fn longest_segment(prisms: &[PreparedPrism]) -> f64 {
+    let mut longest = 0.0f64;
+    for p in prisms {
+        let corners = p.faces.iter().flat_map(|f| f.triangle.texture);
+        for a in corners.clone() {
+            for b in corners.clone() {
+                longest = longest.max(a.distance(b));
+            }
+        }
+    }
+    longest
 }
 
 /// A ray's nearest mesostructure hit by the GDM algorithm.
@@ -442,7 +459,7 @@ impl<'a> GdmRenderer<'a> {
                     let start = || light_start(jacobian.unwrap_or(frame.inverse()), p, n_tex);
                     match shadow_test {
                         ShadowTest::Local => match (frame * inc.direction).try_normalize() {
-                            Some(l) => self.lookup.lookup(shadow_origin, l) == Lookup::Escape,
+                            Some(l) => self.lookup.escapes(shadow_origin, l),
                             None => true,
                         },
                         ShadowTest::Shell => self

@@ -5,19 +5,24 @@
 //! the exact GDM), on the CPU renderer's image (PSNR and mask against the truth, render time)
 //! and, where an adapter exists, on the real-time pipeline (mean frame time, and its image
 //! against the truth). The uncompressed GDM is the reference row: what the paper's algorithm
-//! reaches with no compression at all. Blockwise SVD (`tiled-svd`, [`compress_tiled`]) is
-//! evaluated beside the codecs, on the CPU renderer only: it is not a package codec.
+//! reaches with no compression at all. Two SVD-based GDM codecs are evaluated beside the
+//! package codecs, on the CPU renderer only (neither is a package codec): blockwise SVD
+//! (`tiled-svd`, [`compress_tiled`]) and the split GDM (`split-svd`, [`compress_split`]: the
+//! primary query's distances capped at the scene's longest prism segment and compressed by
+//! SVD, the shadow query's escape bits at a reduced direction resolution).
 
 use crate::bake::gdm::{BakeObserver, EscapeConvention, Gdm};
 use crate::compress::quantize::Quantization;
+use crate::compress::split::{CAP_MARGIN, SplitGdm, compress_split};
 use crate::compress::svd::RankChoice;
 use crate::compress::tiled::compress_tiled;
 use crate::error::{Error, Result};
+use crate::grid::DirectionGrid;
 use crate::package::bake::check_codec_options;
 use crate::package::manifest::GdmCodec;
 use crate::realtime::gpu::Gpu;
-use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
-use crate::render::gdm_renderer::GdmRenderer;
+use crate::render::gdm_lookup::{GdmLookup, RawLookup, SplitLookup, package_lookup};
+use crate::render::gdm_renderer::{GdmRenderer, longest_segment, prepare_prisms};
 use crate::render::image::compare;
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
@@ -28,7 +33,8 @@ use crate::util::limits::Limits;
 use std::path::Path;
 use std::time::Instant;
 
-/// The settings the report covers: the occupancy codec, and `paper-svd` at each rank.
+/// The settings the report covers: the occupancy codec, `paper-svd` at each rank, and the
+/// evaluated SVD codecs.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CodecSweep {
     /// `paper-svd` ranks.
@@ -37,8 +43,27 @@ pub struct CodecSweep {
     pub quantization: Quantization,
     /// `tiled-svd` tile sides in texels (each at every rank; none: no tiled rows).
     pub tiles: Vec<u32>,
+    /// `split-svd` visibility direction grids (each at every rank, with the global basis and
+    /// each of `tiles`; none: no split rows).
+    pub visibility: Vec<DirectionGrid>,
     /// Real-time frames to time per setting (0: no real-time rows).
     pub frames: u32,
+}
+
+impl Default for CodecSweep {
+    /// The defaults of `mesobake report codecs`: ranks 4, 8, 16 in f16, tiles of 16, escape
+    /// bits at 4×8 and 8×16, 5 real-time frames.
+    fn default() -> Self {
+        CodecSweep {
+            ranks: vec![4, 8, 16],
+            quantization: Quantization::F16,
+            tiles: vec![16],
+            visibility: [(4, 8), (8, 16)]
+                .map(|(n_theta, n_phi)| DirectionGrid { n_theta, n_phi })
+                .to_vec(),
+            frames: 5,
+        }
+    }
 }
 
 /// One codec setting on one scene.
@@ -46,19 +71,30 @@ pub struct CodecSweep {
 pub struct CodecRow {
     /// The scene's file stem.
     pub scene: String,
-    /// `occupancy`, `paper-svd`, `tiled-svd` (evaluated, not a package codec) or
-    /// `uncompressed` (the exact GDM as baked, f32).
+    /// `occupancy`, `paper-svd`, `tiled-svd` or `split-svd` (evaluated, not package codecs)
+    /// or `uncompressed` (the exact GDM as baked, f32).
     pub codec: String,
-    /// The codec's size setting (`rank 8 f16`), empty when it has none.
+    /// The codec's settings but its rank (`f16`, `16×16 tiles f16`): rows of one series
+    /// differ in rank only, and make one line of the plot.
+    pub series: String,
+    /// The rank, for the SVD-based codecs.
+    pub rank: Option<usize>,
+    /// The series and the rank: `16×16 tiles f16, rank 8`.
     pub setting: String,
     /// Bytes of the package (for `uncompressed`, of the f32 GDM).
     pub bytes: u64,
     /// Seconds to make it: the package's stages, or the exact bake.
     pub bake_s: f64,
-    /// Fraction of the GDM's samples whose hit-or-escape answer differs from the exact GDM's.
+    /// Fraction of the GDM's samples whose hit-or-escape answer differs from the exact GDM's
+    /// (`split-svd`: hit within the cap or not).
     pub flip_rate: f64,
-    /// Root-mean-square d − d_exact over the samples where both hit, voxels.
+    /// Root-mean-square d − d_exact over the samples a primary query can reach (exact hits
+    /// within the scene's distance cap) where both hit, voxels.
     pub hit_rmse: f64,
+    /// `split-svd`, whose shadow queries have their own representation: the fraction of the
+    /// GDM's samples where that representation's hit-or-escape answer differs from the exact
+    /// GDM's. Other codecs answer shadow queries like the samples.
+    pub shadow_flip_rate: Option<f64>,
     /// CPU GDM renderer: seconds for the image.
     pub render_s: f64,
     /// CPU image against the truth: PSNR (dB, sRGB).
@@ -74,6 +110,15 @@ pub struct CodecRow {
     pub realtime_psnr_db: Option<f64>,
 }
 
+impl CodecRow {
+    /// The plot line the row lies on: the codec and its series.
+    pub fn line(&self) -> String {
+        format!("{} {}", self.codec, self.series)
+            .trim_end()
+            .to_string()
+    }
+}
+
 /// The report.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct CodecReport {
@@ -81,8 +126,11 @@ pub struct CodecReport {
     pub adapter: Option<String>,
     /// Per scene: its file stem and the seconds its ground truth took.
     pub truth_s: Vec<(String, f64)>,
-    /// Per scene: uncompressed, occupancy, `paper-svd` by rank, then `tiled-svd` by tile side
-    /// and rank.
+    /// Per scene: its file stem and its distance cap, the longest texture-space segment a prism
+    /// holds (voxels): the hit RMSE's reach and the `split-svd` rows' cap.
+    pub caps: Vec<(String, f64)>,
+    /// Per scene: uncompressed, occupancy, `paper-svd` by rank, `tiled-svd` by tile side and
+    /// rank, then `split-svd` by visibility grid, basis and rank.
     pub rows: Vec<CodecRow>,
 }
 
@@ -102,20 +150,22 @@ pub fn codec_report(
     } else {
         None
     };
-    // Each setting with its label.
-    let settings: Vec<(ScenePackageParams, String)> =
-        std::iter::once((ScenePackageParams::default(), String::new()))
+    // Each package setting with its rank.
+    let settings: Vec<(ScenePackageParams, Option<usize>)> =
+        std::iter::once((ScenePackageParams::default(), None))
             .chain(sweep.ranks.iter().map(|&k| {
                 let params = ScenePackageParams {
                     codec: GdmCodec::PaperSvd,
                     rank: RankChoice::Rank(k),
                     quantization: sweep.quantization,
                 };
-                (params, format!("rank {k} {}", sweep.quantization))
+                (params, Some(k))
             }))
             .collect();
+    let quant = sweep.quantization;
     let tiled = sweep.tiles.len() * sweep.ranks.len();
-    let total = (scenes.len() * (2 + settings.len() + tiled)) as u64;
+    let split = sweep.visibility.len() * (1 + sweep.tiles.len()) * sweep.ranks.len();
+    let total = (scenes.len() * (2 + settings.len() + tiled + split)) as u64;
     let mut done = 0;
     let mut step = || {
         if observer.cancelled() {
@@ -128,6 +178,7 @@ pub fn codec_report(
     let mut report = CodecReport {
         adapter: gpu.as_ref().map(|g| g.adapter.name.clone()),
         truth_s: Vec::new(),
+        caps: Vec::new(),
         rows: Vec::new(),
     };
     for (name, loaded, dir) in scenes {
@@ -141,10 +192,10 @@ pub fn codec_report(
             .push((name.clone(), start.elapsed().as_secs_f64()));
         step()?;
         // One row: the CPU renderer's image with `lookup` against the truth, with the rest.
-        let row = |codec: String,
-                   setting: String,
+        let row = |(codec, series, rank): (&str, String, Option<usize>),
                    (bytes, bake_s): (u64, f64),
                    (flip_rate, hit_rmse): (f64, f64),
+                   shadow_flip_rate: Option<f64>,
                    lookup: &dyn GdmLookup,
                    (frame_ms, realtime_psnr_db): (Option<f64>, Option<f64>)|
          -> Result<CodecRow> {
@@ -160,12 +211,19 @@ pub fn codec_report(
             let c = compare(&truth, &image)?;
             Ok(CodecRow {
                 scene: name.clone(),
-                codec,
-                setting,
+                codec: codec.into(),
+                setting: match (rank, series.is_empty()) {
+                    (Some(k), true) => format!("rank {k}"),
+                    (Some(k), false) => format!("{series}, rank {k}"),
+                    (None, _) => series.clone(),
+                },
+                series,
+                rank,
                 bytes,
                 bake_s,
                 flip_rate,
                 hit_rmse,
+                shadow_flip_rate,
                 render_s,
                 psnr_db: c.psnr_db,
                 flip_mean: c.flip_mean,
@@ -179,23 +237,26 @@ pub fn codec_report(
         let mut exact = loaded.bake_gdm(limits, &())?;
         exact.set_escape_convention(EscapeConvention::Infinite);
         let bake_s = start.elapsed().as_secs_f64();
+        let dims = exact.dims();
+        let cap = longest_segment(&prepare_prisms(&loaded.shell, dims)) as f32;
+        report.caps.push((name.clone(), cap as f64));
         report.rows.push(row(
-            "uncompressed".into(),
-            "f32".into(),
+            ("uncompressed", "f32".into(), None),
             (exact.data().len() as u64 * 4, bake_s),
             (0.0, 0.0),
+            None,
             &RawLookup::new(&exact),
             (None, None),
         )?);
         step()?;
 
-        for (params, setting) in &settings {
+        for &(params, rank) in &settings {
             let start = Instant::now();
-            let baked = bake_scene_package(loaded, dir, *params, limits, &())?;
+            let baked = bake_scene_package(loaded, dir, params, limits, &())?;
             let bake_s = start.elapsed().as_secs_f64();
             let bytes = baked.bytes.len() as u64;
             let package = crate::package::Package::parse(baked.bytes)?;
-            let samples = sample_errors(&package.reconstruct(limits)?, &exact);
+            let samples = sample_errors(&package.reconstruct(limits)?, &exact, cap);
             let realtime = match &gpu {
                 Some(gpu) => {
                     let (image, preview) =
@@ -206,10 +267,14 @@ pub fn codec_report(
                 None => (None, None),
             };
             report.rows.push(row(
-                params.codec.to_string(),
-                setting.clone(),
+                (
+                    params.codec.name(),
+                    rank.map_or(String::new(), |_| quant.to_string()),
+                    rank,
+                ),
                 (bytes, bake_s),
                 samples,
+                None,
                 &*package_lookup(&package)?,
                 realtime,
             )?);
@@ -224,28 +289,121 @@ pub fn codec_report(
                 let t = compress_tiled(&boundary, tile, rank, sweep.quantization, limits)?;
                 let bake_s = bake_s + start.elapsed().as_secs_f64();
                 report.rows.push(row(
-                    "tiled-svd".into(),
-                    format!("{tile}×{tile} tiles, rank {rank} {}", sweep.quantization),
+                    (
+                        "tiled-svd",
+                        format!("{tile}×{tile} tiles {quant}"),
+                        Some(rank),
+                    ),
                     (t.bytes(), bake_s),
-                    sample_errors(&t.reconstruction, &exact),
+                    sample_errors(&t.reconstruction, &exact, cap),
+                    None,
                     &RawLookup::new(&t.reconstruction),
                     (None, None),
                 )?);
                 step()?;
             }
         }
+
+        let within_cap = capped(&exact, cap)?;
+        let bases = std::iter::once(dims.x).chain(sweep.tiles.iter().copied());
+        for &grid in &sweep.visibility {
+            let shadow =
+                crate::bake::gdm::exact::bake(loaded.mesostructure.caster(), grid, limits, &())?;
+            for tile in bases.clone() {
+                let basis = if tile == dims.x {
+                    "global basis".to_string()
+                } else {
+                    format!("{tile}×{tile} tiles")
+                };
+                let series = format!(
+                    "{basis} {quant}, escape bits {}×{}",
+                    grid.n_theta, grid.n_phi
+                );
+                for &rank in &sweep.ranks {
+                    let start = Instant::now();
+                    let split = compress_split(
+                        &boundary,
+                        cap,
+                        (tile, rank, sweep.quantization),
+                        &shadow,
+                        limits,
+                    )?;
+                    let bake_s = bake_s + start.elapsed().as_secs_f64();
+                    report.rows.push(row(
+                        ("split-svd", series.clone(), Some(rank)),
+                        (split.bytes(), bake_s),
+                        sample_errors(&split.primary.reconstruction, &within_cap, cap),
+                        Some(shadow_flips(&split, &exact)),
+                        &SplitLookup::new(&split),
+                        (None, None),
+                    )?);
+                    step()?;
+                }
+            }
+        }
     }
     Ok(report)
 }
 
+/// `exact` (escapes +∞) with the distances a split GDM capped at `cap` reads as escapes.
+fn capped(exact: &Gdm, cap: f32) -> Result<Gdm> {
+    let values = exact
+        .data()
+        .iter()
+        .map(|&d| {
+            if d >= cap - CAP_MARGIN {
+                f32::INFINITY
+            } else {
+                d
+            }
+        })
+        .collect();
+    Gdm::from_values(
+        exact.dims(),
+        exact.dirs(),
+        EscapeConvention::Infinite,
+        values,
+    )
+}
+
+/// The fraction of `exact`'s samples (escapes +∞) whose escape answer `split`'s shadow query
+/// gets wrong, asked at the sample's position and direction.
+fn shadow_flips(split: &SplitGdm, exact: &Gdm) -> f64 {
+    use rayon::prelude::*;
+    let lookup = SplitLookup::new(split);
+    let (dims, dirs) = (exact.dims(), exact.dirs());
+    let stride = exact.direction_stride();
+    let flips: u64 = exact
+        .data()
+        .par_chunks(stride)
+        .enumerate()
+        .map(|(d, volume)| {
+            let v = glam::DVec3::from_array(dirs.vector_of(d));
+            let mut flips = 0u64;
+            for k in 0..dims.z {
+                for j in 0..dims.y {
+                    for i in 0..dims.x {
+                        let t = glam::DVec3::new(i as f64, j as f64, k as f64) + 0.5;
+                        let escapes = volume[dims.index(i, j, k)].is_infinite();
+                        flips += u64::from(lookup.escapes(t, v) != escapes);
+                    }
+                }
+            }
+            flips
+        })
+        .sum();
+    flips as f64 / exact.data().len().max(1) as f64
+}
+
 /// Hit/escape flips of `approx` against `exact` (same grids, escapes +∞), as a fraction of
-/// all samples, and the RMSE over the samples where both hit.
-fn sample_errors(approx: &Gdm, exact: &Gdm) -> (f64, f64) {
+/// all samples, and the RMSE over the samples a primary query can reach (`exact` hits within
+/// the distance `cap`) where both hit.
+fn sample_errors(approx: &Gdm, exact: &Gdm, cap: f32) -> (f64, f64) {
     let (mut flips, mut both, mut sum_sq) = (0u64, 0u64, 0.0f64);
     for (&a, &e) in approx.data().iter().zip(exact.data()) {
         if a.is_finite() != e.is_finite() {
             flips += 1;
-        } else if a.is_finite() {
+        } else if e < cap {
             both += 1;
             sum_sq += (a as f64 - e as f64).powi(2);
         }
@@ -271,6 +429,7 @@ pub fn markdown(report: &CodecReport) -> String {
             format!("{:.2}", r.bake_s),
             format!("{:.3}", 100.0 * r.flip_rate),
             format!("{:.3}", r.hit_rmse),
+            opt(r.shadow_flip_rate.map(|f| 100.0 * f), 3),
             format!("{:.2}", r.render_s),
             format!("{:.2}", r.psnr_db),
             format!("{:.4}", r.flip_mean),
@@ -279,10 +438,17 @@ pub fn markdown(report: &CodecReport) -> String {
             opt(r.realtime_psnr_db, 2),
         ]
     });
+    let caps: Vec<String> = report
+        .caps
+        .iter()
+        .map(|(scene, cap)| format!("{scene} {cap:.1}"))
+        .collect();
     format!(
-        "Ground truth: {}. Real-time adapter: {}.\n\n{}",
+        "Ground truth: {}. Real-time adapter: {}. Distance caps (the longest texture-space \
+         segment of a prism, voxels): {}.\n\n{}",
         truths.join(", "),
         report.adapter.as_deref().unwrap_or("none"),
+        caps.join(", "),
         table(
             &[
                 "scene",
@@ -291,7 +457,8 @@ pub fn markdown(report: &CodecReport) -> String {
                 "bytes",
                 "bake s",
                 "sample flips %",
-                "hit RMSE (voxel)",
+                "hit RMSE ≤ cap (voxel)",
+                "shadow flips %",
                 "CPU render s",
                 "CPU PSNR dB",
                 "CPU FLIP",
@@ -346,20 +513,20 @@ pub fn svg_plot(report: &CodecReport) -> Result<String> {
                 .y_desc("CPU render PSNR (dB)")
                 .draw()
                 .map_err(|e| plot_error(e.to_string()))?;
-            for (i, codec) in ["uncompressed", "occupancy", "paper-svd"]
-                .iter()
-                .enumerate()
-            {
+            let mut lines: Vec<String> = rows.iter().map(|r| r.line()).collect();
+            lines.dedup();
+            for (i, line) in lines.into_iter().enumerate() {
                 let color = Palette99::pick(i).to_rgba();
-                let points: Vec<(f64, f64)> = rows
+                let mut points: Vec<(f64, f64)> = rows
                     .iter()
-                    .filter(|r| r.codec == *codec)
+                    .filter(|r| r.line() == line)
                     .map(|r| (r.bytes as f64, r.psnr_db))
                     .collect();
+                points.sort_by(|a, b| a.0.total_cmp(&b.0));
                 chart
                     .draw_series(LineSeries::new(points, color.stroke_width(2)).point_size(4))
                     .map_err(|e| plot_error(e.to_string()))?
-                    .label(*codec)
+                    .label(line)
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
             }
             chart

@@ -22,6 +22,7 @@ pub mod middleware;
 pub mod packages;
 pub mod preview_api;
 pub mod preview_cache;
+pub mod reports;
 pub mod request_limits;
 pub mod worker;
 
@@ -77,6 +78,7 @@ pub struct AppState {
         packages::manifest,
         preview_api::render,
         preview_api::sample_scene,
+        reports::codecs,
         health::healthz,
         health::readyz,
         health::metrics,
@@ -114,6 +116,7 @@ pub fn router(state: AppState) -> Router {
         .route("/packages/{digest}/manifest", get(packages::manifest))
         .route("/preview", post(preview_api::render))
         .route("/scenes/sample", get(preview_api::sample_scene))
+        .route("/reports/codecs", get(reports::codecs))
         .route("/openapi.json", get(openapi))
         .layer(RequestBodyLimitLayer::new(as_usize(config.max_json_bytes)))
         .merge(uploads);

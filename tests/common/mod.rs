@@ -34,3 +34,19 @@ pub fn each_fails_with(cases: &[(Vec<&str>, &str)]) {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+/// Writes `plane-weave` shrunk to a 16×16×8 grid, 4×8 directions and a 48×32 image into
+/// `dir` as `small.json`: a scene every report can sweep in seconds.
+#[allow(dead_code)] // each test file uses part of this module
+pub fn small_scene(dir: &std::path::Path) -> std::path::PathBuf {
+    let sample = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/plane-weave.json");
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sample).unwrap()).unwrap();
+    scene["resolution"] = serde_json::json!([16, 16, 8]);
+    scene["directions"] = serde_json::json!([4, 8]);
+    scene["camera"]["width"] = 48.into();
+    scene["camera"]["height"] = 32.into();
+    let path = dir.join("small.json");
+    std::fs::write(&path, scene.to_string()).unwrap();
+    path
+}
