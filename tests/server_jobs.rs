@@ -433,7 +433,10 @@ async fn previews_render_once_the_package_is_baked() {
         };
         let (default, reference) = (row("occupancy"), row("uncompressed"));
         let f = |r: &Value, k: &str| r[k].as_f64().unwrap();
-        assert!(f(default, "psnr_db") >= f(reference, "psnr_db") - 0.5, "{scene}");
+        assert!(
+            f(default, "psnr_db") >= f(reference, "psnr_db") - 0.5,
+            "{scene}"
+        );
         assert!(
             f(default, "mask_disagreement") <= f(reference, "mask_disagreement") + 0.003,
             "{scene}"

@@ -18,7 +18,9 @@ pub struct RenderArgs {
     /// The scene (JSON; see docs/scene-format.md).
     #[arg(long)]
     scene: PathBuf,
-    /// truth: exact mapping into the real mesostructure; gdm: the real-time algorithm.
+    /// truth: exact mapping into the real mesostructure; gdm: the real-time algorithm;
+    /// explicit (mesh tiles only): the tile's triangles mapped through the shell and ray cast
+    /// as a plain mesh, the truth's independent check.
     #[arg(long, default_value = "gdm")]
     method: RenderMethod,
     /// For --method gdm: render from this package instead of baking the exact GDM. It must
@@ -66,7 +68,7 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             Some(package)
         }
         (None, _) => None,
-        (Some(_), RenderMethod::Truth) => {
+        (Some(_), RenderMethod::Truth | RenderMethod::Explicit) => {
             return Err(Error::InvalidParameter(
                 "--package only applies to --method gdm".into(),
             ));

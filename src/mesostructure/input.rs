@@ -29,6 +29,14 @@ impl Mesostructure {
             Mesostructure::Mesh(c) => c.as_ref(),
         }
     }
+
+    /// The mesh tile's triangles (tile units), for a mesh tile.
+    pub fn tile_mesh(&self) -> Option<&crate::mesostructure::trimesh::TriMesh> {
+        match self {
+            Mesostructure::Volume(_) => None,
+            Mesostructure::Mesh(c) => Some(c.tile()),
+        }
+    }
 }
 
 /// Loads `path`: a `.mbvol` volume, a PNG height field or an OBJ tile, told apart by content

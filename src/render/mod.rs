@@ -1,8 +1,10 @@
 //! The CPU renderers: the ground truth ([`truth`]) and the GDM per-pixel algorithm
-//! ([`gdm_renderer`]), with what they share (lighting, images); the path tracer, the truth
-//! for environment light ([`path_tracer`]); the demo's flat preview ([`flat_preview`]).
+//! ([`gdm_renderer`]), with what they share (lighting, images); the explicit geometry's ray
+//! cast, the truth's independent check on mesh tiles ([`explicit`]); the path tracer, the
+//! truth for environment light ([`path_tracer`]); the demo's flat preview ([`flat_preview`]).
 
 pub mod accel;
+pub mod explicit;
 pub mod flat_preview;
 pub mod gdm_lookup;
 pub mod gdm_renderer;

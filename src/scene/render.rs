@@ -4,6 +4,7 @@
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::package::Package;
+use crate::render::explicit::ExplicitRenderer;
 use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
 use crate::render::image::Image;
@@ -26,6 +27,9 @@ pub enum RenderMethod {
     Truth,
     /// The GDM per-pixel algorithm (the real-time pipeline's specification).
     Gdm,
+    /// The explicit geometry (mesh tiles only): the tile's triangles mapped through the shell,
+    /// ray cast as a plain mesh; the truth's independent check.
+    Explicit,
 }
 
 impl FromStr for RenderMethod {
@@ -34,8 +38,9 @@ impl FromStr for RenderMethod {
         match s {
             "truth" => Ok(RenderMethod::Truth),
             "gdm" => Ok(RenderMethod::Gdm),
+            "explicit" => Ok(RenderMethod::Explicit),
             _ => Err(Error::InvalidParameter(format!(
-                "render method {s:?}: expected truth or gdm"
+                "render method {s:?}: expected truth, gdm or explicit"
             ))),
         }
     }
@@ -105,7 +110,7 @@ pub fn render_substituted(
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Rendered> {
-    if method == RenderMethod::Truth && substitutions != Substitutions::default() {
+    if method != RenderMethod::Gdm && substitutions != Substitutions::default() {
         return Err(Error::InvalidParameter(
             "substitutions apply to the GDM renderer (method gdm) only".into(),
         ));
@@ -119,6 +124,20 @@ pub fn render_substituted(
             let start = Instant::now();
             let tracer = PathTracer::new(loaded, scene.gi.path_samples, scene.gi.path_depth)?;
             let image = render_image(&scene.camera, |o, d| tracer.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
+        }
+        RenderMethod::Explicit if environment => {
+            return Err(Error::InvalidParameter(
+                "environment lighting is rendered by the path tracer (method truth) or the GDM \
+                 renderer; the explicit renderer shades point and directional lights only"
+                    .into(),
+            ));
+        }
+        RenderMethod::Explicit => {
+            let start = Instant::now();
+            let r = ExplicitRenderer::new(loaded, limits)?;
+            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();
             image
         }

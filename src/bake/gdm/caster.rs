@@ -48,4 +48,12 @@ pub trait Caster: Sync {
     fn trace_from(&self, origin: [f64; 3], dir: [f64; 3], _t_min: f64, max_t: f64) -> Trace {
         self.trace(origin, dir, max_t)
     }
+
+    /// The unit outward normal of the surface that [`Caster::trace`] hits along the same ray,
+    /// where the caster holds that surface exactly (a mesh tile: the hit triangle's normal);
+    /// `None` for voxel boxes, whose shading normal is the material volume's smooth one by
+    /// choice, and where the ray hits nothing or starts in solid.
+    fn hit_normal(&self, _origin: [f64; 3], _dir: [f64; 3], _max_t: f64) -> Option<[f64; 3]> {
+        None
+    }
 }

@@ -16,6 +16,7 @@ use super::mesh_template::BinnedTriangles;
 use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::mesh_tile::MeshTile;
+use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume::Occupancy;
 use crate::util::limits::Limits;
 use glam::Vec3A;
@@ -47,6 +48,8 @@ pub struct MeshCaster {
     inside: Occupancy,
     /// The triangles binned by voxel for template bakes, when the grid supports templates.
     bins: Option<BinnedTriangles>,
+    /// The tile as given (tile units).
+    mesh: TriMesh,
 }
 
 impl MeshCaster {
@@ -114,11 +117,17 @@ impl MeshCaster {
             z_max,
             inside: Occupancy::empty(dims),
             bins,
+            mesh: tile.mesh.clone(),
         };
         if tile.closed {
             caster.inside = caster.classify_centres();
         }
         Ok(caster)
+    }
+
+    /// The tile's triangles as given, in tile units.
+    pub fn tile(&self) -> &TriMesh {
+        &self.mesh
     }
 
     fn classify_centres(&self) -> Occupancy {
@@ -249,6 +258,20 @@ impl Caster for MeshCaster {
     }
 
     fn trace_from(&self, o: [f64; 3], v: [f64; 3], t_min: f64, max_t: f64) -> Trace {
+        self.first_hit(o, v, t_min, max_t).0
+    }
+
+    fn hit_normal(&self, o: [f64; 3], v: [f64; 3], max_t: f64) -> Option<[f64; 3]> {
+        let (trace, triangle) = self.first_hit(o, v, 0.0, max_t);
+        let n = self.tris[triangle? as usize].compute_normal();
+        let n = [n.x as f64, n.y as f64, n.z as f64];
+        (matches!(trace, Trace::Hit(_)) && n.iter().all(|c| c.is_finite())).then_some(n)
+    }
+}
+
+impl MeshCaster {
+    /// [`Caster::trace_from`], with the index (in BVH order) of the triangle hit.
+    fn first_hit(&self, o: [f64; 3], v: [f64; 3], t_min: f64, max_t: f64) -> (Trace, Option<u32>) {
         let top = self.dims.z as f64;
         let t_plane = if v[2] > 0.0 {
             (top - o[2]) / v[2]
@@ -263,7 +286,7 @@ impl Caster for MeshCaster {
             self.bvh
                 .ray_traverse(*ray, &mut hit, |r, id| self.tris[id].intersect(r))
         });
-        if found {
+        let trace = if found {
             if hit.t <= 0.0 {
                 Trace::Inside
             } else {
@@ -273,6 +296,7 @@ impl Caster for MeshCaster {
             Trace::Escape(if v[2] == 0.0 { f64::INFINITY } else { t_plane })
         } else {
             Trace::Limit
-        }
+        };
+        (trace, found.then_some(hit.primitive_id))
     }
 }
