@@ -1,4 +1,5 @@
 //! Running the `mesobake` binary from integration tests.
+#![allow(dead_code)] // each test file uses part of it
 
 use std::process::{Command, Output};
 
@@ -37,7 +38,6 @@ pub fn each_fails_with(cases: &[(Vec<&str>, &str)]) {
 
 /// Writes `plane-weave` shrunk to a 16×16×8 grid, 4×8 directions and a 48×32 image into
 /// `dir` as `small.json`: a scene every report can sweep in seconds.
-#[allow(dead_code)] // each test file uses part of this module
 pub fn small_scene(dir: &std::path::Path) -> std::path::PathBuf {
     let sample = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/plane-weave.json");
     let mut scene: serde_json::Value =
