@@ -570,6 +570,9 @@ fn the_gi_report_measures_against_its_references() {
         report.images
     );
     assert!(report.images[2].renderer == "GDM + RTV" && report.images[2].psnr_db > 30.0);
+    // FLIP beside PSNR: 0 for identical images, small but measured for the GDM + RTV image.
+    assert_eq!(report.images[0].flip_mean, 0.0);
+    assert!(report.images[2].flip_mean < 0.05, "{:?}", report.images);
     // A Lambertian RTV is rank 1: asking for 16 stores 1, and only f16 rounding remains
     // (measured 1.5e-4).
     let ranks: Vec<usize> = report.compression.iter().map(|r| r.rank).collect();

@@ -66,8 +66,9 @@ fn agreement(loaded: &LoadedScene, package: &Package, label: &str) -> (f64, f64)
     let cpu = cpu_image(loaded, package);
     let c = compare(&gpu, &cpu).unwrap();
     eprintln!(
-        "{label}: PSNR {:.2} dB, mask {:.4} %, {} hit pixels (CPU {}), variant {}",
+        "{label}: PSNR {:.2} dB, FLIP {:.4}, mask {:.4} %, {} hit pixels (CPU {}), variant {}",
         c.psnr_db,
+        c.flip_mean,
         c.mask_disagreement * 100.0,
         gpu.hits(),
         cpu.hits(),
@@ -78,6 +79,9 @@ fn agreement(loaded: &LoadedScene, package: &Package, label: &str) -> (f64, f64)
         "{label}: the scene shows too little to test"
     );
     assert!(c.psnr_db >= 35.0, "{label}: PSNR {} dB < 35 dB", c.psnr_db);
+    // FLIP too: at 35 dB and more, differences no viewer would see (the truth against the
+    // explicit renderer, 41.8 dB, is at 0.0023).
+    assert!(c.flip_mean <= 0.02, "{label}: FLIP {} > 0.02", c.flip_mean);
     assert!(
         c.mask_disagreement <= 0.005,
         "{label}: mask disagreement {} > 0.5 %",

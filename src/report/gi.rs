@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
 use crate::render::gdm_lookup::RawLookup;
 use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::image::compare;
+use crate::render::image::{Image, compare};
 use crate::render::path_tracer::PathTracer;
 use crate::render::render_image;
 use crate::report::accuracy::table;
@@ -65,8 +65,29 @@ pub struct ImageRow {
     pub seconds: f64,
     /// PSNR in dB against the reference.
     pub psnr_db: f64,
+    /// Mean ꟻLIP error against the reference.
+    pub flip_mean: f64,
     /// Fraction of pixels whose hit/miss differs from the reference.
     pub mask_disagreement: f64,
+}
+
+impl ImageRow {
+    /// `image` by `renderer` (with its `samples`, in `seconds`) against `reference`.
+    fn new(
+        (renderer, samples, seconds): (&str, u32, f64),
+        image: &Image,
+        reference: &Image,
+    ) -> Result<ImageRow> {
+        let c = compare(image, reference)?;
+        Ok(ImageRow {
+            renderer: renderer.into(),
+            samples,
+            seconds,
+            psnr_db: c.psnr_db,
+            flip_mean: c.flip_mean,
+            mask_disagreement: c.mask_disagreement,
+        })
+    }
 }
 
 /// One RTV setting.
@@ -362,23 +383,17 @@ fn image_rows(
     let gdm_seconds = start.elapsed().as_secs_f64();
     let mut rows = Vec::new();
     for (n, seconds, image) in &traced {
-        let c = compare(image, reference)?;
-        rows.push(ImageRow {
-            renderer: "path traced".into(),
-            samples: *n,
-            seconds: *seconds,
-            psnr_db: c.psnr_db,
-            mask_disagreement: c.mask_disagreement,
-        });
+        rows.push(ImageRow::new(
+            ("path traced", *n, *seconds),
+            image,
+            reference,
+        )?);
     }
-    let c = compare(&gdm_image, reference)?;
-    rows.push(ImageRow {
-        renderer: "GDM + RTV".into(),
-        samples: scene.gi.bounces,
-        seconds: gdm_seconds,
-        psnr_db: c.psnr_db,
-        mask_disagreement: c.mask_disagreement,
-    });
+    rows.push(ImageRow::new(
+        ("GDM + RTV", scene.gi.bounces, gdm_seconds),
+        &gdm_image,
+        reference,
+    )?);
     Ok((rows, [scene.camera.width, scene.camera.height]))
 }
 
@@ -461,6 +476,7 @@ pub fn markdown(report: &GiAccuracy) -> String {
             "paths per pixel / bounces",
             "seconds",
             "PSNR dB",
+            "FLIP",
             "mask disagreement",
         ],
         report.images.iter().map(|r| {
@@ -469,6 +485,7 @@ pub fn markdown(report: &GiAccuracy) -> String {
                 r.samples.to_string(),
                 format!("{:.2}", r.seconds),
                 format!("{:.1}", r.psnr_db),
+                format!("{:.4}", r.flip_mean),
                 format!("{:.4}", r.mask_disagreement),
             ]
         }),
