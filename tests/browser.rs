@@ -228,5 +228,80 @@ async fn upload_bake_and_preview_in_a_browser() {
     })
     .await;
     assert_ne!(first, second);
+
+    // A scene edit marks the shown preview stale until it is rendered again.
+    let stale = |c: fantoccini::Client| async move {
+        c.execute(
+            "return [document.getElementById('preview').classList.contains('stale'), \
+             !document.getElementById('preview-stale').hidden];",
+            vec![],
+        )
+        .await
+        .unwrap()
+    };
+    assert_eq!(stale(c.clone()).await, serde_json::json!([false, false]));
+    c.execute(
+        "const t = document.getElementById('scene-json'); const s = JSON.parse(t.value); \
+         s.lights[0].point.intensity = [50, 50, 50]; t.value = JSON.stringify(s, null, 2); \
+         t.dispatchEvent(new Event('input'));",
+        vec![],
+    )
+    .await
+    .unwrap();
+    assert_eq!(stale(c.clone()).await, serde_json::json!([true, true]));
+
+    // Background and exposure change the display only.
+    let shown = c
+        .execute(
+            "const e = document.getElementById('preview-exposure'); e.value = 2; \
+             e.dispatchEvent(new Event('input')); \
+             const b = document.getElementById('preview-background'); b.value = '#fff'; \
+             b.dispatchEvent(new Event('change')); const i = document.getElementById('preview'); \
+             return [i.style.filter, getComputedStyle(i).backgroundColor, \
+             document.getElementById('preview-exposure-out').textContent];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(
+        shown,
+        serde_json::json!(["brightness(4)", "rgb(255, 255, 255)", "+2 EV"])
+    );
+
+    // A job put back in the queue after a failed attempt says it is retrying, with the count,
+    // and a long error wraps inside the table (the view as the server sends it).
+    let retrying = c
+        .execute(
+            "upsert({id: 'retrying-job-0000', state: 'queued', stage: 'bake_gdm', progress: 0, \
+             attempts: 1, max_attempts: 3, plan: {stages: [], skipped: []}, timings: {}, \
+             error: 'x'.repeat(600), package_digest: null, cancel_requested: false, \
+             created_ms: Date.now(), updated_ms: Date.now()}); \
+             const tr = document.querySelector('tr[data-job-id=\"retrying-job-0000\"]'); \
+             const table = document.getElementById('jobs'); \
+             return [tr.querySelector('.job-state').textContent, \
+             table.scrollWidth <= table.parentElement.clientWidth + 1];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(
+        retrying,
+        serde_json::json!(["retrying (attempt 2 of 3)", true])
+    );
+
+    // On a narrow window nothing sticks out sideways.
+    c.set_window_size(400, 900).await.unwrap();
+    let fits = eventually(10, "the page to fit a 400-pixel window", || async {
+        let v = c
+            .execute(
+                "return document.documentElement.scrollWidth <= window.innerWidth;",
+                vec![],
+            )
+            .await
+            .ok()?;
+        v.as_bool().filter(|f| *f)
+    })
+    .await;
+    assert!(fits);
     c.close().await.unwrap();
 }

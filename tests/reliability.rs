@@ -279,6 +279,10 @@ async fn a_blob_store_that_refuses_writes_fails_the_job_cleanly() {
         };
         assert_eq!(done.state, "failed");
         assert_eq!(done.attempts, 3, "retried with backoff before failing");
+        assert_eq!(
+            done.max_attempts, 3,
+            "the view says how many attempts it had"
+        );
         // The error names the store, not the server's directories.
         let error = done.error.as_deref().unwrap();
         assert!(error.contains("blob store"), "{error}");

@@ -114,6 +114,8 @@ pub struct JobView {
     pub progress: f64,
     /// Attempts so far.
     pub attempts: i32,
+    /// Attempts allowed before the job fails.
+    pub max_attempts: i32,
     /// What runs and what was skipped.
     pub plan: Plan,
     /// Seconds per finished stage.
@@ -151,8 +153,8 @@ pub struct Claimed {
     pub ready_ms: i64,
 }
 
-const VIEW_COLUMNS: &str = "id, state, stage, progress, attempts, plan, timings, error, \
-    package_digest, cancel_requested, created_ms, updated_ms";
+const VIEW_COLUMNS: &str = "id, state, stage, progress, attempts, max_attempts, plan, timings, \
+    error, package_digest, cancel_requested, created_ms, updated_ms";
 
 fn json(row: &AnyRow, name: &str) -> Result<serde_json::Value> {
     let text: String = row.try_get(name).map_err(db_error)?;
@@ -167,6 +169,7 @@ fn view(row: &AnyRow) -> Result<JobView> {
         stage: row.try_get("stage").map_err(get)?,
         progress: row.try_get("progress").map_err(get)?,
         attempts: row.try_get("attempts").map_err(get)?,
+        max_attempts: row.try_get("max_attempts").map_err(get)?,
         plan: serde_json::from_value(json(row, "plan")?)
             .map_err(|e| Error::Database(format!("plan: {e}")))?,
         timings: json(row, "timings")?,
