@@ -76,8 +76,10 @@ impl<'a> ExplicitRenderer<'a> {
             record_texture: true,
         };
         let explicit = export(&loaded.shell, tile, &params, limits)?;
-        let sources = explicit.sources.unwrap_or_default();
         let mesh = &explicit.mesh;
+        // Per triangle: f64 corners, its source, an f32 copy and the BVH's share.
+        limits.check("explicit triangles", mesh.triangles.len() as u64, 256)?;
+        let sources = explicit.sources.expect("export records sources when asked");
         let corners: Vec<[DVec3; 3]> = (0..mesh.triangles.len())
             .map(|n| mesh.corners(n).map(DVec3::from_array))
             .collect();
@@ -122,7 +124,7 @@ impl<'a> ExplicitRenderer<'a> {
             (dir + DVec3::ZERO).as_vec3a(),
             0.0,
             if t_max.is_finite() {
-                t_max as f32
+                t_max as f32 * 1.000_001 + 1e-30
             } else {
                 f32::INFINITY
             },
