@@ -67,22 +67,22 @@ pub fn compress_split(
         gdm.data().iter().map(|&d| d.min(cap)).collect(),
     )?;
     let mut primary = compress_tiled(&capped, tile, rank, quantization, limits)?;
-    let (dims, dirs) = (primary.reconstruction.dims(), primary.reconstruction.dirs());
-    let values = std::mem::replace(
-        &mut primary.reconstruction,
-        Gdm::zeroed(dims, dirs, limits)?,
-    )
-    .into_values()
-    .into_iter()
-    .map(|d| {
-        if d >= cap - CAP_MARGIN {
-            f32::INFINITY
-        } else {
-            d
-        }
-    })
-    .collect();
-    primary.reconstruction = Gdm::from_values(dims, dirs, EscapeConvention::Infinite, values)?;
+    let recon = &primary.reconstruction;
+    let values = (recon.data().iter())
+        .map(|&d| {
+            if d >= cap - CAP_MARGIN {
+                f32::INFINITY
+            } else {
+                d
+            }
+        })
+        .collect();
+    primary.reconstruction = Gdm::from_values(
+        recon.dims(),
+        recon.dirs(),
+        EscapeConvention::Infinite,
+        values,
+    )?;
     let visibility = Gdm::from_values(
         shadow.dims(),
         shadow.dirs(),
