@@ -2,9 +2,10 @@
 // for step (that file's module documentation is the specification; the tests hold the two
 // to PSNR ≥ 35 dB). This file is completed by one query file for the package's GDM codec
 // (`query_svd.wgsl` or `query_occupancy.wgsl`: group 1, `segment_hit` and `escapes`), one
-// shadow file (`shadows_on.wgsl` or `shadows_off.wgsl`), one environment file (`gi_on.wgsl`
-// or `gi_off.wgsl`) and by the constant REFINEMENTS, chosen from the package and the scene's
-// effects and knobs (`src/realtime/variant.rs`).
+// shadow file (`shadows_off.wgsl`, `shadows_local.wgsl` or `shadows_shell.wgsl`:
+// `light_visible`), one environment file (`gi_on.wgsl` or `gi_off.wgsl`) and by the
+// constants REFINEMENTS, CHORDS and JACOBIAN_FRAME, chosen from the package and the scene's
+// effects and quality (`src/realtime/variant.rs`).
 
 const PI: f32 = 3.141592653589793;
 const TAU: f32 = 6.283185307179586;
@@ -135,8 +136,17 @@ fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
     return fallback;
 }
 
+// Where a hit's shadow tests start: its prism, the point one voxel off the hit along the
+// texture normal in texture space and in object space, and the shading frame.
+struct ShadowStart {
+    prism: u32,
+    texture: vec3<f32>,
+    point: vec3<f32>,
+    frame: mat3x3<f32>,
+}
+
 // Lambert + normalized Blinn–Phong from every light, with the variant's shadow test.
-fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, frame: array<vec4<f32>, 3>, shadow_origin: vec3<f32>) -> vec3<f32> {
+fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, start: ShadowStart) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     let s = view.specular.w;
     for (var l = 0u; l < view.light_count; l++) {
@@ -147,13 +157,15 @@ fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, frame: 
         }
         var dir: vec3<f32>;
         var irradiance: vec3<f32>;
+        var distance = 3.0e38;
         if light.kind == 0u {
             let to = light.vector.xyz - p;
             let r2 = dot(to, to);
             if r2 <= 0.0 {
                 continue;
             }
-            dir = to / sqrt(r2);
+            distance = sqrt(r2);
+            dir = to / distance;
             irradiance = light.colour.rgb / r2;
         } else {
             dir = -normalize(light.vector.xyz);
@@ -163,8 +175,7 @@ fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, frame: 
         if cos_l <= 0.0 {
             continue;
         }
-        let l_tex = vec3<f32>(dot(frame[0].xyz, dir), dot(frame[1].xyz, dir), dot(frame[2].xyz, dir));
-        if !light_visible(shadow_origin, l_tex) {
+        if !light_visible(start, dir, distance) {
             continue;
         }
         let h = normalize_or(dir + to_eye, vec3<f32>(0.0));
@@ -172,6 +183,97 @@ fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, frame: 
         out += (base / PI + lobe) * irradiance * cos_l;
     }
     return out;
+}
+
+// ---- The prism mapping (src/render/prism_map.rs) ---------------------------------------
+
+// The inverse of m (columns a, b, c: rows b×c, c×a, a×b over the determinant); the zero
+// matrix where m is singular.
+fn inverse3(m: mat3x3<f32>) -> mat3x3<f32> {
+    let det = determinant(m);
+    if det == 0.0 || !(abs(det) < 3.0e38) {
+        return mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    }
+    return transpose(mat3x3<f32>(cross(m[1], m[2]), cross(m[2], m[0]), cross(m[0], m[1]))) * (1.0 / det);
+}
+
+// P(b₁, b₂, w) = Σ bᵢ (Bᵢ + w·Eᵢ) of a prism, read from its top and bottom faces, object
+// coordinates relative to B₀; texture coordinates affine in (b₁, b₂, w).
+struct Mapping {
+    origin: vec3<f32>,
+    e1: vec3<f32>,
+    e2: vec3<f32>,
+    extrusion: vec3<f32>,
+    f1: vec3<f32>,
+    f2: vec3<f32>,
+    uv0: vec2<f32>,
+    uv1: vec2<f32>,
+    uv2: vec2<f32>,
+    // Rows of the inverse of [uv1 uv2].
+    uv_inv0: vec2<f32>,
+    uv_inv1: vec2<f32>,
+    depth: f32,
+    valid: bool,
+}
+
+fn prism_mapping(pi: u32) -> Mapping {
+    var m: Mapping;
+    let top = prisms[pi].faces[0];
+    let bottom = prisms[pi].faces[1];
+    let b0 = bottom.corners[0].xyz;
+    let b1 = bottom.corners[2].xyz;
+    let b2 = bottom.corners[1].xyz;
+    m.origin = b0;
+    m.e1 = b1 - b0;
+    m.e2 = b2 - b0;
+    m.extrusion = top.corners[0].xyz - b0;
+    m.f1 = (top.corners[1].xyz - b1) - m.extrusion;
+    m.f2 = (top.corners[2].xyz - b2) - m.extrusion;
+    m.uv0 = top.texture[0].xy;
+    m.uv1 = top.texture[1].xy - m.uv0;
+    m.uv2 = top.texture[2].xy - m.uv0;
+    m.depth = top.texture[0].z;
+    let det = m.uv1.x * m.uv2.y - m.uv1.y * m.uv2.x;
+    m.valid = det != 0.0 && abs(det) < 3.0e38;
+    m.uv_inv0 = vec2<f32>(m.uv2.y, -m.uv2.x) / det;
+    m.uv_inv1 = vec2<f32>(-m.uv1.y, m.uv1.x) / det;
+    return m;
+}
+
+fn mapping_coordinates(m: Mapping, t: vec3<f32>) -> vec3<f32> {
+    let r = t.xy - m.uv0;
+    return vec3<f32>(dot(m.uv_inv0, r), dot(m.uv_inv1, r), t.z / m.depth);
+}
+
+// ∂P/∂(b₁, b₂, w) at c.
+fn mapping_derivative(m: Mapping, c: vec3<f32>) -> mat3x3<f32> {
+    return mat3x3<f32>(m.e1 + m.f1 * c.z, m.e2 + m.f2 * c.z, m.extrusion + m.f1 * c.x + m.f2 * c.y);
+}
+
+// The texture coordinate of object point p: NEWTON_STEPS Newton steps from `guess`.
+const NEWTON_STEPS: u32 = 3u;
+fn texture_of(m: Mapping, p: vec3<f32>, guess: vec3<f32>) -> vec3<f32> {
+    let target_point = p - m.origin;
+    var c = mapping_coordinates(m, guess);
+    for (var i = 0u; i < NEWTON_STEPS; i++) {
+        let j = mapping_derivative(m, c);
+        let q = m.extrusion * c.z + j[0] * c.x + j[1] * c.y;
+        if determinant(j) == 0.0 {
+            break;
+        }
+        c -= inverse3(j) * (q - target_point);
+    }
+    return vec3<f32>(m.uv0 + m.uv1 * c.x + m.uv2 * c.y, c.z * m.depth);
+}
+
+// ∂P/∂T at texture coordinate t (object units per voxel).
+fn mapping_jacobian(m: Mapping, t: vec3<f32>) -> mat3x3<f32> {
+    let dc = mat3x3<f32>(
+        vec3<f32>(m.uv_inv0.x, m.uv_inv1.x, 0.0),
+        vec3<f32>(m.uv_inv0.y, m.uv_inv1.y, 0.0),
+        vec3<f32>(0.0, 0.0, 1.0 / m.depth),
+    );
+    return mapping_derivative(m, mapping_coordinates(m, t)) * dc;
 }
 
 // ---- The pipeline ---------------------------------------------------------------------
@@ -236,13 +338,59 @@ fn texture_at(prism: u32, f: u32, l: vec3<f32>) -> vec3<f32> {
     return t[0].xyz * l.x + t[1].xyz * l.y + t[2].xyz * l.z;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> FragmentOut {
-    let pi = in.prism;
-    let p_in = in.world;
-    let dir = normalize(p_in - view.eye.xyz);
-    let t_in_tex = in.texture;
+// A fragment's answer: whether it hit, the hit's object point and texture coordinate, and
+// the texture-space direction of the chord that hit.
+struct FragmentHit {
+    hit: bool,
+    point: vec3<f32>,
+    texture: vec3<f32>,
+    view: vec3<f32>,
+}
 
+fn no_hit() -> FragmentHit {
+    return FragmentHit(false, vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+}
+
+// Steps 3–5 along the texture-space path from t_in_tex (object point p_in) to t_out_tex
+// (p_out) in prism pi: CHORDS segments between the exactly mapped points at fractions k/n of
+// the way (one straight segment when CHORDS is 1), queried in order.
+fn path_hit(pi: u32, p_in: vec3<f32>, t_in_tex: vec3<f32>, p_out: vec3<f32>, t_out_tex: vec3<f32>) -> FragmentHit {
+    var m: Mapping;
+    if CHORDS > 1u {
+        m = prism_mapping(pi);
+    }
+    var start = t_in_tex;
+    var p_start = p_in;
+    for (var k = 1u; k <= CHORDS; k++) {
+        let s = f32(k) / f32(CHORDS);
+        var end = t_out_tex;
+        var p_end = p_out;
+        if k < CHORDS {
+            p_end = mix(p_in, p_out, s);
+            end = mix(t_in_tex, t_out_tex, s);
+            if m.valid {
+                end = texture_of(m, p_end, end);
+                end.z = clamp(end.z, 0.0, m.depth);
+            }
+        }
+        let chord = end - start;
+        let length_k = length(chord);
+        if length_k > 0.0 {
+            let v = chord / length_k;
+            let d = segment_hit(start, v, length_k);
+            if d >= 0.0 {
+                return FragmentHit(true, mix(p_start, p_end, d / length_k), start + v * d, v);
+            }
+        }
+        start = end;
+        p_start = p_end;
+    }
+    return no_hit();
+}
+
+// Steps 2–5 for the fragment of prism pi entered at p_in with texture coordinate t_in_tex
+// along dir.
+fn fragment(pi: u32, p_in: vec3<f32>, t_in_tex: vec3<f32>, dir: vec3<f32>) -> FragmentHit {
     // Step 2: the exit point by ray–plane intersections with the concave/convex fin rule.
     var t_out = 3.0e38;
     var exit_face = NO_FACE;
@@ -282,7 +430,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
         }
     }
     if exit_face == NO_FACE {
-        discard;
+        return no_hit();
     }
     t_out = max(t_out, 0.0);
     let p_out = p_in + dir * t_out;
@@ -293,7 +441,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     if exit_face < 2u {
         let b = barycentric(pi, exit_face, p_out);
         if b.w == 0.0 {
-            discard;
+            return no_hit();
         }
         t_out_tex = texture_at(pi, exit_face, b.xyz);
     } else {
@@ -301,7 +449,7 @@ fn fs_main(in: VertexOut) -> FragmentOut {
         let ba = barycentric(pi, a, p_out);
         let bb = barycentric(pi, a + 1u, p_out);
         if ba.w == 0.0 || bb.w == 0.0 {
-            discard;
+            return no_hit();
         }
         if min(ba.x, min(ba.y, ba.z)) >= min(bb.x, min(bb.y, bb.z)) {
             t_out_tex = texture_at(pi, a, ba.xyz);
@@ -309,29 +457,49 @@ fn fs_main(in: VertexOut) -> FragmentOut {
             t_out_tex = texture_at(pi, a + 1u, bb.xyz);
         }
     }
+    // Steps 3–5.
+    return path_hit(pi, p_in, t_in_tex, p_out, t_out_tex);
+}
 
-    // Steps 3–5: the GDM query on the texture-space segment.
-    let segment = t_out_tex - t_in_tex;
-    let d_t = length(segment);
-    if !(d_t > 0.0) {
+// The shading frame at a hit (object → texture, voxel units): the prism's mean frame, or the
+// inverse Jacobian of the mapping at the hit (JACOBIAN_FRAME).
+fn shading_frame(pi: u32, t_hit: vec3<f32>) -> mat3x3<f32> {
+    let rows = prisms[pi].frame;
+    let mean = transpose(mat3x3<f32>(rows[0].xyz, rows[1].xyz, rows[2].xyz));
+    if JACOBIAN_FRAME {
+        let m = prism_mapping(pi);
+        if m.valid {
+            let j = mapping_jacobian(m, t_hit);
+            if determinant(j) != 0.0 {
+                return inverse3(j);
+            }
+        }
+    }
+    return mean;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> FragmentOut {
+    let pi = in.prism;
+    let dir = normalize(in.world - view.eye.xyz);
+    let hit = fragment(pi, in.world, in.texture, dir);
+    if !hit.hit {
         discard;
     }
-    let view_tex = segment / d_t;
-    let d = segment_hit(t_in_tex, view_tex, d_t);
-    if d < 0.0 {
-        discard;
-    }
-    let p_hit = p_in + (d / d_t) * (p_out - p_in);
-    let t_hit = t_in_tex + view_tex * d;
+    let p_hit = hit.point;
+    let t_hit = hit.texture;
+    let view_tex = hit.view;
 
-    // Step 6: shading with the prism's mean frame.
-    let frame = prisms[pi].frame;
+    // Step 6: shading in the frame at the hit.
+    let frame = shading_frame(pi, t_hit);
     let n_raw = normal_at(t_hit);
     let n_tex = normalize_or(n_raw, -view_tex);
-    let n_obj = normalize_or(frame[0].xyz * n_tex.x + frame[1].xyz * n_tex.y + frame[2].xyz * n_tex.z, -dir);
+    let n_obj = normalize_or(transpose(frame) * n_tex, -dir);
     let base = albedo_at(t_hit + view_tex * ALBEDO_DEPTH);
+    let offset = n_tex * SHADOW_OFFSET;
+    let start = ShadowStart(pi, t_hit + offset, p_hit + inverse3(frame) * offset, frame);
     let radiance = environment_light(pi, t_hit, view_tex)
-        + shade(p_hit, n_obj, base, -dir, frame, t_hit + n_tex * SHADOW_OFFSET);
+        + shade(p_hit, n_obj, base, -dir, start);
 
     var out: FragmentOut;
     out.radiance = vec4<f32>(radiance, 1.0);

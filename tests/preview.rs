@@ -105,6 +105,45 @@ fn torus_chain_matches_the_cpu_gdm_renderer() {
     agreement(&loaded, &p, "torus-chain occupancy, shadows");
 }
 
+/// Every quality knob, alone and in the `high` preset, in WGSL against the CPU
+/// specification: torus-chain (point light, shadows) with both codecs.
+#[test]
+fn every_quality_knob_matches_the_cpu_gdm_renderer() {
+    use mesobake::render::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
+    if !gpu_or_skip() {
+        return;
+    }
+    let paper = Quality::default();
+    let settings = [
+        Quality {
+            shadows: ShadowMethod::Shell,
+            ..paper
+        },
+        Quality { chords: 4, ..paper },
+        Quality {
+            frame: ShadingFrame::Jacobian,
+            ..paper
+        },
+        Preset::High.quality(),
+    ];
+    let mut loaded = load("scenes/torus-chain.json", |s| {
+        s.camera.width = 192;
+        s.camera.height = 192;
+    });
+    let occupancy = default_package(&loaded);
+    let svd = package(&loaded, 8, Quantization::F16);
+    for quality in settings {
+        loaded.scene.quality = quality;
+        agreement(
+            &loaded,
+            &occupancy,
+            &format!("torus-chain occupancy, {}", quality.label()),
+        );
+    }
+    loaded.scene.quality = Preset::High.quality();
+    agreement(&loaded, &svd, "torus-chain paper-svd rank 8 f16, high");
+}
+
 #[test]
 fn the_environment_variant_matches_its_cpu_twin() {
     if !gpu_or_skip() {
@@ -183,10 +222,12 @@ fn plane_weave_matches_with_refinements_and_partial_groups() {
 }
 
 /// Every shader variant a scene can choose passes naga's validation, and only the shadow
-/// variants contain the shadow query, only the environment variants the RTV.
+/// variants contain the shadow query, only the shell-shadow variants the prisms' BVH, only
+/// the environment variants the RTV.
 #[test]
 fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for() {
-    use mesobake::realtime::variant::{GI_BINDING, SHADOW_QUERY_FN, ShaderVariant};
+    use mesobake::realtime::variant::{BVH_BINDING, GI_BINDING, SHADOW_QUERY_FN, ShaderVariant};
+    use mesobake::render::quality::ShadowMethod;
     let mut count = 0;
     for variant in ShaderVariant::all() {
         let module = naga::front::wgsl::parse_str(&variant.source()).unwrap_or_else(|e| {
@@ -206,12 +247,30 @@ fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for()
             .functions
             .iter()
             .any(|(_, f)| f.name.as_deref() == Some(SHADOW_QUERY_FN));
-        assert_eq!(has_shadow_query, variant.shadows, "{}", variant.name());
-        let has_rtv = module
-            .global_variables
-            .iter()
-            .any(|(_, g)| g.name.as_deref() == Some(GI_BINDING));
-        assert_eq!(has_rtv, variant.environment, "{}", variant.name());
+        assert_eq!(
+            has_shadow_query,
+            variant.shadows.is_some(),
+            "{}",
+            variant.name()
+        );
+        let has_binding = |name: &str| {
+            module
+                .global_variables
+                .iter()
+                .any(|(_, g)| g.name.as_deref() == Some(name))
+        };
+        assert_eq!(
+            has_binding(BVH_BINDING),
+            variant.shadows == Some(ShadowMethod::Shell),
+            "{}",
+            variant.name()
+        );
+        assert_eq!(
+            has_binding(GI_BINDING),
+            variant.environment,
+            "{}",
+            variant.name()
+        );
         let has = |name: &str| {
             module
                 .functions
@@ -232,9 +291,9 @@ fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for()
         );
         count += 1;
     }
-    // paper-svd: 4 effect combinations × 9 refinement counts × early-z or not; occupancy:
-    // 4 × 1 × 2.
-    assert_eq!(count, 80);
+    // paper-svd: 3 shadow tests × environment or not × 9 refinement counts × 2 chord counts
+    // × 2 frames × early-z or not; occupancy: 3 × 2 × 1 × 2 × 2 × 2.
+    assert_eq!(count, 432 + 48);
 }
 
 /// A scene without shadows builds the pipeline of the variant without shadow code; with
@@ -260,7 +319,7 @@ fn the_pipeline_runs_the_variant_the_scene_calls_for() {
         };
         let gpu = Gpu::open(None).unwrap();
         let preview = Preview::new(&gpu, &loaded, &p, true).unwrap();
-        assert_eq!(preview.variant().shadows, shadows);
+        assert_eq!(preview.variant().shadows.is_some(), shadows);
         let source = preview.variant().source();
         assert_eq!(
             source.contains("fn shadow_query"),

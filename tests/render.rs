@@ -13,8 +13,9 @@ use mesobake::mesostructure::material::MaterialVolume;
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume::Volume;
 use mesobake::render::gdm_lookup::RawLookup;
-use mesobake::render::gdm_renderer::{GdmRenderer, ShadowTest, Substitutions};
+use mesobake::render::gdm_renderer::{GdmRenderer, Substitutions};
 use mesobake::render::image::compare;
+use mesobake::render::quality::{Quality, ShadingFrame, ShadowMethod};
 use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::render::{GdmSource, RenderMethod, render};
@@ -325,8 +326,9 @@ fn with_every_part_exact_the_gdm_renderer_renders_the_truth_on_a_flat_plane() {
     let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
     let s = &scene.scene;
     let truth_image = render_image(&s.camera, |o, d| truth.radiance(s, o, d));
-    let render = |subs: Substitutions| {
+    let render = |subs: Substitutions, quality: Quality| {
         let r = GdmRenderer::new(&scene.shell, &lookup, &scene.material, 0)
+            .with_quality(quality)
             .with_substitutions(subs, &truth);
         compare(
             &truth_image,
@@ -334,16 +336,22 @@ fn with_every_part_exact_the_gdm_renderer_renders_the_truth_on_a_flat_plane() {
         )
         .unwrap()
     };
-    let all = render(Substitutions {
-        exact_query: true,
-        exact_frame: true,
-        shadows: ShadowTest::Exact,
-    });
+    let exact_frame = Quality {
+        frame: ShadingFrame::Jacobian,
+        ..Quality::default()
+    };
+    let all = render(
+        Substitutions {
+            exact_query: true,
+            exact_shadows: true,
+        },
+        exact_frame,
+    );
     // The same hits to round-off: no pixel's mask differs and colours agree to 8-bit rounding
     // (PSNR ≥ 50 dB: an RMS error below 0.8 of a level in 255).
     assert_eq!(all.mask_disagreement, 0.0, "{all:?}");
     assert!(all.psnr_db >= 50.0, "{all:?}");
-    let paper = render(Substitutions::default());
+    let paper = render(Substitutions::default(), Quality::default());
     assert!(
         paper.psnr_db < all.psnr_db - 10.0,
         "{paper:?} against {all:?}"
@@ -375,12 +383,17 @@ fn shell_shadows_see_the_base_mesh_above_where_local_shadows_cannot() {
     let g = bake(caster);
     let lookup = RawLookup::new(&g);
     let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
-    let radiance = |shadows: ShadowTest| {
+    let radiance = |shadows: ShadowMethod, exact_shadows: bool| {
         let subs = Substitutions {
-            shadows,
+            exact_shadows,
             ..Substitutions::default()
         };
+        let quality = Quality {
+            shadows,
+            ..Quality::default()
+        };
         let r = GdmRenderer::new(&scene.shell, &lookup, &scene.material, 0)
+            .with_quality(quality)
             .with_substitutions(subs, &truth);
         // From between the planes down onto the lower slab's top (y = 0.25).
         let eye = DVec3::new(0.5, 0.55, -0.5);
@@ -388,9 +401,9 @@ fn shell_shadows_see_the_base_mesh_above_where_local_shadows_cannot() {
             .expect("the lower slab is hit")
     };
     let (local, shell, exact) = (
-        radiance(ShadowTest::Local),
-        radiance(ShadowTest::Shell),
-        radiance(ShadowTest::Exact),
+        radiance(ShadowMethod::Local, false),
+        radiance(ShadowMethod::Shell, false),
+        radiance(ShadowMethod::Local, true),
     );
     // Shadowed: the ambient term alone, albedo 0.7 × radiance 0.1 (to round-off).
     let ambient = DVec3::splat(0.07);

@@ -69,7 +69,8 @@ pub fn run(
                     &*lookup,
                     &loaded.material,
                     scene.gdm_refinements,
-                );
+                )
+                .with_quality(scene.quality);
                 render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
                 let cpu_seconds = start.elapsed().as_secs_f64();
                 let time = |early_z: bool| -> Result<(bool, f64)> {

@@ -4,6 +4,7 @@ use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
 use mesobake::Result;
 use mesobake::package::Package;
+use mesobake::render::quality::Quality;
 use mesobake::scene::package::{check_package_input, scene_package};
 use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake::scene::render::load_scene;
@@ -42,6 +43,10 @@ pub struct PreviewArgs {
     /// says "renderer": "cpu"; none fails.
     #[arg(long, default_value = "cpu")]
     fallback: PreviewFallback,
+    /// The per-pixel algorithm's accuracy knobs instead of the scene's `quality` (a preset,
+    /// `paper` or `high`, or JSON settings as in a scene file).
+    #[arg(long)]
+    quality: Option<Quality>,
     /// Print a JSON summary (adapter, shader variant, GPU memory, seconds) on stdout.
     #[arg(long)]
     json: bool,
@@ -58,6 +63,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         frames,
         adapter,
         fallback,
+        quality,
         json,
     } = args;
     codec.check(None)?;
@@ -71,7 +77,10 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         ));
     }
     let start = Instant::now();
-    let loaded = load_scene(&scene, limits)?;
+    let mut loaded = load_scene(&scene, limits)?;
+    if let Some(quality) = quality {
+        loaded.scene.quality = quality;
+    }
     let load_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let package = match &package {

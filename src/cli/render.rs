@@ -5,6 +5,7 @@ use super::output::{Progress, print_json};
 use mesobake::package::Package;
 use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
+use mesobake::render::quality::Quality;
 use mesobake::scene::package::check_package_input;
 use mesobake::scene::render::{GdmSource, RenderMethod, load_scene, render_substituted};
 use mesobake::util::limits::Limits;
@@ -36,11 +37,15 @@ pub struct RenderArgs {
     /// Print a JSON summary (seconds per stage, hit pixels, shell report) on stdout.
     #[arg(long)]
     json: bool,
-    /// For --method gdm, a reference run: parts of the algorithm replaced, comma-separated
-    /// (query, frame: exact; shell-shadows: the GDM algorithm traced to the light through
-    /// the shell; shadows: the truth's rays). See `report render`'s error budget.
+    /// For --method gdm, a reference run: parts of the algorithm replaced by the truth's,
+    /// comma-separated (query: the exact cast along each chord; shadows: the truth's rays).
+    /// See `report render`'s error budget.
     #[arg(long, default_value = "none")]
     substitute: Substitutions,
+    /// For --method gdm: the per-pixel algorithm's accuracy knobs instead of the scene's
+    /// `quality` (a preset, `paper` or `high`, or JSON settings as in a scene file).
+    #[arg(long)]
+    quality: Option<Quality>,
 }
 
 /// Renders the scene and writes the image.
@@ -53,9 +58,13 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         out,
         json,
         substitute,
+        quality,
     } = args;
     let start = Instant::now();
-    let loaded = load_scene(&scene, limits)?;
+    let mut loaded = load_scene(&scene, limits)?;
+    if let Some(quality) = quality {
+        loaded.scene.quality = quality;
+    }
     let load_s = start.elapsed().as_secs_f64();
     let package = match (&package, method) {
         (Some(path), RenderMethod::Gdm) => {

@@ -5,7 +5,8 @@ use super::output::Progress;
 use clap::Subcommand;
 use mesobake::compress::quantize::Quantization;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::report::{accuracy, codecs, gi, render};
+use mesobake::report::{accuracy, codecs, gi, quality, render};
+use mesobake::scene::LoadedScene;
 use mesobake::scene::render::load_scene;
 use mesobake::util::fs::write_atomic;
 use mesobake::util::limits::Limits;
@@ -104,6 +105,29 @@ pub enum ReportCommand {
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
     },
+    /// The per-pixel GDM algorithm's accuracy knobs on scenes: every quality preset and each
+    /// knob alone, rendered from the scene's default package by the CPU renderer (and by the
+    /// real-time pipeline where an adapter exists), PSNR, FLIP and mask against the ground
+    /// truth and the time of each: Markdown on stdout; quality.md, quality.json and
+    /// quality.svg (PSNR against CPU time) in --out.
+    Quality {
+        /// Scene files, comma-separated (point or directional light).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            default_value = "scenes/torus-chain.json,scenes/plane-weave.json,scenes/torus-chain-tile.json"
+        )]
+        scenes: Vec<PathBuf>,
+        /// Render every scene at this many pixels across (and down) instead of its camera's.
+        #[arg(long)]
+        side: Option<u32>,
+        /// Real-time frames to time per setting (0: none).
+        #[arg(long, default_value_t = 3)]
+        frames: u32,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
     /// Global illumination on a scene with environment lighting: RTV error and time over
     /// direction grids × bounce counts, PRT error and time over visibility sample counts
     /// (the last grid, the most bounces and the most samples are the references): Markdown
@@ -153,12 +177,12 @@ fn publish(out: &Path, table: &str, files: &[(&str, &str)]) -> Result<()> {
 }
 
 /// The codecs report on the scene files `scenes`, with a progress bar.
-fn run_codecs(
-    scenes: &[PathBuf],
-    sweep: &codecs::CodecSweep,
+/// The scenes at `paths`, each with its name (the file stem) and folder.
+fn load_named_scenes<'p>(
+    paths: &'p [PathBuf],
     limits: &Limits,
-) -> Result<codecs::CodecReport> {
-    let loaded = scenes
+) -> Result<Vec<(String, LoadedScene, &'p Path)>> {
+    paths
         .iter()
         .map(|path| {
             let name = path
@@ -167,7 +191,15 @@ fn run_codecs(
             let dir = path.parent().unwrap_or(Path::new("."));
             Ok((name, load_scene(path, limits)?, dir))
         })
-        .collect::<Result<Vec<_>>>()?;
+        .collect()
+}
+
+fn run_codecs(
+    scenes: &[PathBuf],
+    sweep: &codecs::CodecSweep,
+    limits: &Limits,
+) -> Result<codecs::CodecReport> {
+    let loaded = load_named_scenes(scenes, limits)?;
     let progress = Progress::new("codec report");
     let report = codecs::codec_report(&loaded, sweep, limits, &progress)?;
     progress.finish();
@@ -262,6 +294,47 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
                     ("codecs.md", &table),
                     ("codecs.json", &json),
                     ("codecs.svg", &svg),
+                ],
+            )
+        }
+        ReportCommand::Quality {
+            scenes,
+            side,
+            frames,
+            out,
+        } => {
+            let mut loaded = load_named_scenes(&scenes, limits)?;
+            if let Some(side) = side {
+                if !(1..=mesobake::scene::MAX_IMAGE_SIDE).contains(&side) {
+                    return Err(Error::InvalidParameter(format!(
+                        "--side must be between 1 and {}, got {side}",
+                        mesobake::scene::MAX_IMAGE_SIDE
+                    )));
+                }
+                for (_, l, _) in &mut loaded {
+                    l.scene.camera.width = side;
+                    l.scene.camera.height = side;
+                }
+            }
+            let progress = Progress::new("quality report");
+            let report = quality::quality_report(
+                &mut loaded,
+                &quality::default_settings(),
+                frames,
+                limits,
+                &progress,
+            )?;
+            progress.finish();
+            let table = quality::markdown(&report);
+            let json = to_json(&report);
+            let svg = quality::svg_plot(&report)?;
+            publish(
+                &out,
+                &table,
+                &[
+                    ("quality.md", &table),
+                    ("quality.json", &json),
+                    ("quality.svg", &svg),
                 ],
             )
         }

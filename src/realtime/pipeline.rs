@@ -6,7 +6,7 @@
 use super::gpu::{AdapterDescription, Gpu};
 use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
-    upload_material, upload_package, upload_shell,
+    upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
 use super::variant::ShaderVariant;
 use crate::error::{Error, Result};
@@ -14,6 +14,7 @@ use crate::package::Package;
 use crate::package::manifest::GdmCodec;
 use crate::render::gdm_renderer::prepare_prisms;
 use crate::render::image::Image;
+use crate::render::quality::ShadowMethod;
 use crate::scene::{Camera, Light, LoadedScene};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
@@ -180,13 +181,22 @@ impl<'g> Preview<'g> {
         }
         let frag = wgpu::ShaderStages::FRAGMENT;
         let d = &gpu.device;
+        // The shell-shadow variant also reads the prisms' BVH (bindings 3 and 4).
+        let shell_shadows = variant.shadows == Some(ShadowMethod::Shell);
+        let mut scene_entries = vec![
+            layout_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
+            layout_entry(1, frag, storage()),
+            layout_entry(2, frag, storage()),
+        ];
+        if shell_shadows {
+            scene_entries.extend([
+                layout_entry(3, frag, storage()),
+                layout_entry(4, frag, storage()),
+            ]);
+        }
         let scene_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
-            entries: &[
-                layout_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
-                layout_entry(1, frag, storage()),
-                layout_entry(2, frag, storage()),
-            ],
+            entries: &scene_entries,
         });
         let package_entries = match codec {
             GdmCodec::PaperSvd => vec![
@@ -226,12 +236,17 @@ impl<'g> Preview<'g> {
             ],
         });
         let prisms = prepare_prisms(&loaded.shell, package.dims());
-        let (gpu_package, material, shell, environment) =
+        let (gpu_package, material, shell, bvh, environment) =
             gpu.checked("uploading the scene", || {
                 Ok::<_, Error>((
                     upload_package(gpu, &package_layout, package)?,
                     upload_material(gpu, &material_layout, &loaded.material)?,
                     upload_shell(gpu, &prisms, DVec3::from(scene.camera.eye))?,
+                    if shell_shadows {
+                        Some(upload_prism_bvh(gpu, &prisms)?)
+                    } else {
+                        None
+                    },
                     if variant.environment {
                         Some(upload_environment(
                             gpu,
@@ -284,23 +299,22 @@ impl<'g> Preview<'g> {
                     contents: bytemuck::cast_slice(&lights),
                     usage: wgpu::BufferUsages::STORAGE,
                 });
+                let mut buffers = vec![&view, &lights, &shell.prisms];
+                if let Some(bvh) = &bvh {
+                    buffers.extend([&bvh.nodes, &bvh.prisms]);
+                }
+                let entries: Vec<wgpu::BindGroupEntry> = buffers
+                    .into_iter()
+                    .enumerate()
+                    .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                        binding: binding as u32,
+                        resource: buffer.as_entire_binding(),
+                    })
+                    .collect();
                 let scene_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("scene"),
                     layout: &scene_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: view.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: lights.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: shell.prisms.as_entire_binding(),
-                        },
-                    ],
+                    entries: &entries,
                 });
                 let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
                     label: Some("gdm preview"),
@@ -389,6 +403,7 @@ impl<'g> Preview<'g> {
             package: gpu_package.bytes,
             material: material.bytes,
             geometry: shell.bytes
+                + bvh.as_ref().map_or(0, |b| b.bytes)
                 + (lights.len() * std::mem::size_of::<LightRecord>()
                     + std::mem::size_of::<ViewUniform>()) as u64,
             environment: environment.as_ref().map_or(0, |e| e.bytes),

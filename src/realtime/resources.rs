@@ -773,3 +773,85 @@ pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism], eye: glam::DVec3) -> Re
         bytes,
     })
 }
+
+/// The prisms' BVH on the GPU, for the shell-shadow variant's traversal.
+pub struct GpuBvh {
+    /// `BvhNode` records of `shaders/shadows_shell.wgsl`, the root first.
+    pub nodes: wgpu::Buffer,
+    /// Prism indices that the leaves list.
+    pub prisms: wgpu::Buffer,
+    /// Bytes uploaded.
+    pub bytes: u64,
+}
+
+/// The shader's `BvhNode`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct BvhNodeRecord {
+    lo: [f32; 3],
+    count: u32,
+    hi: [f32; 3],
+    first: u32,
+}
+
+/// The deepest BVH the shader's traversal stack holds (`BVH_STACK`).
+const MAX_BVH_DEPTH: usize = 64;
+
+/// Builds and uploads a binary BVH (obvhs) over the prisms' padded bounding boxes, the boxes
+/// the CPU renderer's traversal tests.
+pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
+    let boxes: Vec<obvhs::aabb::Aabb> = prisms
+        .iter()
+        .map(|p| crate::render::accel::padded_f32_box(p.bounds()))
+        .collect();
+    let bvh = obvhs::bvh2::builder::build_bvh2(
+        &boxes,
+        obvhs::BvhBuildParams::medium_build(),
+        &mut std::time::Duration::default(),
+    );
+    if bvh.max_depth >= MAX_BVH_DEPTH {
+        return Err(Error::Gpu(format!(
+            "the prisms' BVH is {} levels deep, over the shadow traversal's {MAX_BVH_DEPTH}",
+            bvh.max_depth
+        )));
+    }
+    let mut nodes: Vec<BvhNodeRecord> = bvh
+        .nodes
+        .iter()
+        .map(|n| BvhNodeRecord {
+            lo: n.aabb.min.to_array(),
+            count: n.prim_count,
+            hi: n.aabb.max.to_array(),
+            first: n.first_index,
+        })
+        .collect();
+    if nodes.is_empty() || prisms.is_empty() {
+        // No prism: a root that no ray enters.
+        nodes = vec![BvhNodeRecord {
+            lo: [1.0; 3],
+            count: 0,
+            hi: [-1.0; 3],
+            first: 0,
+        }];
+    }
+    let mut indices = bvh.primitive_indices.clone();
+    if indices.is_empty() {
+        indices.push(0);
+    }
+    let buffer = |label, contents: &[u8]| {
+        gpu.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    };
+    let nodes = buffer("bvh nodes", bytemuck::cast_slice(&nodes));
+    let prisms = buffer("bvh prisms", bytemuck::cast_slice(&indices));
+    let bytes = nodes.size() + prisms.size();
+    Ok(GpuBvh {
+        nodes,
+        prisms,
+        bytes,
+    })
+}

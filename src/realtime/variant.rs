@@ -3,13 +3,15 @@
 //! switched off at run time). The variant matrix is documented in ARCHITECTURE.md.
 
 use crate::package::manifest::GdmCodec;
+use crate::render::quality::{MAX_CHORDS, ShadingFrame, ShadowMethod};
 use crate::scene::{Effect, MAX_GDM_REFINEMENTS, Scene};
 use serde::Serialize;
 
 const PIPELINE: &str = include_str!("../../shaders/gdm_preview.wgsl");
 const QUERY_SVD: &str = include_str!("../../shaders/query_svd.wgsl");
 const QUERY_OCCUPANCY: &str = include_str!("../../shaders/query_occupancy.wgsl");
-const SHADOWS_ON: &str = include_str!("../../shaders/shadows_on.wgsl");
+const SHADOWS_LOCAL: &str = include_str!("../../shaders/shadows_local.wgsl");
+const SHADOWS_SHELL: &str = include_str!("../../shaders/shadows_shell.wgsl");
 const SHADOWS_OFF: &str = include_str!("../../shaders/shadows_off.wgsl");
 const GI_ON: &str = include_str!("../../shaders/gi_on.wgsl");
 const GI_OFF: &str = include_str!("../../shaders/gi_off.wgsl");
@@ -17,8 +19,11 @@ const GI_OFF: &str = include_str!("../../shaders/gi_off.wgsl");
 /// The fragment entry point as `shaders/gdm_preview.wgsl` declares it.
 const FRAGMENT_ENTRY: &str = "@fragment\nfn fs_main";
 
-/// The name of the function that only the shadow variant contains.
+/// The name of the function that only the shadow variants contain.
 pub const SHADOW_QUERY_FN: &str = "shadow_query";
+
+/// A binding that only the shell-shadow variant declares.
+pub const BVH_BINDING: &str = "bvh_nodes";
 
 /// A binding that only the environment-lighting variant declares.
 pub const GI_BINDING: &str = "rtv_weights";
@@ -28,13 +33,18 @@ pub const GI_BINDING: &str = "rtv_weights";
 pub struct ShaderVariant {
     /// The package's GDM codec: which query file answers `segment_hit` and `escapes`.
     pub codec: GdmCodec,
-    /// Shadow queries along the lights (the scene's `shadows` effect).
-    pub shadows: bool,
+    /// The shadow test (the scene's `shadows` effect, by its quality's method), or none.
+    pub shadows: Option<ShadowMethod>,
     /// Environment light through the PRT and the RTV (the scene's `environment_lighting`).
     pub environment: bool,
     /// GDM refinement queries per hit (the scene's `gdm_refinements`; 0 for the occupancy
     /// codec, whose march is exact), unrolled as a constant.
     pub refinements: u32,
+    /// Chords per prism segment (the scene's quality), a constant (1: the loop runs once and
+    /// maps no point).
+    pub chords: u32,
+    /// The shading frame (the scene's quality), a constant.
+    pub frame: ShadingFrame,
     /// Declares the fragment depth conservative (`greater_equal`: a hit lies behind the face
     /// it was found through), so that the depth test can run before the fragment shader
     /// (where the adapter has the feature `SHADER_EARLY_DEPTH_TEST`).
@@ -46,56 +56,79 @@ impl ShaderVariant {
     pub fn for_scene(scene: &Scene, codec: GdmCodec, early_depth_test: bool) -> ShaderVariant {
         ShaderVariant {
             codec,
-            shadows: scene.wants(Effect::Shadows),
+            shadows: scene
+                .wants(Effect::Shadows)
+                .then_some(scene.quality.shadows),
             environment: scene.wants(Effect::EnvironmentLighting),
             refinements: match codec {
                 GdmCodec::PaperSvd => scene.gdm_refinements,
                 GdmCodec::Occupancy => 0,
             },
+            chords: scene.quality.chords,
+            frame: scene.quality.frame,
             early_depth_test,
         }
     }
 
-    /// Every variant a valid scene and package can ask for.
+    /// Every variant a valid scene and package can ask for, with two chord counts standing
+    /// for all (1 and [`MAX_CHORDS`]: the count is only a loop bound).
     pub fn all() -> impl Iterator<Item = ShaderVariant> {
-        let flags = [(false, false), (false, true), (true, false), (true, true)];
+        let shadows = [None, Some(ShadowMethod::Local), Some(ShadowMethod::Shell)];
+        let frames = [ShadingFrame::Mean, ShadingFrame::Jacobian];
         GdmCodec::ALL.into_iter().flat_map(move |codec| {
             let refinements = match codec {
                 GdmCodec::PaperSvd => MAX_GDM_REFINEMENTS,
                 GdmCodec::Occupancy => 0,
             };
-            flags.into_iter().flat_map(move |(shadows, environment)| {
-                (0..=refinements).flat_map(move |refinements| {
-                    [false, true].map(|early_depth_test| ShaderVariant {
-                        codec,
-                        shadows,
-                        environment,
-                        refinements,
-                        early_depth_test,
+            shadows.into_iter().flat_map(move |shadows| {
+                [false, true].into_iter().flat_map(move |environment| {
+                    (0..=refinements).flat_map(move |refinements| {
+                        [1, MAX_CHORDS].into_iter().flat_map(move |chords| {
+                            frames.into_iter().flat_map(move |frame| {
+                                [false, true].map(|early_depth_test| ShaderVariant {
+                                    codec,
+                                    shadows,
+                                    environment,
+                                    refinements,
+                                    chords,
+                                    frame,
+                                    early_depth_test,
+                                })
+                            })
+                        })
                     })
                 })
             })
         })
     }
 
-    /// A short name, e.g. `paper-svd+shadows+env+refine2+earlyz`.
+    /// A short name, e.g. `paper-svd+shadows+env+refine2+chords4+jacobian+earlyz`.
     pub fn name(&self) -> String {
         format!(
-            "{}+{}{}+refine{}{}",
+            "{}+{}{}+refine{}+chords{}{}{}",
             self.codec,
-            if self.shadows { "shadows" } else { "noshadows" },
+            match self.shadows {
+                None => "noshadows",
+                Some(ShadowMethod::Local) => "shadows",
+                Some(ShadowMethod::Shell) => "shellshadows",
+            },
             if self.environment { "+env" } else { "" },
             self.refinements,
+            self.chords,
+            match self.frame {
+                ShadingFrame::Mean => "",
+                ShadingFrame::Jacobian => "+jacobian",
+            },
             if self.early_depth_test { "+earlyz" } else { "" }
         )
     }
 
     /// The complete WGSL source of this variant.
     pub fn source(&self) -> String {
-        let shadows = if self.shadows {
-            SHADOWS_ON
-        } else {
-            SHADOWS_OFF
+        let shadows = match self.shadows {
+            None => SHADOWS_OFF,
+            Some(ShadowMethod::Local) => SHADOWS_LOCAL,
+            Some(ShadowMethod::Shell) => SHADOWS_SHELL,
         };
         let pipeline = if self.early_depth_test {
             PIPELINE.replace(
@@ -110,9 +143,12 @@ impl ShaderVariant {
             GdmCodec::Occupancy => QUERY_OCCUPANCY,
         };
         format!(
-            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\n\n{pipeline}\n{query}\n{shadows}\n{}",
+            "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\nconst CHORDS: u32 = {}u;\n\
+             const JACOBIAN_FRAME: bool = {};\n\n{pipeline}\n{query}\n{shadows}\n{}",
             self.name(),
             self.refinements,
+            self.chords.max(1),
+            self.frame == ShadingFrame::Jacobian,
             if self.environment { GI_ON } else { GI_OFF }
         )
     }

@@ -19,20 +19,10 @@ pub struct BoxBvh {
 }
 
 impl BoxBvh {
-    /// Builds over `boxes` (min, max). Each box is padded outwards by a relative 1e-5 of its
-    /// extent plus 1e-6 of its magnitude before rounding to f32, so that f32 traversal never
-    /// loses a primitive an f64 test would hit.
+    /// Builds over `boxes` (min, max), each padded ([`padded_f32_box`]) so that f32 traversal
+    /// never loses a primitive an f64 test would hit.
     pub fn new(boxes: Vec<(DVec3, DVec3)>) -> BoxBvh {
-        let f32_boxes: Vec<Aabb> = boxes
-            .iter()
-            .map(|&(lo, hi)| {
-                let pad =
-                    (hi - lo).max_element() * 1e-5 + lo.abs().max(hi.abs()).max_element() * 1e-6;
-                let down = |v: DVec3| Vec3A::new(down(v.x), down(v.y), down(v.z));
-                let up = |v: DVec3| Vec3A::new(up(v.x), up(v.y), up(v.z));
-                Aabb::new(down(lo - pad), up(hi + pad))
-            })
-            .collect();
+        let f32_boxes: Vec<Aabb> = boxes.iter().map(|&b| padded_f32_box(b)).collect();
         let bvh = build_cwbvh(
             &f32_boxes,
             BvhBuildParams::medium_build(),
@@ -108,6 +98,15 @@ impl BoxBvh {
             },
         )
     }
+}
+
+/// The f32 box that holds the f64 box (min, max) with room to spare: padded outwards by a
+/// relative 1e-5 of its extent plus 1e-6 of its magnitude, rounded outwards.
+pub fn padded_f32_box((lo, hi): (DVec3, DVec3)) -> Aabb {
+    let pad = (hi - lo).max_element() * 1e-5 + lo.abs().max(hi.abs()).max_element() * 1e-6;
+    let down = |v: DVec3| Vec3A::new(down(v.x), down(v.y), down(v.z));
+    let up = |v: DVec3| Vec3A::new(up(v.x), up(v.y), up(v.z));
+    Aabb::new(down(lo - pad), up(hi + pad))
 }
 
 fn down(x: f64) -> f32 {

@@ -35,10 +35,27 @@
 //! texture space, where the shadow test queries the GDM one voxel off the hit along the
 //! texture normal: shadowed iff that query does not escape (local mesostructure shadows only,
 //! as in the paper).
+//!
+//! The scene's [`Quality`] replaces three of these approximations (the `paper` preset keeps
+//! all three; `render::quality` has the table):
+//! - `chords` n > 1: step 3 queries n segments in order instead of one, between the texture
+//!   coordinates of the points at fractions k/n of the way from P_in to P_out, mapped by the
+//!   exact inverse mapping ([`PrismMap::texture_of`]: Newton steps, depth clamped into the
+//!   volume); the first hit wins, its P by proportion along its own piece;
+//! - `frame` `jacobian`: M is the inverse of the mapping's Jacobian ∂P/∂T at the hit
+//!   ([`PrismMap::jacobian`]);
+//! - `shadows` `shell`: a light is visible iff the algorithm itself, run on the shadow ray
+//!   from one voxel off the hit (mapped to object space by M⁻¹), finds no hit nearer than
+//!   the light: first on the rest of the hit's prism (the shadow ray's start and its texture
+//!   coordinate as the fragment's entry), then on every front face the ray meets beyond its
+//!   start (a BVH over the prisms) — what a shadow map rendered with this pipeline from the
+//!   light would hold, without its resolution limit.
 
 use super::accel::BoxBvh;
 use super::gdm_lookup::GdmLookup;
 use super::lighting::{SHADOW_OFFSET, shade};
+use super::prism_map::PrismMap;
+use super::quality::{Quality, ShadingFrame, ShadowMethod};
 use super::truth::{TruthRenderer, light_start};
 use crate::error::{Error, Result};
 use crate::grid::Dims;
@@ -54,107 +71,65 @@ use glam::{DMat3, DVec3};
 /// worse).
 pub const REFINEMENT_BACKOFF: f64 = 1.0;
 
-/// How a reference run tests shadows.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum ShadowTest {
-    /// The paper's: one GDM query along the light in texture space (flat base assumed;
-    /// mesostructure of the same neighbourhood only).
-    #[default]
-    Local,
-    /// This renderer's own algorithm traced towards the light through the whole shell (what
-    /// a shadow map rendered with the GDM pipeline from the light computes): curvature,
-    /// distant mesostructure and the base mesh's other side included.
-    Shell,
-    /// The ground truth's shadow rays.
-    Exact,
-}
-
-/// Parts of the per-pixel algorithm that a reference run replaces, to measure what each
-/// approximation costs (the error budget of `mesobake report render`): by its exact
-/// counterpart, computed by the ground truth, or for shadows also by the GDM algorithm
-/// through the shell. None of them is part of the real-time algorithm; the default is the
-/// paper's.
+/// Parts of the per-pixel algorithm that a reference run replaces by their exact
+/// counterparts, computed by the ground truth, to measure what each approximation that no
+/// [`Quality`] knob removes still costs (the error budget of `mesobake report render`). None
+/// of them is part of the real-time algorithm; the default substitutes nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Substitutions {
-    /// The GDM query: the mesostructure cast exactly along the fragment's straight
-    /// texture-space segment, instead of the interpolated GDM.
+    /// The GDM query: the mesostructure cast exactly along each of the fragment's straight
+    /// texture-space chords, instead of the package's query.
     pub exact_query: bool,
-    /// The shading frame: the exact Jacobian of the prism mapping at the hit, instead of the
-    /// prism's mean frame (for the normal and, in local shadows, the light direction).
-    pub exact_frame: bool,
-    /// The shadow test.
-    pub shadows: ShadowTest,
+    /// The shadow test: the ground truth's shadow rays.
+    pub exact_shadows: bool,
 }
 
 impl Substitutions {
-    /// The error budget's rows: none, each part alone (shadows both ways), all exact.
-    pub const BUDGET: [Substitutions; 6] = [
-        Substitutions::of(false, false, ShadowTest::Local),
-        Substitutions::of(true, false, ShadowTest::Local),
-        Substitutions::of(false, true, ShadowTest::Local),
-        Substitutions::of(false, false, ShadowTest::Shell),
-        Substitutions::of(false, false, ShadowTest::Exact),
-        Substitutions::of(true, true, ShadowTest::Exact),
+    /// The error budget's rows: none, each part alone, both.
+    pub const BUDGET: [Substitutions; 4] = [
+        Substitutions::of(false, false),
+        Substitutions::of(true, false),
+        Substitutions::of(false, true),
+        Substitutions::of(true, true),
     ];
 
-    const fn of(exact_query: bool, exact_frame: bool, shadows: ShadowTest) -> Substitutions {
+    const fn of(exact_query: bool, exact_shadows: bool) -> Substitutions {
         Substitutions {
             exact_query,
-            exact_frame,
-            shadows,
+            exact_shadows,
         }
     }
 
-    /// A short label: `none`, or the substituted parts joined by `+` (`query`, `frame`,
-    /// `shell shadows`, `shadows`; all but shell shadows exact).
+    /// A short label: `none`, or the substituted parts joined by `+` (`query`, `shadows`).
     pub fn label(&self) -> String {
-        let names = [
-            (self.exact_query, "query"),
-            (self.exact_frame, "frame"),
-            (self.shadows == ShadowTest::Shell, "shell shadows"),
-            (self.shadows == ShadowTest::Exact, "shadows"),
-        ];
-        let on: Vec<&str> = names.iter().filter(|n| n.0).map(|n| n.1).collect();
-        if on.is_empty() {
-            "none".into()
-        } else {
-            on.join("+")
+        match (self.exact_query, self.exact_shadows) {
+            (false, false) => "none",
+            (true, false) => "query",
+            (false, true) => "shadows",
+            (true, true) => "query+shadows",
         }
+        .into()
     }
 }
 
 impl std::str::FromStr for Substitutions {
     type Err = Error;
 
-    /// Parts separated by commas: `query`, `frame`, `shell-shadows` or `shadows` (the
-    /// latter two exclusive); `none` or nothing for the paper's algorithm.
+    /// Parts separated by commas: `query`, `shadows`; `none` or nothing for none.
     fn from_str(text: &str) -> Result<Substitutions> {
         let mut subs = Substitutions::default();
         for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-            let shadows = match part {
-                "none" => continue,
-                "query" => {
-                    subs.exact_query = true;
-                    continue;
-                }
-                "frame" => {
-                    subs.exact_frame = true;
-                    continue;
-                }
-                "shell-shadows" => ShadowTest::Shell,
-                "shadows" => ShadowTest::Exact,
+            match part {
+                "none" => {}
+                "query" => subs.exact_query = true,
+                "shadows" => subs.exact_shadows = true,
                 _ => {
                     return Err(Error::InvalidParameter(format!(
-                        "substitution {part:?}: expected query, frame, shell-shadows or shadows"
+                        "substitution {part:?}: expected query or shadows (the frame and shell \
+                         shadows are quality settings now)"
                     )));
                 }
-            };
-            if subs.shadows != ShadowTest::Local && subs.shadows != shadows {
-                return Err(Error::InvalidParameter(
-                    "substitute shell-shadows or shadows, not both".into(),
-                ));
             }
-            subs.shadows = shadows;
         }
         Ok(subs)
     }
@@ -180,6 +155,20 @@ pub struct PreparedPrism {
     pub convex: [bool; 3],
     /// Object → texture (voxel units).
     pub frame: DMat3,
+}
+
+impl PreparedPrism {
+    /// The bounding box (min, max) of the prism's six corners, which holds the prism.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        let corners = self.faces[0]
+            .triangle
+            .corners
+            .iter()
+            .chain(&self.faces[1].triangle.corners);
+        let lo = corners.clone().fold(DVec3::INFINITY, |a, &c| a.min(c));
+        let hi = corners.fold(DVec3::NEG_INFINITY, |a, &c| a.max(c));
+        (lo, hi)
+    }
 }
 
 /// The prisms of `shell` prepared for a GDM on the voxel grid `dims`.
@@ -240,10 +229,13 @@ pub struct GdmHit {
 /// The GDM software renderer over one shell and one GDM.
 pub struct GdmRenderer<'a> {
     prisms: Vec<PreparedPrism>,
+    /// The prisms' mappings, for the chord and frame knobs.
+    maps: Vec<Option<PrismMap>>,
     bvh: BoxBvh,
     lookup: &'a dyn GdmLookup,
     material: &'a MaterialVolume,
     refinements: u32,
+    quality: Quality,
     gi: Option<&'a GiShading>,
     /// The substituted parts, and the ground truth that computes the exact ones.
     substitutions: Option<(Substitutions, &'a TruthRenderer<'a>)>,
@@ -251,7 +243,8 @@ pub struct GdmRenderer<'a> {
 
 impl<'a> GdmRenderer<'a> {
     /// Prepares `shell` for rendering with `lookup` (whose grid gives the voxel scale), making
-    /// `refinements` extra GDM queries per hit (see [`Scene::gdm_refinements`]).
+    /// `refinements` extra GDM queries per hit (see [`Scene::gdm_refinements`]), with the
+    /// paper's settings of the other knobs ([`GdmRenderer::with_quality`]).
     pub fn new(
         shell: &Shell,
         lookup: &'a dyn GdmLookup,
@@ -259,28 +252,24 @@ impl<'a> GdmRenderer<'a> {
         refinements: u32,
     ) -> Self {
         let prisms = prepare_prisms(shell, lookup.dims());
-        let boxes = prisms
-            .iter()
-            .map(|p| {
-                let corners = p.faces[0]
-                    .triangle
-                    .corners
-                    .iter()
-                    .chain(&p.faces[1].triangle.corners);
-                let lo = corners.clone().fold(DVec3::INFINITY, |a, &c| a.min(c));
-                let hi = corners.fold(DVec3::NEG_INFINITY, |a, &c| a.max(c));
-                (lo, hi)
-            })
-            .collect();
+        let boxes = prisms.iter().map(PreparedPrism::bounds).collect();
         GdmRenderer {
+            maps: prisms.iter().map(PrismMap::new).collect(),
             prisms,
             bvh: BoxBvh::new(boxes),
             lookup,
             material,
             refinements,
+            quality: Quality::default(),
             gi: None,
             substitutions: None,
         }
+    }
+
+    /// Renders with the accuracy knobs set to `quality` (a scene's `quality`).
+    pub fn with_quality(mut self, quality: Quality) -> Self {
+        self.quality = quality;
+        self
     }
 
     /// Also shades environment light with `gi` (baked for the same shell and grid).
@@ -319,7 +308,8 @@ impl<'a> GdmRenderer<'a> {
                 if nearest.or(best).is_some_and(|b| b.t <= t_in) {
                     continue;
                 }
-                if let Some(hit) = self.fragment(p, f, origin, dir, t_in, bary)
+                let t_in_tex = self.prisms[p].faces[f].triangle.texture_at(bary);
+                if let Some(hit) = self.fragment(p, origin, dir, t_in, t_in_tex)
                     && nearest.is_none_or(|b| hit.t < b.t)
                 {
                     nearest = Some(hit);
@@ -334,18 +324,17 @@ impl<'a> GdmRenderer<'a> {
         best
     }
 
-    /// Steps 1–5 for the fragment of face `f` of prism `p`.
+    /// Steps 2–5 for a fragment of prism `p` entered at `o + t_in·dir` with texture
+    /// coordinate `t_in_tex` (step 1: a face's interpolation, or a shadow ray's start).
     fn fragment(
         &self,
         p: usize,
-        f: usize,
         o: DVec3,
         dir: DVec3,
         t_in: f64,
-        bary: [f64; 3],
+        t_in_tex: DVec3,
     ) -> Option<GdmHit> {
         let prism = &self.prisms[p];
-        let t_in_tex = prism.faces[f].triangle.texture_at(bary);
         let plane_hit = |face: &PreparedFace| -> Option<f64> {
             let cos = face.normal.dot(dir);
             (cos > 0.0).then(|| (face.offset - face.normal.dot(o)) / cos)
@@ -401,19 +390,56 @@ impl<'a> GdmRenderer<'a> {
                 tb.texture_at(bb)
             }
         };
-        let segment = t_out_tex - t_in_tex;
-        let d_t = segment.length();
-        if d_t.is_nan() || d_t <= 0.0 {
-            return None;
-        }
-        let view = segment / d_t;
-        let d = self.segment_hit(t_in_tex, view, d_t)?;
+        let (s, texture, view) = self.path_hit(p, o + dir * t_in, t_in_tex, p_out, t_out_tex)?;
         Some(GdmHit {
-            t: t_in + d / d_t * (t_out - t_in),
+            t: t_in + s * (t_out - t_in),
             prism: p,
-            texture: t_in_tex + view * d,
+            texture,
             view,
         })
+    }
+
+    /// Steps 3–5 along the texture-space path from `t_in_tex` (at object point `p_in`) to
+    /// `t_out_tex` (at `p_out`) in prism `p`: the paper's one straight segment, or with n
+    /// chords (the quality's `chords`) the points at object-space fractions k/n of the way
+    /// mapped with the exact inverse mapping ([`PrismMap::texture_of`], guessed on the
+    /// straight segment, depth clamped into the volume) and the segments between them queried
+    /// in order. The first hit: its fraction of the way from `p_in` to `p_out`, its texture
+    /// coordinate and the texture-space direction of its chord.
+    fn path_hit(
+        &self,
+        p: usize,
+        p_in: DVec3,
+        t_in_tex: DVec3,
+        p_out: DVec3,
+        t_out_tex: DVec3,
+    ) -> Option<(f64, DVec3, DVec3)> {
+        let n = self.quality.chords.max(1);
+        let map = self.maps[p].filter(|_| n > 1);
+        let depth = self.lookup.dims().z as f64;
+        let mut start = t_in_tex;
+        for k in 1..=n {
+            let s = k as f64 / n as f64;
+            let end = match map {
+                Some(m) if k < n => {
+                    let t = m.texture_of(p_in.lerp(p_out, s), t_in_tex.lerp(t_out_tex, s));
+                    t.with_z(t.z.clamp(0.0, depth))
+                }
+                _ if k < n => t_in_tex.lerp(t_out_tex, s),
+                _ => t_out_tex,
+            };
+            let chord = end - start;
+            let length = chord.length();
+            if length > 0.0 {
+                let view = chord / length;
+                if let Some(d) = self.segment_hit(start, view, length) {
+                    let s0 = (k - 1) as f64 / n as f64;
+                    return Some((s0 + d / length / n as f64, start + view * d, view));
+                }
+            }
+            start = end;
+        }
+        None
     }
 
     /// Steps 3–5 on the texture-space segment from `start` along `view` of length `d_t`: the
@@ -426,19 +452,40 @@ impl<'a> GdmRenderer<'a> {
         self.lookup.segment_hit(start, view, d_t, self.refinements)
     }
 
+    /// The shading frame at `hit` (object → texture, voxel units): the prism's mean frame,
+    /// or with the Jacobian knob the inverse of ∂P/∂T at the hit (the mean frame where that
+    /// is singular).
+    fn frame(&self, hit: &GdmHit) -> DMat3 {
+        let mean = self.prisms[hit.prism].frame;
+        match self.quality.frame {
+            ShadingFrame::Mean => mean,
+            ShadingFrame::Jacobian => self.maps[hit.prism]
+                .and_then(|m| m.jacobian(hit.texture))
+                .map_or(mean, |j| j.inverse()),
+        }
+    }
+
+    /// Whether the shell blocks the light `dir` within `distance` of object point `start`
+    /// (texture coordinate `start_tex` in prism `p`): the per-pixel algorithm on the rest of
+    /// prism `p` from the start, then on every prism the ray enters.
+    fn shell_blocked(
+        &self,
+        p: usize,
+        start: DVec3,
+        start_tex: DVec3,
+        dir: DVec3,
+        distance: f64,
+    ) -> bool {
+        let within = |hit: GdmHit| hit.t < distance;
+        self.fragment(p, start, dir, 0.0, start_tex)
+            .is_some_and(within)
+            || self.trace(start, dir).is_some_and(within)
+    }
+
     /// Step 6: the shaded radiance along the camera ray, or `None` for a miss.
     pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.trace(origin, dir)?;
-        let shadow_test = self
-            .substitutions
-            .map_or(ShadowTest::Local, |(s, _)| s.shadows);
-        let jacobian = self
-            .exact(|s| s.exact_frame || s.shadows == ShadowTest::Exact)
-            .and_then(|truth| truth.jacobian(hit.prism, hit.texture));
-        let frame = match jacobian {
-            Some(j) if self.exact(|s| s.exact_frame).is_some() => j.inverse(),
-            _ => self.prisms[hit.prism].frame,
-        };
+        let frame = self.frame(&hit);
         let n_tex = self.material.normal_at(hit.texture).unwrap_or(-hit.view);
         let n = (frame.transpose() * n_tex).try_normalize().unwrap_or(-dir);
         let albedo = self
@@ -447,6 +494,7 @@ impl<'a> GdmRenderer<'a> {
         let shadows = scene.wants(Effect::Shadows);
         let shadow_origin = hit.texture + n_tex * SHADOW_OFFSET;
         let p = origin + dir * hit.t;
+        let start = || light_start(frame.inverse(), p, n_tex);
         let environment = self.gi.map_or(DVec3::ZERO, |gi| {
             gi.radiance(hit.prism, hit.texture, hit.view)
         });
@@ -456,18 +504,21 @@ impl<'a> GdmRenderer<'a> {
                     if !shadows {
                         return true;
                     }
-                    let start = || light_start(jacobian.unwrap_or(frame.inverse()), p, n_tex);
-                    match shadow_test {
-                        ShadowTest::Local => match (frame * inc.direction).try_normalize() {
+                    if let Some(truth) = self.exact(|s| s.exact_shadows) {
+                        return !truth.blocked(start(), inc.direction, inc.distance);
+                    }
+                    match self.quality.shadows {
+                        ShadowMethod::Local => match (frame * inc.direction).try_normalize() {
                             Some(l) => self.lookup.escapes(shadow_origin, l),
                             None => true,
                         },
-                        ShadowTest::Shell => self
-                            .trace(start(), inc.direction)
-                            .is_none_or(|h| h.t >= inc.distance),
-                        ShadowTest::Exact => self.exact(|_| true).is_none_or(|truth| {
-                            !truth.blocked(start(), inc.direction, inc.distance)
-                        }),
+                        ShadowMethod::Shell => !self.shell_blocked(
+                            hit.prism,
+                            start(),
+                            shadow_origin,
+                            inc.direction,
+                            inc.distance,
+                        ),
                     }
                 }),
         )

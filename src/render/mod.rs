@@ -11,6 +11,8 @@ pub mod gdm_renderer;
 pub mod image;
 pub mod lighting;
 pub mod path_tracer;
+pub mod prism_map;
+pub mod quality;
 pub mod truth;
 
 use crate::scene::Camera;

@@ -205,7 +205,8 @@ pub fn codec_report(
                 lookup,
                 &loaded.material,
                 scene.gdm_refinements,
-            );
+            )
+            .with_quality(scene.quality);
             let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
             let render_s = start.elapsed().as_secs_f64();
             let c = compare(&truth, &image)?;

@@ -378,6 +378,7 @@ fn image_rows(
         &loaded.material,
         scene.gdm_refinements,
     )
+    .with_quality(scene.quality)
     .with_gi(&gi);
     let gdm_image = render_image(&scene.camera, |o, d| renderer.radiance(&scene, o, d));
     let gdm_seconds = start.elapsed().as_secs_f64();

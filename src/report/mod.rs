@@ -1,9 +1,12 @@
 //! What each setting costs and buys, measured against exact references: `mesobake report
 //! accuracy` ([`accuracy`]: GDM compression), `report codecs` ([`codecs`]: every GDM codec
 //! and size on scenes, samples and images), `report render` ([`render`]: the GDM renderer
-//! against the truth, and its error budget) and `report gi` ([`gi`]: radiance transfer).
+//! against the truth, and its error budget), `report quality` ([`quality`]: the per-pixel
+//! algorithm's accuracy knobs against the truth, and their time) and `report gi` ([`gi`]:
+//! radiance transfer).
 
 pub mod accuracy;
 pub mod codecs;
 pub mod gi;
+pub mod quality;
 pub mod render;

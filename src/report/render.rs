@@ -202,10 +202,8 @@ pub fn markdown(report: &RenderReport) -> String {
     };
     format!(
         "Ground truth: {:.3} s.\n\n{}\nError budget: parts of the GDM algorithm substituted \
-         (query: exact cast along the fragment's straight segment; frame: exact Jacobian at the \
-         hit; shell shadows: the GDM algorithm traced towards the light through the whole shell, \
-         as a GDM shadow map would; shadows: the truth's shadow rays). What remains with query, \
-         frame and shadows exact is the one straight texture-space segment per prism.\n\n{}",
+         by the truth's (query: exact cast along the fragment's straight segment; shadows: the \
+         truth's shadow rays), with the paper's settings of the quality knobs.\n\n{}",
         report.truth_s,
         table_of(&report.rows),
         table_of(&report.budget),

@@ -24,6 +24,7 @@ use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::samples::{self, SampleKind};
 use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume_format;
+use crate::render::quality::Quality;
 use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
 use crate::surface::shell::{Shell, ShellParams};
 use crate::util::limits::Limits;
@@ -59,6 +60,10 @@ pub struct Scene {
     /// previous answer (0 = the paper's single query; at most [`MAX_GDM_REFINEMENTS`]).
     #[serde(default = "default_gdm_refinements")]
     pub gdm_refinements: u32,
+    /// The per-pixel algorithm's accuracy knobs (a preset or settings; the paper's by
+    /// default).
+    #[serde(default, skip_serializing_if = "Quality::is_paper")]
+    pub quality: Quality,
     /// How the base mesh is extruded into the shell.
     pub shell: ShellParams,
     /// Reflectance.
@@ -394,6 +399,7 @@ impl Scene {
                 self.gdm_refinements
             )));
         }
+        self.quality.validate()?;
         self.shell.validate()?;
         self.camera.validate()?;
         for light in &self.lights {

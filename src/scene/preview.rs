@@ -144,7 +144,8 @@ pub fn render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Image> {
         &*lookup,
         &loaded.material,
         scene.gdm_refinements,
-    );
+    )
+    .with_quality(scene.quality);
     if let Some(gi) = &gi {
         r = r.with_gi(gi);
     }

@@ -185,7 +185,8 @@ pub fn render_substituted(
                 lookup,
                 &loaded.material,
                 scene.gdm_refinements,
-            );
+            )
+            .with_quality(scene.quality);
             if let Some(truth) = &truth {
                 r = r.with_substitutions(substitutions, truth);
             }

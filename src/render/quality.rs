@@ -1,0 +1,235 @@
+//! The accuracy knobs of the per-pixel GDM algorithm: each of the paper's approximations
+//! that the CPU specification (`gdm_renderer`) and the WGSL pipeline can replace by a more
+//! exact computation, chosen by the scene (`"quality"`, docs/scene-format.md) as a preset or
+//! setting by setting. The GDM query itself is the package's codec (the default `occupancy`
+//! codec marches the voxels exactly; `paper-svd` reconstructs the paper's factors).
+//!
+//! | knob | `paper` | `high` | what it replaces |
+//! |---|---|---|---|
+//! | `shadows` | `local` | `shell` | the light's visibility: one GDM query along the light in the hit's prism (a locally flat volume), or the algorithm traced towards the light through the whole shell |
+//! | `chords` | 1 | 4 | the ray's texture-space path in a prism: one straight segment, or the image of the ray split into n chords at points mapped with the exact inverse of the prism mapping |
+//! | `frame` | `mean` | `jacobian` | the shading frame at the hit: the prism's mean frame, or the inverse Jacobian of the prism mapping at the hit |
+
+use crate::error::{Error, Result};
+use serde::de::{self, Deserializer, MapAccess, Visitor};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// Most chords a scene may ask for per prism segment.
+pub const MAX_CHORDS: u32 = 16;
+
+/// How the light's visibility is tested at a hit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ShadowMethod {
+    /// The paper's: one GDM query along the light in texture space, from one voxel off the
+    /// hit (a locally flat base; mesostructure of the same neighbourhood only).
+    #[default]
+    Local,
+    /// The per-pixel algorithm itself traced towards the light: the rest of the hit's prism
+    /// from the shadow ray's start, then every prism the ray enters (a BVH over the prisms),
+    /// so curvature, distant mesostructure and the base mesh's other side cast shadows.
+    Shell,
+}
+
+/// The frame that maps the shading normal to object space and lights to texture space.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ShadingFrame {
+    /// The paper's: the prism's mean frame (base edges to UV edges, mean extrusion to z).
+    #[default]
+    Mean,
+    /// The inverse of the prism mapping's Jacobian at the hit.
+    Jacobian,
+}
+
+/// The named presets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Preset {
+    /// The paper's algorithm, unchanged.
+    Paper,
+    /// Every knob at its accurate setting (shell shadows, 4 chords, Jacobian frame).
+    High,
+}
+
+impl Preset {
+    /// Every preset, cheapest first.
+    pub const ALL: [Preset; 2] = [Preset::Paper, Preset::High];
+
+    /// The settings of this preset.
+    pub const fn quality(self) -> Quality {
+        match self {
+            Preset::Paper => Quality {
+                shadows: ShadowMethod::Local,
+                chords: 1,
+                frame: ShadingFrame::Mean,
+            },
+            Preset::High => Quality {
+                shadows: ShadowMethod::Shell,
+                chords: 4,
+                frame: ShadingFrame::Jacobian,
+            },
+        }
+    }
+
+    /// The preset's name as scenes spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Paper => "paper",
+            Preset::High => "high",
+        }
+    }
+}
+
+/// The settings of the per-pixel algorithm's accuracy knobs. In a scene: a preset's name
+/// (`"high"`), or an object with an optional `preset` (default `paper`) and any settings
+/// that override it (`{"preset": "paper", "chords": 8}`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct Quality {
+    /// The shadow test.
+    pub shadows: ShadowMethod,
+    /// Chords per prism segment (1 = the paper's straight segment; at most [`MAX_CHORDS`]).
+    pub chords: u32,
+    /// The shading frame.
+    pub frame: ShadingFrame,
+}
+
+impl Default for Quality {
+    /// The paper's algorithm.
+    fn default() -> Self {
+        Preset::Paper.quality()
+    }
+}
+
+impl Quality {
+    /// Whether these are the paper's settings.
+    pub fn is_paper(&self) -> bool {
+        *self == Quality::default()
+    }
+
+    /// The preset these settings equal, if any.
+    pub fn preset(&self) -> Option<Preset> {
+        Preset::ALL.into_iter().find(|p| p.quality() == *self)
+    }
+
+    /// A short label: the preset's name, or the settings, e.g. `shell+chords4+jacobian`.
+    pub fn label(&self) -> String {
+        if let Some(p) = self.preset() {
+            return p.name().into();
+        }
+        format!(
+            "{}+chords{}+{}",
+            match self.shadows {
+                ShadowMethod::Local => "local",
+                ShadowMethod::Shell => "shell",
+            },
+            self.chords,
+            match self.frame {
+                ShadingFrame::Mean => "mean",
+                ShadingFrame::Jacobian => "jacobian",
+            }
+        )
+    }
+
+    /// Checks the settings' ranges.
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=MAX_CHORDS).contains(&self.chords) {
+            return Err(Error::Scene(format!(
+                "quality.chords must be between 1 and {MAX_CHORDS}, got {}",
+                self.chords
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The object form of a scene's `quality`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct QualityObject {
+    #[serde(default)]
+    preset: Option<Preset>,
+    shadows: Option<ShadowMethod>,
+    chords: Option<u32>,
+    frame: Option<ShadingFrame>,
+}
+
+impl<'de> Deserialize<'de> for Quality {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> std::result::Result<Self, D::Error> {
+        struct QualityVisitor;
+        impl<'de> Visitor<'de> for QualityVisitor {
+            type Value = Quality;
+
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a preset name (\"paper\" or \"high\") or an object of settings")
+            }
+
+            fn visit_str<E: de::Error>(self, name: &str) -> std::result::Result<Quality, E> {
+                Preset::deserialize(de::value::StrDeserializer::<E>::new(name)).map(Preset::quality)
+            }
+
+            fn visit_map<A: MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> std::result::Result<Quality, A::Error> {
+                let o = QualityObject::deserialize(de::value::MapAccessDeserializer::new(map))?;
+                let base = o.preset.unwrap_or(Preset::Paper).quality();
+                Ok(Quality {
+                    shadows: o.shadows.unwrap_or(base.shadows),
+                    chords: o.chords.unwrap_or(base.chords),
+                    frame: o.frame.unwrap_or(base.frame),
+                })
+            }
+        }
+        deserializer.deserialize_any(QualityVisitor)
+    }
+}
+
+impl std::str::FromStr for Quality {
+    type Err = Error;
+
+    /// A preset's name, or JSON as in a scene file.
+    fn from_str(text: &str) -> Result<Quality> {
+        let json = if text.trim_start().starts_with('{') {
+            text.to_owned()
+        } else {
+            serde_json::to_string(text.trim()).expect("a string serializes")
+        };
+        let quality: Quality = serde_json::from_str(&json)
+            .map_err(|e| Error::InvalidParameter(format!("quality {text:?}: {e}")))?;
+        quality.validate().map(|()| quality)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_and_overrides_parse() {
+        let q: Quality = "high".parse().unwrap();
+        assert_eq!(q, Preset::High.quality());
+        let q: Quality = r#"{"chords": 8}"#.parse().unwrap();
+        assert_eq!(q.chords, 8);
+        assert_eq!(q.shadows, ShadowMethod::Local);
+        assert_eq!(q.label(), "local+chords8+mean");
+        let q: Quality = r#"{"preset": "high", "frame": "mean"}"#.parse().unwrap();
+        assert_eq!(
+            (q.shadows, q.chords, q.frame),
+            (ShadowMethod::Shell, 4, ShadingFrame::Mean)
+        );
+        for bad in [
+            "ultra",
+            r#"{"chords": 0}"#,
+            r#"{"chords": 99}"#,
+            r#"{"chord": 2}"#,
+        ] {
+            assert!(bad.parse::<Quality>().is_err(), "{bad}");
+        }
+        // The serialized form reads back.
+        let q = Preset::High.quality();
+        let back: Quality = serde_json::from_str(&serde_json::to_string(&q).unwrap()).unwrap();
+        assert_eq!(back, q);
+    }
+}
