@@ -44,7 +44,7 @@ pub struct PreviewArgs {
     #[arg(long, default_value = "cpu")]
     fallback: PreviewFallback,
     /// The per-pixel algorithm's accuracy knobs instead of the scene's `quality` (a preset,
-    /// `paper` or `high`, or JSON settings as in a scene file).
+    /// `paper`, `balanced` or `high`, or JSON settings as in a scene file).
     #[arg(long)]
     quality: Option<Quality>,
     /// Print a JSON summary (adapter, shader variant, GPU memory, seconds) on stdout.

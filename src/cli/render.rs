@@ -43,7 +43,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "none")]
     substitute: Substitutions,
     /// For --method gdm: the per-pixel algorithm's accuracy knobs instead of the scene's
-    /// `quality` (a preset, `paper` or `high`, or JSON settings as in a scene file).
+    /// `quality` (a preset, `paper`, `balanced` or `high`, or JSON settings as in a scene file).
     #[arg(long)]
     quality: Option<Quality>,
 }

@@ -797,6 +797,23 @@ struct BvhNodeRecord {
 /// The deepest BVH the shader's traversal stack holds (`BVH_STACK`).
 const MAX_BVH_DEPTH: usize = 64;
 
+/// The number of nodes on the longest path from the root to a leaf.
+fn tree_depth(bvh: &obvhs::bvh2::Bvh2) -> usize {
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((node, depth)) = stack.pop() {
+        let Some(n) = bvh.nodes.get(node) else {
+            continue;
+        };
+        deepest = deepest.max(depth);
+        if n.prim_count == 0 {
+            let first = n.first_index as usize;
+            stack.extend([(first, depth + 1), (first + 1, depth + 1)]);
+        }
+    }
+    deepest
+}
+
 /// Builds and uploads a binary BVH (obvhs) over the prisms' padded bounding boxes, the boxes
 /// the CPU renderer's traversal tests.
 pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
@@ -809,10 +826,10 @@ pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
         obvhs::BvhBuildParams::medium_build(),
         &mut std::time::Duration::default(),
     );
-    if bvh.max_depth >= MAX_BVH_DEPTH {
+    let depth = tree_depth(&bvh);
+    if depth > MAX_BVH_DEPTH {
         return Err(Error::Gpu(format!(
-            "the prisms' BVH is {} levels deep, over the shadow traversal's {MAX_BVH_DEPTH}",
-            bvh.max_depth
+            "the prisms' BVH is {depth} levels deep, over the shadow traversal's {MAX_BVH_DEPTH}"
         )));
     }
     let mut nodes: Vec<BvhNodeRecord> = bvh
