@@ -447,6 +447,33 @@ fn render_json(json: &str, method: RenderMethod) -> mesobake::render::image::Ima
         .image
 }
 
+/// `json` (a scene) with its `quality` set to the preset `name`.
+fn with_quality(json: &str, name: &str) -> String {
+    json.replacen(
+        "\"effects\"",
+        &format!("\"quality\": \"{name}\",\n  \"effects\""),
+        1,
+    )
+}
+
+#[test]
+fn the_high_preset_is_scale_free_too() {
+    // The quality knobs' tolerances are relative as well (Newton steps in prism
+    // coordinates, shadow rays through the same BVH as camera rays): at 1e-3 and 1e3 the
+    // `high` preset renders the image it renders at 1, much closer than the paper's preset
+    // does (`scaled_scenes_render_the_same_image`).
+    let json = |scale| with_quality(&torus_scene(0.4, 0.13, 0, scale), "high");
+    let reference = render_json(&json(1.0), RenderMethod::Gdm);
+    assert!(reference.hits() > 500, "the torus covers the view");
+    for scale in [1e3, 1e-3] {
+        let c = compare(&reference, &render_json(&json(scale), RenderMethod::Gdm)).unwrap();
+        eprintln!("high at scale {scale}: {c:?}");
+        // Measured: identical at 1e3, 43.1 dB and no mask pixel at 1e-3 (the paper's preset:
+        // 25.6 dB, 0.5 %).
+        assert!(c.psnr_db >= 40.0 && c.mask_disagreement <= 0.001, "{c:?}");
+    }
+}
+
 #[test]
 fn scaled_scenes_render_the_same_image() {
     // The same scene at 1e-3 and 1e3 times the size: every tolerance in the renderers is
@@ -492,6 +519,8 @@ fn high_curvature_shells_are_reported_and_render_finite_images() {
     // A tube barely thicker than the shell (prisms flare to twice their base), and a shell
     // nearly as thick as the hole's radius R − r = 0.6 (the extrusions nearly meet at the
     // axis): nothing inverts, and both renderers give finite images.
+    // The `high` preset too: its chords map points of flaring prisms with Newton steps and
+    // its shadow rays cross the whole shell.
     for (minor, thickness) in [(0.14, 0.13), (0.4, 0.55)] {
         let loaded = load(torus_scene(minor, thickness, 0, 1.0));
         let report = &loaded.shell.report;
@@ -500,8 +529,13 @@ fn high_curvature_shells_are_reported_and_render_finite_images() {
             (48 * 24 * 2, 0, 0),
             "{report:?}"
         );
-        for method in [RenderMethod::Truth, RenderMethod::Gdm] {
-            let image = render(&loaded, method, GdmSource::Bake, &limits, &())
+        let high = load(with_quality(&torus_scene(minor, thickness, 0, 1.0), "high"));
+        for (loaded, method) in [
+            (&loaded, RenderMethod::Truth),
+            (&loaded, RenderMethod::Gdm),
+            (&high, RenderMethod::Gdm),
+        ] {
+            let image = render(loaded, method, GdmSource::Bake, &limits, &())
                 .unwrap()
                 .image;
             assert!(
