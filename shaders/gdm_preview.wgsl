@@ -478,19 +478,11 @@ fn shading_frame(pi: u32, t_hit: vec3<f32>) -> mat3x3<f32> {
     return mean;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> FragmentOut {
-    let pi = in.prism;
-    let dir = normalize(in.world - view.eye.xyz);
-    let hit = fragment(pi, in.world, in.texture, dir);
-    if !hit.hit {
-        discard;
-    }
+// Step 6: the radiance of fragment hit `hit` of prism pi seen along dir.
+fn shade_hit(pi: u32, hit: FragmentHit, dir: vec3<f32>) -> vec3<f32> {
     let p_hit = hit.point;
     let t_hit = hit.texture;
     let view_tex = hit.view;
-
-    // Step 6: shading in the frame at the hit.
     let frame = shading_frame(pi, t_hit);
     let n_raw = normal_at(t_hit);
     let n_tex = normalize_or(n_raw, -view_tex);
@@ -498,12 +490,19 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     let base = albedo_at(t_hit + view_tex * ALBEDO_DEPTH);
     let offset = n_tex * SHADOW_OFFSET;
     let start = ShadowStart(pi, t_hit + offset, p_hit + inverse3(frame) * offset, frame);
-    let radiance = environment_light(pi, t_hit, view_tex)
-        + shade(p_hit, n_obj, base, -dir, start);
+    return environment_light(pi, t_hit, view_tex) + shade(p_hit, n_obj, base, -dir, start);
+}
 
+@fragment
+fn fs_main(in: VertexOut) -> FragmentOut {
+    let dir = normalize(in.world - view.eye.xyz);
+    let hit = fragment(in.prism, in.world, in.texture, dir);
+    if !hit.hit {
+        discard;
+    }
     var out: FragmentOut;
-    out.radiance = vec4<f32>(radiance, 1.0);
-    let clip = view.view_proj * vec4<f32>(p_hit, 1.0);
+    out.radiance = vec4<f32>(shade_hit(in.prism, hit, dir), 1.0);
+    let clip = view.view_proj * vec4<f32>(hit.point, 1.0);
     out.depth = clip.z / clip.w;
     return out;
 }

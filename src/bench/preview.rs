@@ -1,6 +1,6 @@
 //! `mesobake bench preview`: the real-time pipeline's frame time against the CPU GDM software
-//! renderer on the same scene and package, in the same run, over every GDM codec, image sizes
-//! and volume depths, with and without the early depth test.
+//! renderer on the same scene and package, in the same run, over every GDM codec, quality
+//! preset, image size and volume depth, with and without the early depth test.
 
 use crate::bake::gdm::BakeObserver;
 use crate::error::Result;
@@ -9,6 +9,7 @@ use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
 use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
+use crate::render::quality::Preset;
 use crate::render::render_image;
 use crate::scene::package::{ScenePackageParams, scene_package};
 use crate::scene::{LoadedScene, Scene};
@@ -22,6 +23,8 @@ use std::time::Instant;
 pub struct PreviewBenchRow {
     /// The package's GDM codec.
     pub codec: GdmCodec,
+    /// The quality preset.
+    pub preset: Preset,
     /// Image side in pixels (square images).
     pub size: u32,
     /// Volume depth Z (layers).
@@ -35,8 +38,10 @@ pub struct PreviewBenchRow {
 }
 
 /// Runs the benchmark on the scene at `scene_path` with the adapter named `adapter`.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     scene_path: &Path,
+    presets: &[Preset],
     sizes: &[u32],
     depths: &[u32],
     frames: u32,
@@ -59,7 +64,11 @@ pub fn run(
             };
             let package = scene_package(&loaded, dir, params, limits, observer)?;
             let lookup = package_lookup(&package)?;
-            for &size in sizes {
+            for (&preset, &size) in presets
+                .iter()
+                .flat_map(|p| sizes.iter().map(move |s| (p, s)))
+            {
+                loaded.scene.quality = preset.quality();
                 loaded.scene.camera.width = size;
                 loaded.scene.camera.height = size;
                 let scene = &loaded.scene;
@@ -88,6 +97,7 @@ pub fn run(
                 };
                 rows.push(PreviewBenchRow {
                     codec,
+                    preset,
                     size,
                     depth,
                     cpu_seconds,
@@ -106,12 +116,13 @@ pub fn markdown(adapter: &AdapterDescription, rows: &[PreviewBenchRow]) -> Strin
         "Adapter: {} ({}, {}, {})\n\n",
         adapter.name, adapter.backend, adapter.device_type, adapter.driver
     );
-    out += "| codec | image | Z | CPU GDM renderer (s) | real-time frame (ms) | FPS | CPU / real-time | frame without early-z (ms) |\n";
-    out += "|---|---:|---:|---:|---:|---:|---:|---:|\n";
+    out += "| codec | preset | image | Z | CPU GDM renderer (s) | real-time frame (ms) | FPS | CPU / real-time | frame without early-z (ms) |\n";
+    out += "|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
         out += &format!(
-            "| {7} | {0}×{0} | {1} | {2:.3} | {3:.2} | {4:.1} | {5:.2} | {6} |\n",
-            r.size,
+            "| {} | {} | {size}×{size} | {} | {:.3} | {:.2} | {:.1} | {:.2} | {} |\n",
+            r.codec,
+            r.preset.name(),
             r.depth,
             r.cpu_seconds,
             r.gpu_seconds * 1e3,
@@ -119,7 +130,7 @@ pub fn markdown(adapter: &AdapterDescription, rows: &[PreviewBenchRow]) -> Strin
             r.cpu_seconds / r.gpu_seconds,
             r.gpu_seconds_without_early_z
                 .map_or("—".to_owned(), |t| format!("{:.2}", t * 1e3)),
-            r.codec
+            size = r.size,
         );
     }
     out

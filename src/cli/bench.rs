@@ -5,6 +5,7 @@ use super::output::Progress;
 use clap::Subcommand;
 use mesobake::bench::counting_alloc::CountingAlloc;
 use mesobake::bench::{bakes, preview, server};
+use mesobake::render::quality::Preset;
 use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
 use std::path::PathBuf;
@@ -35,6 +36,9 @@ pub enum BenchCommand {
         /// Scene file.
         #[arg(long, default_value = "scenes/torus-chain.json")]
         scene: PathBuf,
+        /// Quality presets, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "paper")]
+        presets: Vec<Preset>,
         /// Square image sizes.
         #[arg(long, value_delimiter = ',', default_value = "512")]
         sizes: Vec<u32>,
@@ -74,6 +78,7 @@ pub fn bench(which: BenchCommand, allocator: &CountingAlloc, limits: &Limits) ->
         }
         BenchCommand::Preview {
             scene,
+            presets,
             sizes,
             depths,
             frames,
@@ -82,6 +87,7 @@ pub fn bench(which: BenchCommand, allocator: &CountingAlloc, limits: &Limits) ->
             let progress = Progress::new("baking GDM (exact)");
             let (adapter, rows) = preview::run(
                 &scene,
+                &presets,
                 &sizes,
                 &depths,
                 frames,

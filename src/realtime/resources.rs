@@ -789,33 +789,20 @@ pub struct GpuBvh {
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct BvhNodeRecord {
     lo: [f32; 3],
+    /// Prisms in a leaf (0: an inner node).
     count: u32,
     hi: [f32; 3],
+    /// A leaf's first entry in the prism index list.
     first: u32,
-}
-
-/// The deepest BVH the shader's traversal stack holds (`BVH_STACK`).
-const MAX_BVH_DEPTH: usize = 64;
-
-/// The number of nodes on the longest path from the root to a leaf.
-fn tree_depth(bvh: &obvhs::bvh2::Bvh2) -> usize {
-    let mut deepest = 0;
-    let mut stack = vec![(0usize, 1usize)];
-    while let Some((node, depth)) = stack.pop() {
-        let Some(n) = bvh.nodes.get(node) else {
-            continue;
-        };
-        deepest = deepest.max(depth);
-        if n.prim_count == 0 {
-            let first = n.first_index as usize;
-            stack.extend([(first, depth + 1), (first + 1, depth + 1)]);
-        }
-    }
-    deepest
+    /// The node after this subtree in depth-first order (the node count: none).
+    skip: u32,
+    _pad: [u32; 3],
 }
 
 /// Builds and uploads a binary BVH (obvhs) over the prisms' padded bounding boxes, the boxes
-/// the CPU renderer's traversal tests.
+/// the CPU renderer's traversal tests, laid out in depth-first order with skip links so that
+/// the shaders traverse it without a stack: from node i, a hit inner node continues at i + 1
+/// (its first child), a missed node or a leaf at its `skip`.
 pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
     let boxes: Vec<obvhs::aabb::Aabb> = prisms
         .iter()
@@ -826,30 +813,51 @@ pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
         obvhs::BvhBuildParams::medium_build(),
         &mut std::time::Duration::default(),
     );
-    let depth = tree_depth(&bvh);
-    if depth > MAX_BVH_DEPTH {
-        return Err(Error::Gpu(format!(
-            "the prisms' BVH is {depth} levels deep, over the shadow traversal's {MAX_BVH_DEPTH}"
-        )));
+    let mut nodes = Vec::with_capacity(bvh.nodes.len());
+    if !prisms.is_empty() && !bvh.nodes.is_empty() {
+        // Preorder: a node is written, then its children's subtrees; its skip is patched once
+        // its subtree is complete.
+        enum Visit {
+            Enter(usize),
+            Close(usize),
+        }
+        let mut stack = vec![Visit::Enter(0)];
+        while let Some(visit) = stack.pop() {
+            match visit {
+                Visit::Enter(i) => {
+                    let Some(n) = bvh.nodes.get(i) else {
+                        continue;
+                    };
+                    let at = nodes.len();
+                    nodes.push(BvhNodeRecord {
+                        lo: n.aabb.min.to_array(),
+                        count: n.prim_count,
+                        hi: n.aabb.max.to_array(),
+                        first: if n.prim_count > 0 { n.first_index } else { 0 },
+                        skip: 0,
+                        _pad: [0; 3],
+                    });
+                    stack.push(Visit::Close(at));
+                    if n.prim_count == 0 {
+                        let first = n.first_index as usize;
+                        stack.push(Visit::Enter(first + 1));
+                        stack.push(Visit::Enter(first));
+                    }
+                }
+                Visit::Close(at) => nodes[at].skip = nodes.len() as u32,
+            }
+        }
     }
-    let mut nodes: Vec<BvhNodeRecord> = bvh
-        .nodes
-        .iter()
-        .map(|n| BvhNodeRecord {
-            lo: n.aabb.min.to_array(),
-            count: n.prim_count,
-            hi: n.aabb.max.to_array(),
-            first: n.first_index,
-        })
-        .collect();
-    if nodes.is_empty() || prisms.is_empty() {
-        // No prism: a root that no ray enters.
-        nodes = vec![BvhNodeRecord {
+    if nodes.is_empty() {
+        // No prism: one node that no ray enters.
+        nodes.push(BvhNodeRecord {
             lo: [1.0; 3],
             count: 0,
             hi: [-1.0; 3],
             first: 0,
-        }];
+            skip: 1,
+            _pad: [0; 3],
+        });
     }
     let mut indices = bvh.primitive_indices.clone();
     if indices.is_empty() {

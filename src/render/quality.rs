@@ -48,7 +48,7 @@ pub enum ShadingFrame {
 }
 
 /// The named presets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
     /// The paper's algorithm, unchanged.
