@@ -268,6 +268,23 @@ async fn upload_bake_and_preview_in_a_browser() {
         serde_json::json!(["brightness(4)", "rgb(255, 255, 255)", "+2 EV"])
     );
 
+    // The quality control writes the preset into the scene (the paper's is left out) and
+    // marks the shown preview stale.
+    let quality = c
+        .execute(
+            "const q = document.getElementById('quality'); q.value = 'high'; \
+             q.dispatchEvent(new Event('change')); \
+             const high = JSON.parse(document.getElementById('scene-json').value).quality; \
+             q.value = 'paper'; q.dispatchEvent(new Event('change')); \
+             const paper = JSON.parse(document.getElementById('scene-json').value).quality; \
+             return [high, paper === undefined, \
+             document.getElementById('preview').classList.contains('stale')];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(quality, serde_json::json!(["high", true, true]));
+
     // A job put back in the queue after a failed attempt says it is retrying, with the count,
     // and a long error wraps inside the table (the view as the server sends it).
     let retrying = c

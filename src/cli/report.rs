@@ -115,7 +115,7 @@ pub enum ReportCommand {
         #[arg(
             long,
             value_delimiter = ',',
-            default_value = "scenes/torus-chain.json,scenes/plane-weave.json,scenes/torus-chain-tile.json"
+            default_value = "scenes/torus-chain.json,scenes/plane-weave.json,scenes/mesh-tile/torus-chain-tile.json"
         )]
         scenes: Vec<PathBuf>,
         /// Render every scene at this many pixels across (and down) instead of its camera's.

@@ -172,6 +172,9 @@ pub enum BaseMeshSource {
 pub enum MesostructureSource {
     /// A built-in sample, voxelized on the scene's resolution.
     Sample(SampleKind),
+    /// A built-in sample as its closed triangle tile (the analytic primitives tessellated,
+    /// as `mesobake sample --format obj` writes it), cast exactly like an OBJ tile.
+    SampleTile(SampleKind),
     /// A `.mbvol` volume file.
     Volume(PathBuf),
     /// A closed OBJ tile, sampled on the scene's resolution.
@@ -542,8 +545,14 @@ impl LoadedScene {
                 let material = MaterialVolume::from_volume(&volume, default_albedo);
                 (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
             }
-            MesostructureSource::Tile(p) => {
-                let mesh = TriMesh::read_obj(&resolve(p), limits.memory_bytes / 8)?;
+            MesostructureSource::Tile(_) | MesostructureSource::SampleTile(_) => {
+                let mesh = match &scene.mesostructure {
+                    MesostructureSource::SampleTile(kind) => samples::mesh(*kind, dims)?,
+                    MesostructureSource::Tile(p) => {
+                        TriMesh::read_obj(&resolve(p), limits.memory_bytes / 8)?
+                    }
+                    _ => unreachable!("matched above"),
+                };
                 let caster = MeshCaster::new(&MeshTile::new(mesh, false)?, dims, limits)?;
                 let material =
                     MaterialVolume::from_occupancy(caster.centres_inside(), None, default_albedo);

@@ -226,7 +226,7 @@ pub fn check_package_input(package: &Package, scene: &Scene, scene_dir: &Path) -
 /// The identity of `scene`'s mesostructure input, as a manifest records it.
 fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
     let identity = match &scene.mesostructure {
-        MesostructureSource::Sample(_) => {
+        MesostructureSource::Sample(_) | MesostructureSource::SampleTile(_) => {
             serde_json::to_vec(&(&scene.mesostructure, scene.resolution))
                 .map_err(|e| Error::Scene(e.to_string()))?
         }
@@ -240,7 +240,7 @@ fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
     Ok(InputInfo {
         kind: match scene.mesostructure {
             MesostructureSource::HeightField(_) => "height_field",
-            MesostructureSource::Tile(_) => "mesh",
+            MesostructureSource::Tile(_) | MesostructureSource::SampleTile(_) => "mesh",
             MesostructureSource::Volume(_) | MesostructureSource::Sample(_) => "volume",
         }
         .into(),

@@ -45,7 +45,7 @@ pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
         MesostructureSource::Volume(p)
         | MesostructureSource::Tile(p)
         | MesostructureSource::HeightField(p) => resolve(p)?,
-        MesostructureSource::Sample(_) => {}
+        MesostructureSource::Sample(_) | MesostructureSource::SampleTile(_) => {}
     }
     if let BaseMeshSource::Obj(p) = &mut scene.base_mesh {
         resolve(p)?;

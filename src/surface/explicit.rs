@@ -1365,7 +1365,9 @@ impl ExplicitInput {
         }
         let dims = scene.dims()?;
         let tile = match &scene.mesostructure {
-            MesostructureSource::Sample(kind) => samples::mesh(*kind, dims)?,
+            MesostructureSource::Sample(kind) | MesostructureSource::SampleTile(kind) => {
+                samples::mesh(*kind, dims)?
+            }
             MesostructureSource::Tile(p) => {
                 TriMesh::read_obj(&dir.join(p), limits.memory_bytes / 8)?
             }
