@@ -83,7 +83,7 @@ pub enum ReportCommand {
     },
     /// The GDM renderer's image error against the ground truth on a scene, over direction
     /// resolutions × (exact GDM, SVD ranks) × refinement counts, with render times, then its
-    /// error budget (the query, the frame and the shadows substituted one at a time and all
+    /// error budget (the query and the shadows substituted by the truth's one at a time and
     /// together): Markdown on stdout; render-accuracy.md and render-accuracy.json in --out.
     Render {
         /// Scene file.
