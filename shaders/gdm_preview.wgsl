@@ -26,7 +26,8 @@ struct View {
     // rgb: Blinn–Phong specular colour, a: shininess.
     specular: vec4<f32>,
     light_count: u32,
-    _pad0: u32,
+    // Image width in pixels (the row stride of `nearest_hit`).
+    width: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -63,6 +64,14 @@ struct Prism {
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> lights: array<Light>;
 @group(0) @binding(2) var<storage, read> prisms: array<Prism>;
+// Per pixel, the depth of the nearest hit any fragment has found so far this frame, stored
+// as the complement of its f32 bits (depths are ≥ 0, so their bits order like them; the
+// buffer is cleared to 0 each frame, "no hit yet"). A fragment whose face lies behind it
+// cannot win the depth test and stops before its march, and one whose hit lies behind it
+// before shading: the depth test done early by hand, whatever order fragments run in (a
+// stale value only culls less). The prisms are drawn nearest first, so most hidden
+// fragments find a nearer hit already stored.
+@group(0) @binding(5) var<storage, read_write> nearest_hit: array<atomic<u32>>;
 
 // xyz: unnormalized outward normal (−∇ solid fraction) per voxel centre.
 @group(2) @binding(0) var normals: texture_3d<f32>;
@@ -495,14 +504,24 @@ fn shade_hit(pi: u32, hit: FragmentHit, dir: vec3<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_main(in: VertexOut) -> FragmentOut {
+    let pixel = u32(in.clip.y) * view.width + u32(in.clip.x);
+    let stored = atomicLoad(&nearest_hit[pixel]);
+    if stored != 0u && in.clip.z >= bitcast<f32>(~stored) {
+        discard;
+    }
     let dir = normalize(in.world - view.eye.xyz);
     let hit = fragment(in.prism, in.world, in.texture, dir);
     if !hit.hit {
         discard;
     }
+    let clip = view.view_proj * vec4<f32>(hit.point, 1.0);
+    let depth = clip.z / clip.w;
+    let mine = ~bitcast<u32>(max(depth, 0.0));
+    if atomicMax(&nearest_hit[pixel], mine) > mine {
+        discard; // a nearer hit is stored already: not shaded
+    }
     var out: FragmentOut;
     out.radiance = vec4<f32>(shade_hit(in.prism, hit, dir), 1.0);
-    let clip = view.view_proj * vec4<f32>(hit.point, 1.0);
-    out.depth = clip.z / clip.w;
+    out.depth = depth;
     return out;
 }

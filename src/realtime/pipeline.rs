@@ -35,7 +35,8 @@ struct ViewUniform {
     eye: [f32; 4],
     specular: [f32; 4],
     light_count: u32,
-    _pad: [u32; 3],
+    width: u32,
+    _pad: [u32; 2],
 }
 
 /// The shader's `Light`.
@@ -100,6 +101,9 @@ pub struct Preview<'g> {
     environment: Option<GpuEnvironment>,
     colour: wgpu::Texture,
     depth: wgpu::TextureView,
+    /// Per pixel, the nearest hit so far this frame (`nearest_hit` of the shader), cleared
+    /// before each frame.
+    nearest_hit: wgpu::Buffer,
     readback: wgpu::Buffer,
     padded_row: u32,
     width: u32,
@@ -123,6 +127,14 @@ fn layout_entry(
 fn storage() -> wgpu::BindingType {
     wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only: true },
+        has_dynamic_offset: false,
+        min_binding_size: None,
+    }
+}
+
+fn storage_read_write() -> wgpu::BindingType {
+    wgpu::BindingType::Buffer {
+        ty: wgpu::BufferBindingType::Storage { read_only: false },
         has_dynamic_offset: false,
         min_binding_size: None,
     }
@@ -181,12 +193,14 @@ impl<'g> Preview<'g> {
         }
         let frag = wgpu::ShaderStages::FRAGMENT;
         let d = &gpu.device;
-        // The shell-shadow variant also reads the prisms' BVH (bindings 3 and 4).
+        // The shell-shadow variant also reads the prisms' BVH (bindings 3 and 4); binding 5
+        // is the per-pixel nearest hit so far (`nearest_hit`).
         let shell_shadows = variant.shadows == Some(ShadowMethod::Shell);
         let mut scene_entries = vec![
             layout_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
             layout_entry(1, frag, storage()),
             layout_entry(2, frag, storage()),
+            layout_entry(5, frag, storage_read_write()),
         ];
         if shell_shadows {
             scene_entries.extend([
@@ -281,14 +295,15 @@ impl<'g> Preview<'g> {
                 m.shininess as f32,
             ],
             light_count: scene.lights.len() as u32,
-            _pad: [0; 3],
+            width,
+            _pad: [0; 2],
         };
         let mut lights: Vec<LightRecord> = scene.lights.iter().map(light_record).collect();
         if lights.is_empty() {
             lights.push(LightRecord::zeroed());
         }
-        let (pipeline, scene_group, colour, depth, readback, padded_row) =
-            gpu.checked("building the pipeline", || {
+        let (pipeline, scene_group, colour, depth, nearest_hit, readback, padded_row) = gpu
+            .checked("building the pipeline", || {
                 let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("view"),
                     contents: bytemuck::bytes_of(&view),
@@ -299,15 +314,21 @@ impl<'g> Preview<'g> {
                     contents: bytemuck::cast_slice(&lights),
                     usage: wgpu::BufferUsages::STORAGE,
                 });
-                let mut buffers = vec![&view, &lights, &shell.prisms];
+                let nearest_hit = d.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("nearest hit"),
+                    size: width as u64 * height as u64 * 4,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                let mut buffers = vec![(0, &view), (1, &lights), (2, &shell.prisms)];
+                buffers.push((5, &nearest_hit));
                 if let Some(bvh) = &bvh {
-                    buffers.extend([&bvh.nodes, &bvh.prisms]);
+                    buffers.extend([(3, &bvh.nodes), (4, &bvh.prisms)]);
                 }
                 let entries: Vec<wgpu::BindGroupEntry> = buffers
                     .into_iter()
-                    .enumerate()
                     .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                        binding: binding as u32,
+                        binding,
                         resource: buffer.as_entire_binding(),
                     })
                     .collect();
@@ -396,7 +417,15 @@ impl<'g> Preview<'g> {
                     usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
                     mapped_at_creation: false,
                 });
-                (pipeline, scene_group, colour, depth, readback, padded_row)
+                (
+                    pipeline,
+                    scene_group,
+                    colour,
+                    depth,
+                    nearest_hit,
+                    readback,
+                    padded_row,
+                )
             })?;
         let pixels = width as u64 * height as u64;
         let memory = GpuMemory {
@@ -407,7 +436,7 @@ impl<'g> Preview<'g> {
                 + (lights.len() * std::mem::size_of::<LightRecord>()
                     + std::mem::size_of::<ViewUniform>()) as u64,
             environment: environment.as_ref().map_or(0, |e| e.bytes),
-            targets: pixels * (COLOUR_TEXEL as u64 + 4) + readback.size(),
+            targets: pixels * (COLOUR_TEXEL as u64 + 4) + nearest_hit.size() + readback.size(),
         };
         Ok(Preview {
             gpu,
@@ -420,6 +449,7 @@ impl<'g> Preview<'g> {
             environment,
             colour,
             depth,
+            nearest_hit,
             readback,
             padded_row,
             width,
@@ -447,6 +477,7 @@ impl<'g> Preview<'g> {
     /// buffer) and submits it.
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&self.nearest_hit, 0, None);
         {
             let colour = self.colour.create_view(&Default::default());
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {

@@ -126,7 +126,7 @@ impl std::str::FromStr for Substitutions {
                 _ => {
                     return Err(Error::InvalidParameter(format!(
                         "substitution {part:?}: expected query or shadows (the frame and shell \
-                         shadows are quality settings now)"
+                         shadows are quality settings: --quality)"
                     )));
                 }
             }

@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::package::bake::{bake_info, load_input};
 use crate::package::{GdmPayload, Package};
+use crate::report::plot::plot_error;
 use crate::util::limits::Limits;
 use std::path::Path;
 use std::time::Instant;
@@ -192,7 +193,6 @@ type Metric = fn(&AccuracyRow) -> f64;
 /// line per direction resolution and quantization through the ranks, log–log.
 pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
     use plotters::prelude::*;
-    let plot_error = |e: String| Error::InvalidParameter(format!("plotting failed: {e}"));
     let mut series: Vec<(String, Vec<&AccuracyRow>)> = Vec::new();
     for r in rows {
         let name = format!("{} {}", r.dirs, r.quantization);
@@ -215,7 +215,7 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (1200, 520)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| plot_error(e.to_string()))?;
+        root.fill(&WHITE).map_err(plot_error)?;
         let panels = root.split_evenly((1, 2));
         let axes: [(&str, Metric); 2] = [
             ("bake + SVD time (s)", |r| r.bake_s + r.svd_s),
@@ -230,13 +230,13 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
                 .x_label_area_size(40)
                 .y_label_area_size(56)
                 .build_cartesian_2d(range(x_of).log_scale(), range(|r| r.rmse).log_scale())
-                .map_err(|e| plot_error(e.to_string()))?;
+                .map_err(plot_error)?;
             chart
                 .configure_mesh()
                 .x_desc(label)
                 .y_desc("RMSE (voxel)")
                 .draw()
-                .map_err(|e| plot_error(e.to_string()))?;
+                .map_err(plot_error)?;
             for (i, (name, members)) in series.iter().enumerate() {
                 let color = Palette99::pick(i).to_rgba();
                 let points: Vec<(f64, f64)> = members
@@ -245,7 +245,7 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
                     .collect();
                 chart
                     .draw_series(LineSeries::new(points, color.stroke_width(2)).point_size(3))
-                    .map_err(|e| plot_error(e.to_string()))?
+                    .map_err(plot_error)?
                     .label(name.clone())
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
             }
@@ -254,9 +254,9 @@ pub fn svg_plot(rows: &[AccuracyRow]) -> Result<String> {
                 .border_style(BLACK)
                 .background_style(WHITE.mix(0.8))
                 .draw()
-                .map_err(|e| plot_error(e.to_string()))?;
+                .map_err(plot_error)?;
         }
-        root.present().map_err(|e| plot_error(e.to_string()))?;
+        root.present().map_err(plot_error)?;
     }
     Ok(svg)
 }

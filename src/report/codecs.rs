@@ -27,6 +27,7 @@ use crate::render::image::compare;
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
+use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, bake_scene_package};
 use crate::util::limits::Limits;
@@ -476,68 +477,56 @@ pub fn markdown(report: &CodecReport) -> String {
 /// codec through its sizes.
 pub fn svg_plot(report: &CodecReport) -> Result<String> {
     use plotters::prelude::*;
-    let plot_error = |e: String| Error::InvalidParameter(format!("plotting failed: {e}"));
     let scenes: Vec<&str> = report.truth_s.iter().map(|(s, _)| s.as_str()).collect();
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (600 * scenes.len().max(1) as u32, 480))
-            .into_drawing_area();
-        root.fill(&WHITE).map_err(|e| plot_error(e.to_string()))?;
-        for (panel, scene) in root
-            .split_evenly((1, scenes.len().max(1)))
-            .iter()
-            .zip(&scenes)
-        {
-            let rows: Vec<&CodecRow> = report.rows.iter().filter(|r| r.scene == *scene).collect();
-            let (lo, hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
-                (lo.min(r.bytes as f64), hi.max(r.bytes as f64))
-            });
-            let (p_lo, p_hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
-                (lo.min(r.psnr_db), hi.max(r.psnr_db))
-            });
-            let mut chart = ChartBuilder::on(panel)
-                .caption(
-                    format!("{scene}: PSNR against the truth"),
-                    ("sans-serif", 18),
-                )
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(56)
-                .build_cartesian_2d(
-                    ((lo / 2.0)..(hi * 2.0)).log_scale(),
-                    (p_lo - 2.0)..(p_hi + 2.0),
-                )
-                .map_err(|e| plot_error(e.to_string()))?;
+    scene_panels(&scenes, |panel, scene| {
+        let rows: Vec<&CodecRow> = report.rows.iter().filter(|r| r.scene == *scene).collect();
+        let (lo, hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+            (lo.min(r.bytes as f64), hi.max(r.bytes as f64))
+        });
+        let (p_lo, p_hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| {
+            (lo.min(r.psnr_db), hi.max(r.psnr_db))
+        });
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("{scene}: PSNR against the truth"),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .build_cartesian_2d(
+                ((lo / 2.0)..(hi * 2.0)).log_scale(),
+                (p_lo - 2.0)..(p_hi + 2.0),
+            )
+            .map_err(plot_error)?;
+        chart
+            .configure_mesh()
+            .x_desc("bytes")
+            .y_desc("CPU render PSNR (dB)")
+            .draw()
+            .map_err(plot_error)?;
+        let mut lines: Vec<String> = rows.iter().map(|r| r.line()).collect();
+        lines.dedup();
+        for (i, line) in lines.into_iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            let mut points: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.line() == line)
+                .map(|r| (r.bytes as f64, r.psnr_db))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
             chart
-                .configure_mesh()
-                .x_desc("bytes")
-                .y_desc("CPU render PSNR (dB)")
-                .draw()
-                .map_err(|e| plot_error(e.to_string()))?;
-            let mut lines: Vec<String> = rows.iter().map(|r| r.line()).collect();
-            lines.dedup();
-            for (i, line) in lines.into_iter().enumerate() {
-                let color = Palette99::pick(i).to_rgba();
-                let mut points: Vec<(f64, f64)> = rows
-                    .iter()
-                    .filter(|r| r.line() == line)
-                    .map(|r| (r.bytes as f64, r.psnr_db))
-                    .collect();
-                points.sort_by(|a, b| a.0.total_cmp(&b.0));
-                chart
-                    .draw_series(LineSeries::new(points, color.stroke_width(2)).point_size(4))
-                    .map_err(|e| plot_error(e.to_string()))?
-                    .label(line)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
-            }
-            chart
-                .configure_series_labels()
-                .border_style(BLACK)
-                .background_style(WHITE.mix(0.8))
-                .draw()
-                .map_err(|e| plot_error(e.to_string()))?;
+                .draw_series(LineSeries::new(points, color.stroke_width(2)).point_size(4))
+                .map_err(plot_error)?
+                .label(line)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
         }
-        root.present().map_err(|e| plot_error(e.to_string()))?;
-    }
-    Ok(svg)
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.8))
+            .draw()
+            .map_err(plot_error)?;
+        Ok(())
+    })
 }

@@ -8,5 +8,6 @@
 pub mod accuracy;
 pub mod codecs;
 pub mod gi;
+pub mod plot;
 pub mod quality;
 pub mod render;

@@ -15,6 +15,7 @@ use crate::render::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
+use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::package::{ScenePackageParams, scene_package};
 use crate::scene::{Effect, LoadedScene};
 use crate::util::limits::Limits;
@@ -230,52 +231,40 @@ pub fn markdown(report: &QualityReport) -> String {
 /// setting, labelled.
 pub fn svg_plot(report: &QualityReport) -> Result<String> {
     use plotters::prelude::*;
-    let plot_error = |e: String| Error::InvalidParameter(format!("plotting failed: {e}"));
     let scenes: Vec<&str> = report.truths.iter().map(|(s, _)| s.as_str()).collect();
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (600 * scenes.len().max(1) as u32, 480))
-            .into_drawing_area();
-        root.fill(&WHITE).map_err(|e| plot_error(e.to_string()))?;
-        for (panel, scene) in root
-            .split_evenly((1, scenes.len().max(1)))
-            .iter()
-            .zip(&scenes)
-        {
-            let rows: Vec<&QualityRow> = report.rows.iter().filter(|r| r.scene == *scene).collect();
-            let fold = |f: &dyn Fn(&QualityRow) -> f64| {
-                rows.iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
-                        (lo.min(f(r)), hi.max(f(r)))
-                    })
-            };
-            let (t_lo, t_hi) = fold(&|r| r.cpu_s);
-            let (p_lo, p_hi) = fold(&|r| r.psnr_db);
-            let mut chart = ChartBuilder::on(panel)
-                .caption(
-                    format!("{scene}: PSNR against CPU time"),
-                    ("sans-serif", 18),
-                )
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(56)
-                .build_cartesian_2d((t_lo * 0.8)..(t_hi * 1.25), (p_lo - 1.5)..(p_hi + 1.5))
-                .map_err(|e| plot_error(e.to_string()))?;
-            chart
-                .configure_mesh()
-                .x_desc("CPU render seconds")
-                .y_desc("PSNR against the truth (dB)")
-                .draw()
-                .map_err(|e| plot_error(e.to_string()))?;
-            chart
-                .draw_series(rows.iter().map(|r| {
-                    EmptyElement::at((r.cpu_s, r.psnr_db))
-                        + Circle::new((0, 0), 4, BLUE.filled())
-                        + Text::new(r.quality.clone(), (6, -6), ("sans-serif", 12))
-                }))
-                .map_err(|e| plot_error(e.to_string()))?;
-        }
-        root.present().map_err(|e| plot_error(e.to_string()))?;
-    }
-    Ok(svg)
+    scene_panels(&scenes, |panel, scene| {
+        let rows: Vec<&QualityRow> = report.rows.iter().filter(|r| r.scene == *scene).collect();
+        let fold = |f: &dyn Fn(&QualityRow) -> f64| {
+            rows.iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+                    (lo.min(f(r)), hi.max(f(r)))
+                })
+        };
+        let (t_lo, t_hi) = fold(&|r| r.cpu_s);
+        let (p_lo, p_hi) = fold(&|r| r.psnr_db);
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("{scene}: PSNR against CPU time"),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .build_cartesian_2d((t_lo * 0.8)..(t_hi * 1.25), (p_lo - 1.5)..(p_hi + 1.5))
+            .map_err(plot_error)?;
+        chart
+            .configure_mesh()
+            .x_desc("CPU render seconds")
+            .y_desc("PSNR against the truth (dB)")
+            .draw()
+            .map_err(plot_error)?;
+        chart
+            .draw_series(rows.iter().map(|r| {
+                EmptyElement::at((r.cpu_s, r.psnr_db))
+                    + Circle::new((0, 0), 4, BLUE.filled())
+                    + Text::new(r.quality.clone(), (6, -6), ("sans-serif", 12))
+            }))
+            .map_err(plot_error)?;
+        Ok(())
+    })
 }
