@@ -42,6 +42,12 @@ impl BakeObserver for Progress {
     fn progress(&self, done: u64, total: u64) {
         self.set(done, total);
     }
+
+    /// Relabels the bar with the stage's name and starts it over.
+    fn stage(&self, name: &str) {
+        self.0.set_message(name.replace('_', " "));
+        self.0.set_position(0);
+    }
 }
 
 /// Prints a `--json` summary: one line on stdout.

@@ -84,7 +84,10 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         }
     };
     let source = package.as_ref().map_or(GdmSource::Bake, GdmSource::Package);
-    let progress = Progress::new("baking GDM (exact)");
+    let progress = Progress::new(match (method, &source) {
+        (RenderMethod::Gdm, GdmSource::Bake) => "baking GDM (exact)",
+        _ => "rendering",
+    });
     let mut rendered = render_substituted(&loaded, method, source, substitute, limits, &progress)?;
     progress.finish();
     rendered.seconds.load = load_s;

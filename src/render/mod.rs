@@ -15,10 +15,12 @@ pub mod prism_map;
 pub mod quality;
 pub mod truth;
 
+use crate::bake::gdm::BakeObserver;
 use crate::scene::Camera;
 use glam::DVec3;
 use image::Image;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Pixels per side of the square tiles rendered in parallel: neighbouring rays read
 /// neighbouring texels, so tiles keep them in cache (rows of 512 pixels did not).
@@ -30,20 +32,33 @@ pub fn render_image(
     camera: &Camera,
     radiance: impl Fn(DVec3, DVec3) -> Option<DVec3> + Sync,
 ) -> Image {
+    render_image_observed(camera, &(), radiance)
+}
+
+/// [`render_image`], reporting the tiles done to `observer` as they finish.
+pub fn render_image_observed(
+    camera: &Camera,
+    observer: &dyn BakeObserver,
+    radiance: impl Fn(DVec3, DVec3) -> Option<DVec3> + Sync,
+) -> Image {
     let (w, h) = (camera.width, camera.height);
     let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
+    let total = u64::from(tiles_x * tiles_y);
+    let done = AtomicU64::new(0);
     let tiles: Vec<Vec<Option<DVec3>>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|t| {
             let (x0, y0) = (t % tiles_x * TILE, t / tiles_x * TILE);
             let pixels = (y0..(y0 + TILE).min(h))
                 .flat_map(|y| (x0..(x0 + TILE).min(w)).map(move |x| (x, y)));
-            pixels
+            let tile = pixels
                 .map(|(x, y)| {
                     let (o, d) = camera.ray(x, y);
                     radiance(o, d)
                 })
-                .collect()
+                .collect();
+            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+            tile
         })
         .collect();
     let mut image = Image::new(w, h);
@@ -60,4 +75,41 @@ pub fn render_image(
         }
     }
     image
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Mutex;
+
+    /// Records every progress report.
+    #[derive(Default)]
+    struct Recorder(Mutex<Vec<(u64, u64)>>);
+
+    impl BakeObserver for Recorder {
+        fn progress(&self, done: u64, total: u64) {
+            self.0.lock().unwrap().push((done, total));
+        }
+    }
+
+    #[test]
+    fn observed_renders_report_each_tile_once_and_end_at_the_total() {
+        // 40×20 pixels: 3×2 tiles of 16 (the last ones partial).
+        let camera = Camera {
+            eye: [0.0, 0.0, 1.0],
+            target: [0.0, 0.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y_degrees: 40.0,
+            width: 40,
+            height: 20,
+        };
+        let recorder = Recorder::default();
+        let image = render_image_observed(&camera, &recorder, |_, d| Some(d.abs()));
+        assert_eq!(image.hits(), 800);
+        let mut reports = recorder.0.into_inner().unwrap();
+        reports.sort();
+        assert_eq!(reports, (1..=6).map(|k| (k, 6)).collect::<Vec<_>>());
+        // The same image as without an observer.
+        assert_eq!(render_image(&camera, |_, d| Some(d.abs())), image);
+    }
 }

@@ -9,7 +9,7 @@ use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
 use crate::render::image::Image;
 use crate::render::path_tracer::PathTracer;
-use crate::render::render_image;
+use crate::render::render_image_observed;
 use crate::render::truth::TruthRenderer;
 use crate::scene::gi::{GiReport, GiShading};
 use crate::scene::{Effect, LoadedScene, Scene};
@@ -123,7 +123,9 @@ pub fn render_substituted(
         RenderMethod::Truth if environment => {
             let start = Instant::now();
             let tracer = PathTracer::new(loaded, scene.gi.path_samples, scene.gi.path_depth)?;
-            let image = render_image(&scene.camera, |o, d| tracer.radiance(scene, o, d));
+            observer.stage("rendering");
+            let image =
+                render_image_observed(&scene.camera, observer, |o, d| tracer.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -137,7 +139,9 @@ pub fn render_substituted(
         RenderMethod::Explicit => {
             let start = Instant::now();
             let r = ExplicitRenderer::new(loaded, limits)?;
-            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            observer.stage("rendering");
+            let image =
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -145,7 +149,9 @@ pub fn render_substituted(
             let start = Instant::now();
             let caster = loaded.mesostructure.caster();
             let r = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
-            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            observer.stage("rendering");
+            let image =
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -193,7 +199,9 @@ pub fn render_substituted(
             if let Some(gi) = &gi {
                 r = r.with_gi(gi);
             }
-            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            observer.stage("rendering");
+            let image =
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
