@@ -62,7 +62,7 @@ fn cpu_image(loaded: &LoadedScene, package: &Package) -> Image {
 
 /// Renders on both and checks the agreement; returns (PSNR, mask disagreement).
 fn agreement(loaded: &LoadedScene, package: &Package, label: &str) -> (f64, f64) {
-    let (gpu, report) = preview(&Gpu::open(None).unwrap(), loaded, package, 0).unwrap();
+    let (gpu, report) = preview(&Gpu::open(None).unwrap(), loaded, package, 0, &()).unwrap();
     let cpu = cpu_image(loaded, package);
     let c = compare(&gpu, &cpu).unwrap();
     eprintln!(

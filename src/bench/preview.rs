@@ -86,7 +86,7 @@ pub fn run(
                     let preview = Preview::new(&gpu, &loaded, &package, early_z)?;
                     Ok((
                         preview.variant().early_depth_test,
-                        preview.time_frames(frames)?,
+                        preview.time_frames(frames, &())?,
                     ))
                 };
                 let (has_early_z, gpu_seconds) = time(true)?;

@@ -103,7 +103,10 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     };
     let package_s = start.elapsed().as_secs_f64();
     let device = PreviewDevice::open(adapter.as_deref(), fallback)?;
-    let (image, outcome) = device.render(&loaded, &package, frames)?;
+    let progress = Progress::new("rendering");
+    let rendered = device.render(&loaded, &package, frames, &progress);
+    progress.finish();
+    let (image, outcome) = rendered?;
     image.write(&out)?;
     let on = match (&outcome.gpu, &outcome.fallback_reason) {
         (Some(report), _) => format!("{} ({})", report.adapter.name, report.variant.name()),

@@ -511,7 +511,8 @@ pub(crate) fn gemm<T: GemmScalar>(
 /// (AᵀA is symmetric), which saves up to half the work of the full product.
 const GRAM_PANEL: usize = 128;
 
-/// AᵀA: per block in f32, accumulated in f64 in block order.
+/// AᵀA: per block in f32, accumulated in f64 in block order; blocks done are reported to
+/// `observer`.
 fn gram_matrix(
     a: &dyn RowSource,
     block: usize,
@@ -521,7 +522,10 @@ fn gram_matrix(
     let panels: Vec<(usize, usize)> = (0..n.div_ceil(GRAM_PANEL))
         .map(|p| (p * GRAM_PANEL, GRAM_PANEL.min(n - p * GRAM_PANEL)))
         .collect();
-    let partial: Vec<Vec<f32>> = blocks(a.rows(), block)
+    let all = blocks(a.rows(), block);
+    let total = all.len() as u64;
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let partial: Vec<Vec<f32>> = all
         .into_par_iter()
         .map(|(start, count)| {
             if observer.cancelled() {
@@ -539,6 +543,8 @@ fn gram_matrix(
                     gemm(pw, count, qw, at, b, (&mut g[p0 * n + q0..], n, 1));
                 }
             }
+            let finished = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            observer.progress(finished, total);
             Ok(g)
         })
         .collect::<Result<_>>()?;

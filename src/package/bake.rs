@@ -175,6 +175,7 @@ pub fn bake_package(
     seconds.bake = start.elapsed().as_secs_f64();
 
     let info = bake_info(&g, params.method, params.fast, params.allow_open);
+    observer.stage("compress");
     let gdm = GdmPayload::PaperSvd(Box::new(compress_gdm(
         &g,
         params,

@@ -9,6 +9,7 @@ use super::resources::{
     upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
 use super::variant::ShaderVariant;
+use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::package::Package;
 use crate::package::manifest::GdmCodec;
@@ -564,14 +565,15 @@ impl<'g> Preview<'g> {
     }
 
     /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
-    /// and waited for.
-    pub fn time_frames(&self, frames: u32) -> Result<f64> {
+    /// and waited for, reported to `observer` as it finishes.
+    pub fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
         self.submit_frame(false);
         self.gpu.wait()?;
         let start = Instant::now();
-        for _ in 0..frames {
+        for frame in 1..=frames {
             self.submit_frame(false);
             self.gpu.wait()?;
+            observer.progress(frame.into(), frames.into());
         }
         Ok(start.elapsed().as_secs_f64() / frames.max(1) as f64)
     }

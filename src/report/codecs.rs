@@ -262,7 +262,7 @@ pub fn codec_report(
             let realtime = match &gpu {
                 Some(gpu) => {
                     let (image, preview) =
-                        crate::scene::preview::preview(gpu, loaded, &package, sweep.frames)?;
+                        crate::scene::preview::preview(gpu, loaded, &package, sweep.frames, &())?;
                     let c = compare(&truth, &image)?;
                     (preview.mean_frame_seconds.map(|s| s * 1e3), Some(c.psnr_db))
                 }

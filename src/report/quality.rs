@@ -154,7 +154,7 @@ pub fn quality_report(
             let (frame_ms, realtime_psnr_db) = match &gpu {
                 Some(gpu) => {
                     loaded.scene.quality = quality;
-                    let result = crate::scene::preview::preview(gpu, loaded, &package, frames);
+                    let result = crate::scene::preview::preview(gpu, loaded, &package, frames, &());
                     loaded.scene.quality = scene_quality;
                     let (image, preview) = result?;
                     let c = compare(&truth, &image)?;

@@ -2,6 +2,7 @@
 //! renders a scene with its package ([`crate::scene::package`]) on the GPU and optionally
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
 
+use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::package::Package;
 use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
@@ -78,16 +79,18 @@ impl PreviewDevice {
         }
     }
 
-    /// Renders `loaded` with `package`; with `frames` > 0, also times that many frames.
+    /// Renders `loaded` with `package`; with `frames` > 0, also times that many frames,
+    /// reporting them to `observer` (stage `timing frames`).
     pub fn render(
         &self,
         loaded: &LoadedScene,
         package: &Package,
         frames: u32,
+        observer: &dyn BakeObserver,
     ) -> Result<(Image, PreviewOutcome)> {
         match self {
             PreviewDevice::Gpu(gpu) => {
-                let (image, report) = preview(gpu, loaded, package, frames)?;
+                let (image, report) = preview(gpu, loaded, package, frames, observer)?;
                 let outcome = PreviewOutcome {
                     renderer: self.renderer(),
                     fallback_reason: None,
@@ -98,9 +101,11 @@ impl PreviewDevice {
             }
             PreviewDevice::Cpu { reason } => {
                 let image = render_on_cpu(loaded, package)?;
+                observer.stage("timing frames");
                 let start = Instant::now();
-                for _ in 0..frames {
+                for frame in 1..=frames {
                     render_on_cpu(loaded, package)?;
+                    observer.progress(frame.into(), frames.into());
                 }
                 let mean = (frames > 0).then(|| start.elapsed().as_secs_f64() / frames as f64);
                 let outcome = PreviewOutcome {
@@ -177,6 +182,7 @@ pub fn preview(
     loaded: &LoadedScene,
     package: &Package,
     frames: u32,
+    observer: &dyn BakeObserver,
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
     let preview = Preview::new(gpu, loaded, package, true)?;
@@ -185,7 +191,8 @@ pub fn preview(
     let image = preview.render()?;
     let first_frame_seconds = start.elapsed().as_secs_f64();
     let mean_frame_seconds = if frames > 0 {
-        Some(preview.time_frames(frames)?)
+        observer.stage("timing frames");
+        Some(preview.time_frames(frames, observer)?)
     } else {
         None
     };

@@ -84,7 +84,7 @@ fn render_png(
         *guard = Some(device);
     }
     let device = guard.as_ref().expect("opened above");
-    let (image, _) = device.render(&loaded, &package, 0)?;
+    let (image, _) = device.render(&loaded, &package, 0, &())?;
     Ok((image.to_png()?, device.renderer()))
 }
 
