@@ -258,16 +258,6 @@ impl<'a> TruthRenderer<'a> {
         }
     }
 
-    /// The exact Jacobian of prism `prism`'s mapping at texture point `texture` (voxel
-    /// units): it maps texture vectors in voxel units to object space. `None` where it is
-    /// singular.
-    pub fn jacobian(&self, prism: usize, texture: DVec3) -> Option<DMat3> {
-        let prism = &self.shell.prisms[prism];
-        let j = prism.jacobian(prism.point_at_texture(texture / self.scale)?)?;
-        let j = j * DMat3::from_diagonal(self.scale.recip());
-        (j.determinant() != 0.0).then_some(j)
-    }
-
     /// Whether anything in the shell blocks the ray from `start` along unit `dir` within
     /// `distance` (the shadow test).
     pub fn blocked(&self, start: DVec3, dir: DVec3, distance: f64) -> bool {
