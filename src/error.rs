@@ -56,6 +56,16 @@ pub enum Error {
     Cancelled,
 }
 
+impl From<mesobake_package::Error> for Error {
+    fn from(e: mesobake_package::Error) -> Self {
+        match e {
+            mesobake_package::Error::InvalidParameter(m) => Error::InvalidParameter(m),
+            mesobake_package::Error::Package(m) => Error::Package(m),
+            mesobake_package::Error::Io { path, source } => Error::Io { path, source },
+        }
+    }
+}
+
 /// Result with mesobake's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 

@@ -27,7 +27,6 @@ pub mod bench;
 pub mod client;
 pub mod compress;
 pub mod error;
-pub mod grid;
 pub mod mesostructure;
 pub mod package;
 pub mod realtime;
@@ -39,3 +38,5 @@ pub mod surface;
 pub mod util;
 
 pub use error::{Error, Result};
+/// The sampling grids, shared with the package format (crate `mesobake-package`).
+pub use mesobake_package::grid;

@@ -8,6 +8,7 @@ use mesobake::compress::quantize::Quantization;
 use mesobake::compress::svd::{GramEigen, RankChoice};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::mesostructure::volume::Occupancy;
 use mesobake::package::bake::{PackageParams, bake_info, bake_package};
 use mesobake::package::manifest::{GdmCodec, InputInfo, Manifest};
 use mesobake::package::{GdmPayload, OCCUPANCY_SECTION, Package};
@@ -162,7 +163,7 @@ fn an_occupancy_package_holds_the_voxels_and_reconstructs_the_exact_gdm() {
     let volume =
         samples::volume(SampleKind::Chain, Dims::new(16, 16, 8).unwrap(), &limits).unwrap();
     let field = pkg.occupancy().unwrap().unwrap();
-    assert_eq!(field.occupancy(), volume.occupancy());
+    assert_eq!(Occupancy::of_field(&field), volume.occupancy());
     assert_eq!(
         m.occupancy.as_ref().unwrap().solid_voxels,
         volume.occupancy().solid_count()

@@ -748,9 +748,8 @@ fn occupancy_lookups_are_exact_on_a_slab_against_the_closed_form() {
     // after (t.z − 3)/(−v.z) and an upward one escapes; inside it the distance is 0. The
     // closed form knows nothing of voxels, DDA or empty-space distances; the march must
     // agree to round-off (1e-9 voxel), and a segment shorter than the distance misses.
-    use mesobake::compress::occupancy::OccupancyField;
     use mesobake::render::gdm_lookup::{GdmLookup, Lookup, OccupancyLookup};
-    let lookup = OccupancyLookup::new(&OccupancyField::new(&slab(3).occupancy()));
+    let lookup = OccupancyLookup::new(&slab(3).occupancy().field());
     let (mut hits, mut escapes) = (0, 0);
     for (t, v) in random_queries(20_000) {
         let expected = if t.z <= 3.0 {

@@ -20,34 +20,11 @@ use rayon::prelude::*;
 /// Resolution of the relative escape margin.
 pub const MARGIN_STEP: f32 = 1.0 / 1024.0;
 
-/// Largest relative escape margin considered.
-pub const MAX_MARGIN: f32 = 0.5;
+pub use mesobake_package::svd::{MAX_ESCAPE_MARGIN as MAX_MARGIN, is_escape};
 
 const MARGIN_BINS: usize = (MAX_MARGIN / MARGIN_STEP) as usize + 1;
 
-/// Error statistics of a reconstructed GDM against its reference, in voxels.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Accuracy {
-    /// Root-mean-square error over all samples (escapes compared as boundary distances).
-    pub rmse: f64,
-    /// Largest absolute error.
-    pub max_abs: f64,
-    /// The relative escape margin μ chosen (see the module documentation).
-    pub escape_margin: f32,
-    /// Samples whose hit/escape classification differs from the reference's.
-    pub flips: u64,
-    /// `flips` over all samples.
-    pub flip_rate: f64,
-    /// Samples compared.
-    pub samples: u64,
-}
-
-/// Whether a reconstructed value `d` at boundary distance `boundary` is an escape under the
-/// package's relative `margin`.
-pub fn is_escape(d: f32, boundary: f32, margin: f32) -> bool {
-    d >= (1.0 - margin) * boundary
-}
+pub use mesobake_package::manifest::Accuracy;
 
 /// Measures the reconstruction W·Eᵀ (row-major m × k and n × k, in the [`GdmRows`] layout)
 /// against `reference` (boundary convention) and chooses the escape margin.

@@ -5,8 +5,11 @@
 pub mod accuracy;
 pub mod gdm;
 pub mod layout;
-pub mod occupancy;
-pub mod quantize;
 pub mod split;
 pub mod svd;
 pub mod tiled;
+
+/// The occupancy codec, part of the package format.
+pub use mesobake_package::occupancy;
+/// Quantization of the SVD factors, part of the package format.
+pub use mesobake_package::quantize;

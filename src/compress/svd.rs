@@ -114,15 +114,7 @@ impl RowSource for DenseRows<'_> {
     }
 }
 
-/// How many components to keep.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum RankChoice {
-    /// Exactly this many (fewer if the matrix has lower numerical rank).
-    Rank(usize),
-    /// The fewest whose optimal root-mean-square error over all entries is at most this.
-    MaxRmse(f64),
-}
+pub use mesobake_package::manifest::RankChoice;
 
 /// A rank-k factorization A ≈ W·Eᵀ.
 #[derive(Clone, Debug, PartialEq)]

@@ -7,9 +7,8 @@
 
 use crate::grid::Wrap;
 use crate::mesostructure::volume::Occupancy;
-
-/// Distances saturate at this value (meaning "at least this far").
-pub const MAX_DISTANCE: u8 = u8::MAX;
+pub use mesobake_package::occupancy::MAX_DISTANCE;
+use mesobake_package::occupancy::chebyshev_distances;
 
 /// Per-voxel Chebyshev distance to the nearest solid voxel (0 for solid voxels).
 #[derive(Clone, Debug)]
@@ -21,44 +20,15 @@ pub struct EmptySpace {
 }
 
 impl EmptySpace {
-    /// Computes the distances with three separable passes (x, y, z): after the x pass a voxel
-    /// holds the distance along its row; the y and z passes take min over the line of
-    /// max(|offset|, previous), which is the L∞ distance.
+    /// Computes the distances ([`chebyshev_distances`], shared with the package format's
+    /// occupancy codec).
     pub fn new(occ: &Occupancy) -> Self {
         let dims = occ.dims();
-        let (nx, ny, nz) = (dims.x as usize, dims.y as usize, dims.z as usize);
-        let cap = MAX_DISTANCE as u32;
-        let mut dist = vec![cap; nx * ny * nz];
-
-        // x pass: periodic 1D distance to the nearest solid voxel in the row.
-        let mut row = vec![cap; nx];
-        for k in 0..nz {
-            for j in 0..ny {
-                for (i, r) in row.iter_mut().enumerate() {
-                    *r = if occ.get(i as u32, j as u32, k as u32) {
-                        0
-                    } else {
-                        cap
-                    };
-                }
-                let out = &mut dist[(k * ny + j) * nx..][..nx];
-                min_max_pass(&row, out, true);
-            }
-        }
-        // y pass (periodic), then z pass (not periodic: outside the volume nothing is solid).
-        pass_along_lines(
-            &mut dist,
-            ny,
-            nx,
-            (0..nz).flat_map(|k| (0..nx).map(move |i| k * ny * nx + i)),
-            true,
-        );
-        pass_along_lines(&mut dist, nz, nx * ny, 0..nx * ny, false);
         EmptySpace {
             wrap: [Wrap::new(dims.x), Wrap::new(dims.y)],
-            nx: nx as i64,
-            ny: ny as i64,
-            distance: dist.into_iter().map(|d| d.min(cap) as u8).collect(),
+            nx: dims.x as i64,
+            ny: dims.y as i64,
+            distance: chebyshev_distances(dims, |i, j, k| occ.get(i, j, k)),
         }
     }
 
@@ -73,52 +43,6 @@ impl EmptySpace {
         let i = self.wrap[0].apply(i) as i64;
         let j = self.wrap[1].apply(j) as i64;
         self.distance[((k * self.ny + j) * self.nx + i) as usize]
-    }
-}
-
-/// Runs [`min_max_pass`] along every line of `len` values `step` apart starting at `starts`.
-fn pass_along_lines(
-    dist: &mut [u32],
-    len: usize,
-    step: usize,
-    starts: impl Iterator<Item = usize>,
-    periodic: bool,
-) {
-    let mut line = vec![0; len];
-    let mut res = vec![0; len];
-    for start in starts {
-        for (n, l) in line.iter_mut().enumerate() {
-            *l = dist[start + n * step];
-        }
-        min_max_pass(&line, &mut res, periodic);
-        for (n, r) in res.iter().enumerate() {
-            dist[start + n * step] = *r;
-        }
-    }
-}
-
-/// out[c] = min over offsets o of max(|o|, f[c+o]), capped at [`MAX_DISTANCE`]; indices wrap
-/// when `periodic`, otherwise lie inside the line.
-fn min_max_pass(f: &[u32], out: &mut [u32], periodic: bool) {
-    let n = f.len() as i64;
-    let reach = if periodic { n / 2 + 1 } else { n };
-    for c in 0..n {
-        let mut best = f[c as usize];
-        let mut o = 1;
-        while o < best as i64 && o <= reach {
-            for p in [c - o, c + o] {
-                let idx = if periodic {
-                    p.rem_euclid(n)
-                } else if (0..n).contains(&p) {
-                    p
-                } else {
-                    continue;
-                };
-                best = best.min((o as u32).max(f[idx as usize]));
-            }
-            o += 1;
-        }
-        out[c as usize] = best;
     }
 }
 

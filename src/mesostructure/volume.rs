@@ -4,6 +4,7 @@
 use crate::error::{Error, Result};
 use crate::grid::{Dims, Wrap};
 use crate::util::limits::Limits;
+use mesobake_package::occupancy::OccupancyField;
 
 /// A tileable X×Y×Z mesostructure volume. Voxel (i, j, k) is the box [i,i+1]×[j,j+1]×[k,k+1]
 /// in voxel units; it is solid when its density is at least the threshold.
@@ -136,6 +137,22 @@ pub struct Occupancy {
 }
 
 impl Occupancy {
+    /// The occupancy that `field` encodes (its solid voxels).
+    pub fn of_field(field: &OccupancyField) -> Self {
+        let dims = field.dims();
+        let mut occ = Occupancy::empty(dims);
+        for (v, _) in field.bytes().iter().enumerate().filter(|(_, d)| **d == 0) {
+            let (i, j, k) = unravel(dims, v);
+            occ.set(i as u32, j as u32, k as u32);
+        }
+        occ
+    }
+
+    /// This occupancy as the occupancy codec stores it, with its empty-space distances.
+    pub fn field(&self) -> OccupancyField {
+        OccupancyField::from_solid(self.dims, |i, j, k| self.get(i, j, k))
+    }
+
     /// All voxels empty.
     pub fn empty(dims: Dims) -> Self {
         let words_per_row = (dims.x as usize).div_ceil(64);

@@ -6,7 +6,6 @@ use crate::bake::gdm::fast::FastParams;
 use crate::bake::gdm::{self, BakeObserver, EscapeConvention, Gdm, Method};
 use crate::compress::gdm::{CompressedGdm, compress};
 use crate::compress::layout::GdmRows;
-use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::{GramEigen, RankChoice};
 use crate::error::{Error, Result};
@@ -144,7 +143,7 @@ pub fn bake_package(
     let start = Instant::now();
     if params.codec == GdmCodec::Occupancy {
         observer.stage("occupancy");
-        let field = OccupancyField::new(meso.caster().centres_inside());
+        let field = meso.caster().centres_inside().field();
         let info = BakeInfo {
             res: [field.dims().x, field.dims().y, field.dims().z],
             dirs: [params.dirs.n_theta, params.dirs.n_phi],

@@ -3,23 +3,16 @@
 //! texture, and the macro-scale PRT as one buffer of 16×16 matrices.
 
 use super::Package;
-use super::manifest::{GiInfo, Section, TexelFormat, Texture, TextureDimension};
-use crate::bake::gi::compressed_rtv::{CompressedRtv, MATRICES};
+use super::manifest::GiInfo;
+use crate::bake::gi::compressed_rtv::CompressedRtv;
 use crate::bake::gi::prt::geometry_hash;
 use crate::bake::gi::sh::{COEFFS, ShMatrix};
 use crate::error::{Error, Result};
-use crate::grid::{Dims, DirectionGrid};
 use crate::surface::base_mesh::BaseMesh;
 use half::f16;
+use mesobake_package::GiContent;
 
-/// Section holding the sample index of every voxel (`u32::MAX`: not a sample).
-pub const RTV_INDEX: &str = "rtv.index";
-/// Section holding the weights of every sample, matrix and component.
-pub const RTV_WEIGHTS: &str = "rtv.weights";
-/// Section holding the eigenfunctions over the view bins.
-pub const RTV_EIGEN: &str = "rtv.eigen";
-/// Section holding the per-vertex PRT matrices.
-pub const PRT_TRANSFER: &str = "prt.transfer";
+pub use mesobake_package::gi::{PRT_TRANSFER, RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
 
 /// What a package holds for global illumination besides the GDM.
 pub struct GiPayload<'a> {
@@ -31,77 +24,32 @@ pub struct GiPayload<'a> {
     pub prt: &'a [ShMatrix],
 }
 
-/// The four GI sections' textures for `info` on the package's grids, in file order.
-pub(super) fn textures(
-    info: &GiInfo,
-    dims: Dims,
-    dirs: DirectionGrid,
-) -> [(&'static str, Texture); 4] {
-    let texture = |dimension, format, width, height, depth| Texture {
-        dimension,
-        format,
-        width,
-        height,
-        depth,
-    };
-    use TexelFormat::{R16float, R32float, R32uint};
-    use TextureDimension::{Buffer, D3};
-    let per_sample = (MATRICES * info.compression.rank) as u32;
-    let eigen = per_sample.saturating_mul(dirs.n_theta * dirs.n_phi);
-    [
-        (RTV_INDEX, texture(D3, R32uint, dims.x, dims.y, dims.z)),
-        (
-            RTV_WEIGHTS,
-            texture(
-                Buffer,
-                R16float,
-                info.samples.saturating_mul(per_sample),
-                1,
-                1,
-            ),
-        ),
-        (RTV_EIGEN, texture(Buffer, R16float, eigen, 1, 1)),
-        (
-            PRT_TRANSFER,
-            texture(
-                Buffer,
-                R32float,
-                info.vertices.saturating_mul((COEFFS * COEFFS) as u32),
-                1,
-                1,
-            ),
-        ),
-    ]
-}
-
-/// The GI sections of `gi` with their bytes, in file order.
-pub(super) fn sections(gi: &GiPayload, dims: Dims, dirs: DirectionGrid) -> Vec<(Section, Vec<u8>)> {
+/// The GI sections of `gi` as the format crate's writer takes them.
+pub(super) fn content(gi: &GiPayload) -> GiContent {
     let halves = |values: &[f32]| -> Vec<u8> {
         values
             .iter()
             .flat_map(|&v| f16::from_f32(v).to_le_bytes())
             .collect()
     };
-    let payloads = [
-        gi.rtv
-            .sample_map()
-            .iter()
-            .flat_map(|s| s.to_le_bytes())
-            .collect(),
-        halves(gi.rtv.weights()),
-        halves(gi.rtv.eigen()),
-        gi.prt
-            .iter()
-            .flatten()
-            .flatten()
-            .flat_map(|&v| (v as f32).to_le_bytes())
-            .collect(),
-    ];
-    textures(&gi.info, dims, dirs)
-        .into_iter()
-        .zip(payloads)
-        .map(|((name, texture), bytes)| (Section::new(name, texture), bytes))
-        .collect()
+    GiContent {
+        info: gi.info.clone(),
+        sections: [
+            gi.rtv
+                .sample_map()
+                .iter()
+                .flat_map(|s| s.to_le_bytes())
+                .collect(),
+            halves(gi.rtv.weights()),
+            halves(gi.rtv.eigen()),
+            gi.prt
+                .iter()
+                .flatten()
+                .flatten()
+                .flat_map(|&v| (v as f32).to_le_bytes())
+                .collect(),
+        ],
+    }
 }
 
 impl Package {

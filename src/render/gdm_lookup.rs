@@ -27,6 +27,7 @@ use crate::compress::quantize::QuantizedFactor;
 use crate::compress::split::SplitGdm;
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid, Wrap};
+use crate::mesostructure::volume::Occupancy;
 use crate::package::Package;
 use glam::DVec3;
 use std::f64::consts::{PI, TAU};
@@ -101,7 +102,7 @@ impl OccupancyLookup {
     /// Prepares `field` for marching.
     pub fn new(field: &OccupancyField) -> Self {
         OccupancyLookup {
-            caster: VolumeCaster::from_occupancy(field.occupancy(), true),
+            caster: VolumeCaster::from_occupancy(Occupancy::of_field(field), true),
         }
     }
 
@@ -336,7 +337,7 @@ impl PackageLookup {
     ) -> Self {
         let boundary = (0..dirs.n_theta)
             .flat_map(|a| (0..dims.z).map(move |k| (a, k)))
-            .map(|(a, k)| crate::bake::gdm::boundary_distance(dims, &dirs, k, a))
+            .map(|(a, k)| crate::grid::boundary_distance(dims, &dirs, k, a))
             .collect();
         PackageLookup {
             dims,

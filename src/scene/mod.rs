@@ -379,12 +379,12 @@ impl Scene {
     /// The voxel grid.
     pub fn dims(&self) -> Result<Dims> {
         let [x, y, z] = self.resolution;
-        Dims::new(x, y, z)
+        Ok(Dims::new(x, y, z)?)
     }
 
     /// The direction grid.
     pub fn dirs(&self) -> Result<DirectionGrid> {
-        DirectionGrid::new(self.directions[0], self.directions[1])
+        Ok(DirectionGrid::new(self.directions[0], self.directions[1])?)
     }
 
     fn validate(&self) -> Result<()> {

@@ -13,7 +13,6 @@ use crate::bake::gdm::{BakeObserver, EscapeConvention, Method};
 use crate::bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
 use crate::bake::gi::prt::geometry_hash;
 use crate::bake::gi::rtv::{self, RtvStats};
-use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
@@ -130,7 +129,7 @@ pub fn bake_scene_package(
         _ => {
             let start = Instant::now();
             observer.stage("occupancy");
-            let field = OccupancyField::new(loaded.mesostructure.caster().centres_inside());
+            let field = loaded.mesostructure.caster().centres_inside().field();
             seconds.push(("occupancy".to_owned(), start.elapsed().as_secs_f64()));
             GdmPayload::Occupancy(field)
         }

@@ -23,26 +23,7 @@ use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
 use crate::util::limits::Limits;
 
-/// The knobs of the fast bake.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FastParams {
-    /// Layers crossed exactly before reading the layer already baked (≥ 1).
-    pub stride: u32,
-    /// Hit distances of the four neighbours may differ by this many voxels and still be
-    /// interpolated; beyond it (and where neighbours disagree on hit or escape, or more than
-    /// half their weight lies in solid) the ray is traced exactly to the end.
-    pub max_spread: f32,
-}
-
-impl Default for FastParams {
-    fn default() -> Self {
-        FastParams {
-            stride: 2,
-            max_spread: 1.0,
-        }
-    }
-}
+pub use mesobake_package::manifest::FastParams;
 
 /// Bakes with layer sweeps, in parallel over directions.
 pub fn bake(

@@ -16,7 +16,7 @@ pub mod template;
 pub mod volume_caster;
 
 use crate::error::Result;
-use crate::grid::{Dims, DirectionGrid};
+use crate::grid::{Dims, DirectionGrid, boundary_distance};
 use crate::util::limits::Limits;
 
 /// How a GDM stores rays that escape without a hit.
@@ -209,40 +209,7 @@ impl Gdm {
     }
 }
 
-/// Distance from the centre of layer `k` to the top (cos θ > 0) or bottom plane along θ-bin `a`.
-pub fn boundary_distance(dims: Dims, dirs: &DirectionGrid, k: u32, a: u32) -> f32 {
-    let cos_theta = dirs.theta(a).cos();
-    let z = k as f64 + 0.5;
-    let d = if cos_theta > 0.0 {
-        (dims.z as f64 - z) / cos_theta
-    } else {
-        -z / cos_theta
-    };
-    d as f32
-}
-
-/// Which baking algorithm to use.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// One exact ray per sample and direction ([`exact::bake`]).
-    Exact,
-    /// Per-direction layer sweeps reusing the layer above ([`fast::bake`]).
-    Fast,
-}
-
-impl std::str::FromStr for Method {
-    type Err = crate::Error;
-    fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "exact" => Ok(Method::Exact),
-            "fast" => Ok(Method::Fast),
-            _ => Err(crate::Error::InvalidParameter(format!(
-                "method {s:?}: expected exact or fast"
-            ))),
-        }
-    }
-}
+pub use mesobake_package::manifest::Method;
 
 /// Bakes the GDM of `caster` on its grid with `method` (`fast`: the knobs of
 /// [`Method::Fast`]). Values use the [`EscapeConvention::Infinite`].

@@ -28,18 +28,16 @@ use glam::DVec3;
 use half::f16;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
-/// Most SVD components per matrix: the view basis has 16 functions, so rank 16 is exact.
-pub const MAX_RTV_RANK: usize = COEFFS;
+pub use mesobake_package::gi::MAX_RTV_RANK;
 
 /// Singular values below this fraction of the largest are treated as zero when choosing
 /// how many components to store.
 const NEGLIGIBLE: f64 = 1e-6;
 
 /// Matrices per RTV: 3 channels × 16 light coefficients.
-pub const MATRICES: usize = 3 * COEFFS;
+pub const MATRICES: usize = mesobake_package::gi::RTV_MATRICES;
 
 /// A compressed RTV.
 #[derive(Clone, Debug)]
@@ -54,22 +52,7 @@ pub struct CompressedRtv {
     eigen: Vec<f32>,
 }
 
-/// What compressing an RTV kept and cost.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RtvCompression {
-    /// Components kept per matrix.
-    pub rank: usize,
-    /// RMS difference between the transfer values at the bin centres and their f16
-    /// reconstruction, over all samples, views, channels and light coefficients.
-    pub rmse: f64,
-    /// `rmse` over the RMS of the transfer values.
-    pub relative_rmse: f64,
-    /// The optimal rank-r RMSE before rounding, sqrt(Σ_{k>r} σₖ² / entries).
-    pub svd_rmse: f64,
-    /// Per matrix m = 16·c + i, its singular values, descending (at most 16 are non-zero).
-    pub spectra: Vec<Vec<f64>>,
-}
+pub use mesobake_package::manifest::RtvCompression;
 
 impl CompressedRtv {
     /// Compresses `rtv` sampled on the view grid `dirs` to `rank` components per matrix;

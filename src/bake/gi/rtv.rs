@@ -68,14 +68,7 @@ pub struct Rtv {
 /// Marks a voxel that is not an RTV sample.
 pub const NO_SAMPLE: u32 = u32::MAX;
 
-/// The specular lobe of the RTV's material.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Glossy {
-    /// Linear specular colour k_s.
-    pub specular: [f64; 3],
-    /// Phong exponent s about the mirror direction (a Blinn–Phong exponent is about 4·s).
-    pub exponent: f64,
-}
+pub use mesobake_package::manifest::Glossy;
 
 /// The knobs of an RTV bake.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -35,7 +35,7 @@ use glam::{DMat3, DVec3};
 use std::f64::consts::PI;
 
 /// Coefficients per function: bands 0–3.
-pub const COEFFS: usize = 16;
+pub const COEFFS: usize = mesobake_package::gi::SH_COEFFS;
 
 /// An SH vector (one channel).
 pub type Sh = [f64; COEFFS];

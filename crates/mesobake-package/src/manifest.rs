@@ -1,13 +1,8 @@
 //! The JSON manifest of a package (see `docs/package-format.md`). Every map is a struct or a
 //! list, so serialization order is fixed and identical packages are byte-identical.
 
-use crate::bake::gdm::Method;
-use crate::bake::gdm::fast::FastParams;
-use crate::bake::gi::compressed_rtv::RtvCompression;
-use crate::bake::gi::rtv::Glossy;
-use crate::compress::accuracy::Accuracy;
-use crate::compress::quantize::Quantization;
-use crate::compress::svd::RankChoice;
+use crate::error::{Error, Result};
+use crate::quantize::Quantization;
 
 /// The value of [`Manifest::format`].
 pub const FORMAT_NAME: &str = "mesobake-package";
@@ -85,14 +80,14 @@ impl GdmCodec {
 }
 
 impl std::str::FromStr for GdmCodec {
-    type Err = crate::error::Error;
+    type Err = Error;
 
-    fn from_str(text: &str) -> crate::error::Result<GdmCodec> {
+    fn from_str(text: &str) -> Result<GdmCodec> {
         GdmCodec::ALL
             .into_iter()
             .find(|c| c.name() == text)
             .ok_or_else(|| {
-                crate::error::Error::InvalidParameter(format!(
+                Error::InvalidParameter(format!(
                     "GDM codec {text:?}: expected occupancy or paper-svd"
                 ))
             })
@@ -173,7 +168,7 @@ pub struct GiInfo {
     pub vertices: u32,
     /// Whether the PRT includes base-mesh self-shadowing.
     pub macro_shadows: bool,
-    /// BLAKE3 of the base mesh's geometry ([`crate::bake::gi::prt::geometry_hash`]): the mesh the
+    /// BLAKE3 of the base mesh's geometry (mesobake's `geometry_hash`: positions and triangles): the mesh the
     /// PRT belongs to.
     pub base_mesh: String,
 }
@@ -208,7 +203,7 @@ pub struct Section {
 }
 
 impl Section {
-    /// A section named `name` holding `texture`, placed by [`super::container::assemble`].
+    /// A section named `name` holding `texture`, placed by [`crate::container::assemble`].
     pub fn new(name: &str, texture: Texture) -> Section {
         Section {
             name: name.into(),
@@ -315,4 +310,103 @@ impl Texture {
             .checked_mul(self.height as u64)?
             .checked_mul(self.depth as u64)
     }
+}
+
+/// Which baking algorithm made the GDM.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// One exact ray per sample and direction.
+    Exact,
+    /// Per-direction layer sweeps reusing the layer above (knobs: [`FastParams`]).
+    Fast,
+}
+
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "exact" => Ok(Method::Exact),
+            "fast" => Ok(Method::Fast),
+            _ => Err(Error::InvalidParameter(format!(
+                "method {s:?}: expected exact or fast"
+            ))),
+        }
+    }
+}
+
+/// The knobs of the fast bake.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FastParams {
+    /// Layers crossed exactly before reading the layer already baked (≥ 1).
+    pub stride: u32,
+    /// Hit distances of the four neighbours may differ by this many voxels and still be
+    /// interpolated; beyond it (and where neighbours disagree on hit or escape, or more than
+    /// half their weight lies in solid) the ray is traced exactly to the end.
+    pub max_spread: f32,
+}
+
+impl Default for FastParams {
+    fn default() -> Self {
+        FastParams {
+            stride: 2,
+            max_spread: 1.0,
+        }
+    }
+}
+
+/// How many SVD components to keep.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RankChoice {
+    /// Exactly this many (fewer if the matrix has lower numerical rank).
+    Rank(usize),
+    /// The fewest whose optimal root-mean-square error over all entries is at most this.
+    MaxRmse(f64),
+}
+
+/// Error statistics of a reconstructed GDM against its bake, in voxels.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Accuracy {
+    /// Root-mean-square error over all samples (escapes compared as boundary distances).
+    pub rmse: f64,
+    /// Largest absolute error.
+    pub max_abs: f64,
+    /// The relative escape margin μ: a reconstructed d̃ ≥ (1 − μ)·b is an escape
+    /// ([`crate::svd::is_escape`]).
+    pub escape_margin: f32,
+    /// Samples whose hit/escape classification differs from the bake's.
+    pub flips: u64,
+    /// `flips` over all samples.
+    pub flip_rate: f64,
+    /// Samples compared.
+    pub samples: u64,
+}
+
+/// The specular lobe of the RTV's material.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Glossy {
+    /// Linear specular colour k_s.
+    pub specular: [f64; 3],
+    /// Phong exponent s about the mirror direction (a Blinn–Phong exponent is about 4·s).
+    pub exponent: f64,
+}
+
+/// What compressing an RTV kept and cost.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RtvCompression {
+    /// Components kept per matrix.
+    pub rank: usize,
+    /// RMS difference between the transfer values at the bin centres and their f16
+    /// reconstruction, over all samples, views, channels and light coefficients.
+    pub rmse: f64,
+    /// `rmse` over the RMS of the transfer values.
+    pub relative_rmse: f64,
+    /// The optimal rank-r RMSE before rounding, sqrt(Σ_{k>r} σₖ² / entries).
+    pub svd_rmse: f64,
+    /// Per matrix m = 16·c + i, its singular values, descending (at most 16 are non-zero).
+    pub spectra: Vec<Vec<f64>>,
 }

@@ -174,6 +174,19 @@ pub fn bilinear_direction_corners(dirs: DirectionGrid, v: [f64; 3]) -> [([u32; 2
     })
 }
 
+/// Distance from the centre of layer `k` to the top (cos θ > 0) or bottom plane along
+/// θ-bin `a`: what a ray that escapes travels inside the volume.
+pub fn boundary_distance(dims: Dims, dirs: &DirectionGrid, k: u32, a: u32) -> f32 {
+    let cos_theta = dirs.theta(a).cos();
+    let z = k as f64 + 0.5;
+    let d = if cos_theta > 0.0 {
+        (dims.z as f64 - z) / cos_theta
+    } else {
+        -z / cos_theta
+    };
+    d as f32
+}
+
 /// v = (sinθ cosφ, sinθ sinφ, cosθ).
 pub fn spherical_to_vector(theta: f64, phi: f64) -> [f64; 3] {
     let (st, ct) = theta.sin_cos();

@@ -1,0 +1,302 @@
+//! mesobake's package format (`.mbpkg`) on its own, for game builds and engine tooling: read
+//! and validate a package, reach its textures, reconstruct its GDM, and write one. It has no
+//! server, GPU or async dependencies. The byte-exact format is specified in mesobake's
+//! `docs/package-format.md`.
+//!
+//! ```no_run
+//! # fn main() -> mesobake_package::Result<()> {
+//! let package = mesobake_package::Package::read("chain.mbpkg".as_ref(), 1 << 30)?;
+//! for section in &package.manifest().sections {
+//!     let bytes = package.section(&section.name).expect("listed");
+//!     println!("{}: {:?}, {} bytes", section.name, section.texture, bytes.len());
+//! }
+//! # Ok(())
+//! # }
+//! ```
+
+pub mod container;
+pub mod error;
+pub mod gi;
+pub mod grid;
+pub mod manifest;
+pub mod occupancy;
+pub mod quantize;
+pub mod svd;
+
+pub use error::{Error, Result};
+
+use grid::{Dims, DirectionGrid};
+use manifest::{
+    BakeInfo, FORMAT_NAME, FactorInfo, GdmCodec, GiInfo, InputInfo, Manifest, OccupancyInfo,
+    Section, TexelFormat, Texture, TextureDimension,
+};
+use occupancy::OccupancyField;
+use quantize::QuantizedFactor;
+use std::path::Path;
+use svd::{CHANNELS, SvdFactors, SvdGdm};
+
+/// A validated package in memory.
+#[derive(Debug)]
+pub struct Package {
+    manifest: Manifest,
+    bytes: Vec<u8>,
+    dims: Dims,
+    dirs: DirectionGrid,
+}
+
+/// What a package holds to answer GDM queries, as the writer takes it.
+#[derive(Clone, Copy, Debug)]
+pub enum GdmContent<'a> {
+    /// [`GdmCodec::PaperSvd`]: the quantized factors.
+    PaperSvd(SvdFactors<'a>),
+    /// [`GdmCodec::Occupancy`]: the occupancy field.
+    Occupancy(&'a OccupancyField),
+}
+
+/// The radiance-transfer sections as the writer takes them: the manifest entry and the bytes
+/// of the four sections in [`gi::textures`] order.
+#[derive(Clone, Debug)]
+pub struct GiContent {
+    /// The manifest entry.
+    pub info: GiInfo,
+    /// The bytes of `rtv.index`, `rtv.weights`, `rtv.eigen` and `prt.transfer`.
+    pub sections: [Vec<u8>; 4],
+}
+
+/// The name of the occupancy codec's section.
+pub const OCCUPANCY_SECTION: &str = "occupancy.distance";
+
+/// The texture of the occupancy codec's section on the grid `dims`.
+fn occupancy_texture(dims: Dims) -> Texture {
+    Texture {
+        dimension: TextureDimension::D3,
+        format: TexelFormat::R8uint,
+        width: dims.x,
+        height: dims.y,
+        depth: dims.z,
+    }
+}
+
+/// Checks that section `name` exists with texture `expected`.
+fn expect_section(
+    sections: &[Section],
+    name: &str,
+    expected: Texture,
+    bad: impl Fn(String) -> Error,
+) -> Result<()> {
+    match sections.iter().find(|s| s.name == name) {
+        Some(s) if s.texture == expected => Ok(()),
+        Some(s) => Err(bad(format!(
+            "section {name:?} has texture {:?}, expected {expected:?}",
+            s.texture
+        ))),
+        None => Err(bad(format!("section {name:?} is missing"))),
+    }
+}
+
+impl Package {
+    /// Encodes a GDM with its provenance, and the radiance transfer when given, into package
+    /// bytes (deterministic: the same content gives the same bytes).
+    pub fn encode(
+        input: InputInfo,
+        bake: BakeInfo,
+        content: GdmContent,
+        gi: Option<GiContent>,
+    ) -> Vec<u8> {
+        let (dims, dirs) = (
+            Dims {
+                x: bake.res[0],
+                y: bake.res[1],
+                z: bake.res[2],
+            },
+            DirectionGrid {
+                n_theta: bake.dirs[0],
+                n_phi: bake.dirs[1],
+            },
+        );
+        let (codec, gdm, occupancy, mut sections) = match content {
+            GdmContent::PaperSvd(factors) => {
+                let (info, sections) = svd::sections(&factors, dims, dirs);
+                (GdmCodec::PaperSvd, Some(info), None, sections)
+            }
+            GdmContent::Occupancy(field) => {
+                let section = Section::new(OCCUPANCY_SECTION, occupancy_texture(dims));
+                let info = OccupancyInfo {
+                    section: OCCUPANCY_SECTION.into(),
+                    solid_voxels: field.solid_voxels(),
+                };
+                let sections = vec![(section, field.bytes().to_vec())];
+                (GdmCodec::Occupancy, None, Some(info), sections)
+            }
+        };
+        let gi_info = gi.map(|gi| {
+            let textures = gi::textures(&gi.info, dims, dirs);
+            for ((name, texture), bytes) in textures.into_iter().zip(gi.sections) {
+                sections.push((Section::new(name, texture), bytes));
+            }
+            gi.info
+        });
+        let (sections, payloads): (Vec<Section>, Vec<Vec<u8>>) = sections.into_iter().unzip();
+        let mut manifest = Manifest {
+            format: FORMAT_NAME.into(),
+            version: container::VERSION,
+            generator: format!("mesobake {}", env!("CARGO_PKG_VERSION")),
+            units: "voxel".into(),
+            input,
+            bake,
+            codec,
+            gdm,
+            occupancy,
+            gi: gi_info,
+            sections,
+        };
+        container::assemble(&mut manifest, &payloads)
+    }
+
+    /// Validates `bytes` as a package: the container (see [`container::parse`]) and the GDM
+    /// it describes (grids, the codec's entry, ranks, decode parameters, every section's
+    /// texture shape, an occupancy field's distances, the radiance transfer's sections).
+    pub fn parse(bytes: Vec<u8>) -> Result<Package> {
+        let manifest = container::parse(&bytes)?;
+        let bad = |what: String| Error::Package(format!("manifest: {what}"));
+        let [x, y, z] = manifest.bake.res;
+        let dims = Dims::new(x, y, z).map_err(|e| bad(e.to_string()))?;
+        let [n_theta, n_phi] = manifest.bake.dirs;
+        let dirs = DirectionGrid::new(n_theta, n_phi).map_err(|e| bad(e.to_string()))?;
+        match (manifest.codec, &manifest.gdm, &manifest.occupancy) {
+            (GdmCodec::PaperSvd, Some(g), None) => {
+                svd::validate(g, &manifest.sections, dims, dirs, bad)?
+            }
+            (GdmCodec::Occupancy, None, Some(o)) => {
+                expect_section(&manifest.sections, &o.section, occupancy_texture(dims), bad)?
+            }
+            (codec, _, _) => {
+                return Err(bad(format!(
+                    "codec {codec} needs exactly its own entry ({})",
+                    match codec {
+                        GdmCodec::PaperSvd => "gdm",
+                        GdmCodec::Occupancy => "occupancy",
+                    }
+                )));
+            }
+        }
+        if let Some(info) = &manifest.gi {
+            let rank = info.compression.rank;
+            if !(1..=gi::MAX_RTV_RANK).contains(&rank) {
+                return Err(bad(format!(
+                    "the RTV rank {rank} is not 1 to {}",
+                    gi::MAX_RTV_RANK
+                )));
+            }
+            for (name, expected) in gi::textures(info, dims, dirs) {
+                expect_section(&manifest.sections, name, expected, bad)?;
+            }
+        }
+        let package = Package {
+            manifest,
+            bytes,
+            dims,
+            dirs,
+        };
+        package.occupancy().transpose()?;
+        Ok(package)
+    }
+
+    /// Reads and validates the package at `path`, refusing files over `max_bytes` before
+    /// reading them.
+    pub fn read(path: &Path, max_bytes: u64) -> Result<Package> {
+        let io = |source| Error::Io {
+            path: path.into(),
+            source,
+        };
+        let len = std::fs::metadata(path).map_err(io)?.len();
+        if len > max_bytes {
+            return Err(Error::Package(format!(
+                "{}: {len} bytes, over the limit of {max_bytes}",
+                path.display()
+            )));
+        }
+        Package::parse(std::fs::read(path).map_err(io)?)
+    }
+
+    /// The manifest.
+    pub fn manifest(&self) -> &Manifest {
+        &self.manifest
+    }
+
+    /// The voxel grid.
+    pub fn dims(&self) -> Dims {
+        self.dims
+    }
+
+    /// The direction grid.
+    pub fn dirs(&self) -> DirectionGrid {
+        self.dirs
+    }
+
+    /// The bytes of section `name`, if present.
+    pub fn section(&self, name: &str) -> Option<&[u8]> {
+        let s = self.manifest.sections.iter().find(|s| s.name == name)?;
+        Some(&self.bytes[s.offset as usize..][..s.bytes as usize])
+    }
+
+    /// The whole package's bytes.
+    pub fn bytes(&self) -> &[u8] {
+        &self.bytes
+    }
+
+    /// The quantized weight maps and eigenmaps, unpacked from their textures (codec
+    /// `paper-svd`).
+    pub fn factors(&self) -> Option<(QuantizedFactor, QuantizedFactor)> {
+        let g = self.manifest.gdm.as_ref()?;
+        let rows_w = self.dims.x as usize * self.dims.y as usize * self.dirs.n_phi as usize;
+        let rows_e = self.dims.z as usize * self.dirs.n_theta as usize;
+        let unpack = |info: &FactorInfo, rows: usize| {
+            let (rank, format) = (g.rank as usize, g.quantization);
+            let elem = format.bytes();
+            let mut codes = vec![0u8; rows * rank * elem];
+            for (group, name) in info.sections.iter().enumerate() {
+                let t = self
+                    .manifest
+                    .sections
+                    .iter()
+                    .find(|s| &s.name == name)
+                    .expect("validated")
+                    .texture;
+                let bytes = self.section(name).expect("validated");
+                for r in 0..rows {
+                    let texel = r * t.format.texel_bytes() as usize;
+                    for ch in 0..CHANNELS.min(rank - group * CHANNELS) {
+                        let c = group * CHANNELS + ch;
+                        codes[(r * rank + c) * elem..][..elem]
+                            .copy_from_slice(&bytes[texel + ch * elem..][..elem]);
+                    }
+                }
+            }
+            QuantizedFactor {
+                rows,
+                rank,
+                format,
+                scale: info.scale.clone(),
+                bias: info.bias.clone(),
+                codes,
+            }
+        };
+        Some((unpack(&g.weights, rows_w), unpack(&g.eigen, rows_e)))
+    }
+
+    /// The decoded `paper-svd` GDM, for queries or a whole reconstruction.
+    pub fn svd(&self) -> Option<SvdGdm> {
+        let (w, e) = self.factors()?;
+        let margin = self.manifest.gdm.as_ref()?.accuracy.escape_margin;
+        Some(SvdGdm::new(self.dims, self.dirs, &w, &e, margin))
+    }
+
+    /// The occupancy field, for [`GdmCodec::Occupancy`] (validated: its distances are those
+    /// its solid voxels imply).
+    pub fn occupancy(&self) -> Option<Result<OccupancyField>> {
+        let info = self.manifest.occupancy.as_ref()?;
+        let bytes = self.section(&info.section).expect("validated");
+        Some(OccupancyField::from_bytes(self.dims, bytes))
+    }
+}
