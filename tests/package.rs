@@ -49,7 +49,11 @@ fn input_info() -> InputInfo {
 }
 
 fn small_package() -> Vec<u8> {
-    let (g, c) = compressed(Dims::new(8, 8, 4).unwrap(), 5, Quantization::F16);
+    svd_package(Dims::new(8, 8, 4).unwrap(), 5, Quantization::F16)
+}
+
+fn svd_package(res: Dims, rank: usize, q: Quantization) -> Vec<u8> {
+    let (g, c) = compressed(res, rank, q);
     Package::encode(
         input_info(),
         bake_info(&g, Method::Exact, Default::default(), false),
@@ -175,6 +179,42 @@ fn an_occupancy_package_holds_the_voxels_and_reconstructs_the_exact_gdm() {
     assert_eq!(pkg.reconstruct(&limits).unwrap().data(), exact.data());
     // Deterministic: the same input gives the same bytes.
     assert_eq!(bytes, occupancy_package(dir.path()));
+}
+
+/// The format crate's queries (what a game build calls) against mesobake's reconstruction:
+/// for occupancy an independent voxel march against the exact bake, for paper-svd the same
+/// W·Eᵀ with the escape rule.
+#[test]
+fn the_format_crates_queries_agree_with_mesobakes_reconstruction() {
+    let dir = tempfile::tempdir().unwrap();
+    let limits = Limits::default();
+    let svd = svd_package(Dims::new(16, 16, 8).unwrap(), 6, Quantization::U8);
+    let svd = Package::parse(svd).unwrap();
+    let occupancy = Package::parse(occupancy_package(dir.path())).unwrap();
+    for pkg in [svd, occupancy] {
+        let (dims, dirs) = (pkg.dims(), pkg.dirs());
+        let (gdm, query) = (pkg.reconstruct(&limits).unwrap(), pkg.query().unwrap());
+        let mut hits = 0;
+        for a in 0..dirs.n_theta {
+            for b in 0..dirs.n_phi {
+                for k in 0..dims.z {
+                    for j in 0..dims.y {
+                        for i in 0..dims.x {
+                            let expected = gdm.get(i, j, k, a, b);
+                            let got = query.distance(i, j, k, a, b).unwrap_or(f32::INFINITY);
+                            hits += usize::from(got.is_finite());
+                            assert!(
+                                got == expected || (got - expected).abs() <= 1e-5 * expected,
+                                "{}: sample {i},{j},{k},{a},{b}: {got} vs {expected}",
+                                pkg.manifest().codec
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(hits > 1000, "{hits} hits");
+    }
 }
 
 #[test]

@@ -63,6 +63,30 @@ pub struct GiContent {
     pub sections: [Vec<u8>; 4],
 }
 
+/// A package's GDM, ready for queries at the baked samples: voxel centres (i, j, k) and
+/// direction bins (a, b) of the package's grids.
+#[derive(Clone, Debug)]
+pub enum GdmQuery {
+    /// The decoded SVD, with the escape rule.
+    PaperSvd(SvdGdm),
+    /// The occupancy field, marched exactly along the bin's direction.
+    Occupancy(OccupancyField, DirectionGrid),
+}
+
+impl GdmQuery {
+    /// The distance from voxel centre (i, j, k) along direction bin (a, b) to the
+    /// mesostructure, `None` for an escape (coordinates must lie on the package's grids).
+    pub fn distance(&self, i: u32, j: u32, k: u32, a: u32, b: u32) -> Option<f32> {
+        match self {
+            GdmQuery::PaperSvd(svd) => svd.distance(i, j, k, a, b),
+            GdmQuery::Occupancy(field, dirs) => {
+                let p = [i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5];
+                field.march(p, dirs.vector(a, b)).map(|d| d as f32)
+            }
+        }
+    }
+}
+
 /// The name of the occupancy codec's section.
 pub const OCCUPANCY_SECTION: &str = "occupancy.distance";
 
@@ -290,6 +314,17 @@ impl Package {
         let (w, e) = self.factors()?;
         let margin = self.manifest.gdm.as_ref()?.accuracy.escape_margin;
         Some(SvdGdm::new(self.dims, self.dirs, &w, &e, margin))
+    }
+
+    /// What answers GDM queries d(i, j, k, a, b) for this package's codec.
+    pub fn query(&self) -> Result<GdmQuery> {
+        match self.svd() {
+            Some(svd) => Ok(GdmQuery::PaperSvd(svd)),
+            None => Ok(GdmQuery::Occupancy(
+                self.occupancy().expect("one codec entry")?,
+                self.dirs,
+            )),
+        }
     }
 
     /// The occupancy field, for [`GdmCodec::Occupancy`] (validated: its distances are those

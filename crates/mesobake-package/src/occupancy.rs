@@ -70,6 +70,49 @@ impl OccupancyField {
     pub fn solid_voxels(&self) -> u64 {
         self.distance.iter().filter(|&&d| d == 0).count() as u64
     }
+
+    /// The distance from point `p` (voxel units, 0 ≤ z < Z) along unit direction `v` to the
+    /// first solid voxel: 0 when `p` is in one, `None` when the ray leaves through the top or
+    /// bottom plane first or `v` has no z component. A plain voxel-by-voxel traversal
+    /// (Amanatides–Woo), periodic in x and y: the exact GDM of the voxel grid.
+    pub fn march(&self, p: [f64; 3], v: [f64; 3]) -> Option<f64> {
+        let dims = [self.dims.x as i64, self.dims.y as i64, self.dims.z as i64];
+        if v[2] == 0.0
+            || p.iter().chain(&v).any(|c| !c.is_finite())
+            || !(0.0..dims[2] as f64).contains(&p[2])
+        {
+            return None;
+        }
+        let mut cell = p.map(|c| c.floor() as i64);
+        let solid = |c: [i64; 3]| {
+            let (i, j) = (c[0].rem_euclid(dims[0]), c[1].rem_euclid(dims[1]));
+            self.is_solid(i as u32, j as u32, c[2] as u32)
+        };
+        if solid(cell) {
+            return Some(0.0);
+        }
+        let step = v.map(|c| c.signum() as i64);
+        let delta = v.map(|c| 1.0 / c.abs());
+        let mut next: [f64; 3] = std::array::from_fn(|a| match v[a] {
+            c if c > 0.0 => (cell[a] as f64 + 1.0 - p[a]) / c,
+            c if c < 0.0 => (cell[a] as f64 - p[a]) / c,
+            _ => f64::INFINITY,
+        });
+        loop {
+            let axis = (0..3)
+                .min_by(|&a, &b| next[a].total_cmp(&next[b]))
+                .expect("3 axes");
+            let t = next[axis];
+            cell[axis] += step[axis];
+            next[axis] += delta[axis];
+            if !(0..dims[2]).contains(&cell[2]) {
+                return None;
+            }
+            if solid(cell) {
+                return Some(t);
+            }
+        }
+    }
 }
 
 /// Every voxel's Chebyshev distance to the nearest voxel where `solid` holds (x fastest, then

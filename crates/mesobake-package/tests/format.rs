@@ -1,0 +1,201 @@
+//! The format crate on its own: packages it writes read back to the same content, queries
+//! match closed forms, and corruption is refused.
+
+use mesobake_package::grid::{Dims, DirectionGrid, boundary_distance};
+use mesobake_package::manifest::{Accuracy, BakeInfo, GdmCodec, InputInfo, Method, RankChoice};
+use mesobake_package::occupancy::OccupancyField;
+use mesobake_package::quantize::{Quantization, QuantizedFactor};
+use mesobake_package::svd::SvdFactors;
+use mesobake_package::{GdmContent, GdmQuery, Package};
+
+fn input() -> InputInfo {
+    InputInfo {
+        kind: "volume".into(),
+        bytes: 0,
+        blake3: "0".repeat(64),
+    }
+}
+
+fn bake(dims: Dims, dirs: DirectionGrid) -> BakeInfo {
+    BakeInfo {
+        res: [dims.x, dims.y, dims.z],
+        dirs: [dirs.n_theta, dirs.n_phi],
+        method: Method::Exact,
+        fast: None,
+        allow_open: false,
+    }
+}
+
+/// A deterministic pseudo-random value in [-1, 1).
+fn noise(n: usize) -> f32 {
+    let x = (n as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    ((x >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+}
+
+fn accuracy(margin: f32) -> Accuracy {
+    Accuracy {
+        rmse: 0.0,
+        max_abs: 0.0,
+        escape_margin: margin,
+        flips: 0,
+        flip_rate: 0.0,
+        samples: 0,
+    }
+}
+
+#[test]
+fn svd_packages_reconstruct_w_times_e_with_the_escape_rule() {
+    let (dims, dirs) = (
+        Dims::new(6, 5, 4).unwrap(),
+        DirectionGrid::new(4, 6).unwrap(),
+    );
+    let rank = 5; // two texture groups, the second one channel wide
+    let (m, n) = ((6 * 5 * 6) as usize, (4 * 4) as usize);
+    let w: Vec<f32> = (0..m * rank).map(|x| 3.0 * noise(x)).collect();
+    let e: Vec<f32> = (0..n * rank).map(|x| noise(x + 7919)).collect();
+    for q in Quantization::ALL {
+        let (wq, eq) = (
+            QuantizedFactor::new(&w, rank, q),
+            QuantizedFactor::new(&e, rank, q),
+        );
+        let spectrum = vec![1.0; m.min(n)];
+        let factors = SvdFactors {
+            rank_choice: RankChoice::Rank(rank),
+            spectrum: &spectrum,
+            weights: &wq,
+            eigen: &eq,
+            accuracy: accuracy(0.25),
+            svd_rmse: 0.0,
+        };
+        let bytes = Package::encode(
+            input(),
+            bake(dims, dirs),
+            GdmContent::PaperSvd(factors),
+            None,
+        );
+        let again = Package::encode(
+            input(),
+            bake(dims, dirs),
+            GdmContent::PaperSvd(factors),
+            None,
+        );
+        assert_eq!(bytes, again, "{q}: writing is deterministic");
+        let pkg = Package::parse(bytes).unwrap();
+        assert_eq!(pkg.manifest().codec, GdmCodec::PaperSvd);
+        let (w2, e2) = pkg.factors().unwrap();
+        assert_eq!(
+            (w2, e2),
+            (wq.clone(), eq.clone()),
+            "{q}: the codes read back"
+        );
+        let (wd, ed) = (wq.dequantize(), eq.dequantize());
+        let query = pkg.query().unwrap();
+        let mut escapes = 0;
+        for (a, b, k, j, i) in samples(dims, dirs) {
+            let row = ((b * dims.y + j) * dims.x + i) as usize;
+            let col = (a * dims.z + k) as usize;
+            let v: f32 = (0..rank)
+                .map(|c| wd[row * rank + c] * ed[col * rank + c])
+                .sum();
+            let boundary = boundary_distance(dims, &dirs, k, a);
+            let expected = (v < 0.75 * boundary).then_some(v.max(0.0));
+            let got = query.distance(i, j, k, a, b);
+            match (got, expected) {
+                (Some(g), Some(x)) => assert!((g - x).abs() <= 1e-5 * (1.0 + x.abs()), "{q}"),
+                (None, None) => escapes += 1,
+                _ => panic!("{q}: sample {i},{j},{k},{a},{b}: {got:?} vs {expected:?}"),
+            }
+        }
+        assert!(escapes > 0, "the escape rule is exercised");
+    }
+}
+
+/// Every sample (a, b, k, j, i) of the grids.
+fn samples(dims: Dims, dirs: DirectionGrid) -> Vec<(u32, u32, u32, u32, u32)> {
+    let mut out = Vec::new();
+    for a in 0..dirs.n_theta {
+        for b in 0..dirs.n_phi {
+            for k in 0..dims.z {
+                for j in 0..dims.y {
+                    for i in 0..dims.x {
+                        out.push((a, b, k, j, i));
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn occupancy_queries_match_the_closed_form_of_a_floor() {
+    // Layer 0 solid: looking down from layer k the floor's top (z = 1) is
+    // (k + ½ − 1)/|cos θ| away; looking up the ray escapes.
+    let (dims, dirs) = (
+        Dims::new(8, 8, 5).unwrap(),
+        DirectionGrid::new(6, 8).unwrap(),
+    );
+    let field = OccupancyField::from_solid(dims, |_, _, k| k == 0);
+    let bytes = Package::encode(
+        input(),
+        bake(dims, dirs),
+        GdmContent::Occupancy(&field),
+        None,
+    );
+    let pkg = Package::parse(bytes).unwrap();
+    assert_eq!(pkg.occupancy().unwrap().unwrap(), field);
+    let query = pkg.query().unwrap();
+    assert!(matches!(query, GdmQuery::Occupancy(..)));
+    for (a, b, k, j, i) in samples(dims, dirs) {
+        let cos = dirs.theta(a).cos();
+        let expected = match (k, cos > 0.0) {
+            (0, _) => Some(0.0),
+            (_, true) => None,
+            (_, false) => Some((k as f64 - 0.5) / cos.abs()),
+        };
+        let got = query.distance(i, j, k, a, b).map(f64::from);
+        match (got, expected) {
+            (Some(g), Some(x)) => assert!((g - x).abs() < 1e-5, "{g} vs {x}"),
+            (None, None) => {}
+            _ => panic!("sample {i},{j},{k},{a},{b}: {got:?} vs {expected:?}"),
+        }
+    }
+}
+
+#[test]
+fn a_march_wraps_around_the_tile_and_refuses_flat_directions() {
+    // One solid voxel at (0, 0, 0); from (3.5, 0.5, 0.5) along −x it is 3 voxels away
+    // (through x = 1), along +x the ray wraps: 4 voxels of an 8-wide tile later (x = 8).
+    let dims = Dims::new(8, 4, 2).unwrap();
+    let field = OccupancyField::from_solid(dims, |i, j, k| (i, j, k) == (0, 0, 0));
+    let tilt = 1e-9; // not quite flat, so the ray may leave eventually
+    let d = field.march([3.5, 0.5, 0.5], [-1.0, 0.0, tilt]).unwrap();
+    assert!((d - 2.5).abs() < 1e-6, "{d}");
+    let d = field.march([3.5, 0.5, 0.5], [1.0, 0.0, tilt]).unwrap();
+    assert!((d - 4.5).abs() < 1e-6, "{d}");
+    assert_eq!(field.march([3.5, 0.5, 0.5], [1.0, 0.0, 0.0]), None);
+    assert_eq!(field.march([0.5, 0.5, 0.5], [0.0, 0.0, 1.0]), Some(0.0));
+    assert_eq!(field.march([3.5, 0.5, 1.5], [0.0, 0.0, 1.0]), None);
+}
+
+#[test]
+fn every_corrupted_byte_is_refused() {
+    let (dims, dirs) = (
+        Dims::new(4, 4, 3).unwrap(),
+        DirectionGrid::new(2, 4).unwrap(),
+    );
+    let field = OccupancyField::from_solid(dims, |i, _, k| k == 0 || i == 2);
+    let bytes = Package::encode(
+        input(),
+        bake(dims, dirs),
+        GdmContent::Occupancy(&field),
+        None,
+    );
+    for at in 0..bytes.len() {
+        let mut bad = bytes.clone();
+        bad[at] ^= 0x10;
+        assert!(Package::parse(bad).is_err(), "byte {at} of {}", bytes.len());
+    }
+    let e = Package::parse(bytes[..100].to_vec()).unwrap_err();
+    assert!(e.to_string().starts_with("package: "), "{e}");
+}
