@@ -1,0 +1,197 @@
+//! Builds `tests/reader.c` against the static library and the generated header, runs it on
+//! packages of both codecs, and compares what it prints with the Rust reader's answers.
+
+use mesobake_package::grid::{Dims, DirectionGrid};
+use mesobake_package::manifest::{Accuracy, BakeInfo, InputInfo, Method, RankChoice};
+use mesobake_package::occupancy::OccupancyField;
+use mesobake_package::quantize::{Quantization, QuantizedFactor};
+use mesobake_package::svd::SvdFactors;
+use mesobake_package::{GdmContent, Package};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn encode(dims: Dims, dirs: DirectionGrid, content: GdmContent) -> Vec<u8> {
+    let input = InputInfo {
+        kind: "volume".into(),
+        bytes: 0,
+        blake3: "0".repeat(64),
+    };
+    let bake = BakeInfo {
+        res: [dims.x, dims.y, dims.z],
+        dirs: [dirs.n_theta, dirs.n_phi],
+        method: Method::Exact,
+        fast: None,
+        allow_open: false,
+    };
+    Package::encode(input, bake, content, None)
+}
+
+/// Two packages: pillars on a floor (occupancy) and pseudo-random u8 factors (paper-svd).
+fn packages() -> Vec<Vec<u8>> {
+    let (dims, dirs) = (
+        Dims::new(12, 10, 6).unwrap(),
+        DirectionGrid::new(4, 8).unwrap(),
+    );
+    let field = OccupancyField::from_solid(dims, |i, j, k| k == 0 || (i % 4 == 1 && j % 3 == 0));
+    let rank = 3;
+    let rows = [(12 * 10 * 8) as usize, (6 * 4) as usize];
+    let noise = |n: usize, scale: f32| {
+        let x = (n as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        scale * (x >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let w: Vec<f32> = (0..rows[0] * rank).map(|n| noise(n, 4.0)).collect();
+    let e: Vec<f32> = (0..rows[1] * rank).map(|n| noise(n + 99, 1.0)).collect();
+    let (w, e) = (
+        QuantizedFactor::new(&w, rank, Quantization::U8),
+        QuantizedFactor::new(&e, rank, Quantization::U8),
+    );
+    let spectrum = vec![1.0; rows[1]];
+    let svd = SvdFactors {
+        rank_choice: RankChoice::Rank(rank),
+        spectrum: &spectrum,
+        weights: &w,
+        eigen: &e,
+        accuracy: Accuracy {
+            rmse: 0.0,
+            max_abs: 0.0,
+            escape_margin: 0.1,
+            flips: 0,
+            flip_rate: 0.0,
+            samples: 0,
+        },
+        svd_rmse: 0.0,
+    };
+    vec![
+        encode(dims, dirs, GdmContent::Occupancy(&field)),
+        encode(dims, dirs, GdmContent::PaperSvd(svd)),
+    ]
+}
+
+/// What reader.c must print for `bytes`, from the Rust reader.
+fn expected(bytes: &[u8]) -> String {
+    let pkg = Package::parse(bytes.to_vec()).unwrap();
+    let (dims, dirs) = (pkg.dims(), pkg.dirs());
+    let m = pkg.manifest();
+    let mut out = format!(
+        "codec {}\ngrid {}x{}x{} dirs {}x{}\nmanifest ok\n",
+        u32::from(m.codec == mesobake_package::manifest::GdmCodec::PaperSvd),
+        dims.x,
+        dims.y,
+        dims.z,
+        dirs.n_theta,
+        dirs.n_phi
+    );
+    for s in &m.sections {
+        let data = pkg.section(&s.name).unwrap();
+        let sum = data
+            .iter()
+            .fold(0u32, |h, &b| h.wrapping_mul(31).wrapping_add(b as u32));
+        let t = s.texture;
+        let dimension = serde_json::to_value(t.dimension).unwrap();
+        let dimension = ["2d", "3d", "buffer"]
+            .iter()
+            .position(|d| dimension == *d)
+            .unwrap();
+        let format = serde_json::to_value(t.format).unwrap();
+        let format = [
+            "r32float",
+            "rg32float",
+            "rgba32float",
+            "r16float",
+            "rg16float",
+            "rgba16float",
+            "r8unorm",
+            "rg8unorm",
+            "rgba8unorm",
+            "r8uint",
+            "r32uint",
+        ]
+        .iter()
+        .position(|f| format == *f)
+        .unwrap();
+        out += &format!(
+            "section {} dimension {dimension} format {format} {}x{}x{} bytes {} sum {sum:08x}\n",
+            s.name,
+            t.width,
+            t.height,
+            t.depth,
+            data.len()
+        );
+    }
+    let query = pkg.query().unwrap();
+    let k = dims.z / 2;
+    for a in 0..dirs.n_theta {
+        for b in 0..dirs.n_phi {
+            for j in 0..dims.y {
+                for i in 0..dims.x {
+                    out += &match query.distance(i, j, k, a, b) {
+                        Some(d) => format!("{d:.6}\n"),
+                        None => "escape\n".into(),
+                    };
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Builds the static library (`cargo test` builds only the rlib) in its own target
+/// directory beside this test's, so that the two cargo runs never wait on each other.
+fn static_library() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let target = exe.ancestors().nth(3).unwrap().join("c-abi");
+    let status = Command::new(env!("CARGO"))
+        .args(["build", "--release", "--lib", "-p", "mesobake-package-c"])
+        .env("CARGO_TARGET_DIR", &target)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .status()
+        .unwrap();
+    assert!(status.success(), "building the static library failed");
+    target.join("release/libmesobake_package_c.a")
+}
+
+#[test]
+fn a_c_program_reads_packages_like_the_rust_reader() {
+    let dir = tempfile::tempdir().unwrap();
+    let library = static_library();
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let program = dir.path().join("reader");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let status = Command::new(&cc)
+        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(crate_dir.join("include"))
+        .arg(crate_dir.join("tests/reader.c"))
+        .arg(&library)
+        .args(["-lpthread", "-ldl", "-lm", "-o"])
+        .arg(&program)
+        .status()
+        .unwrap_or_else(|e| panic!("{cc}: {e}"));
+    assert!(status.success(), "compiling reader.c failed");
+    let mut hits = 0;
+    for (n, bytes) in packages().iter().enumerate() {
+        let path = dir.path().join(format!("p{n}.mbpkg"));
+        std::fs::write(&path, bytes).unwrap();
+        let out = Command::new(&program).arg(&path).output().unwrap();
+        assert!(out.status.success(), "reader exited with {}", out.status);
+        let printed = String::from_utf8(out.stdout).unwrap();
+        let want = expected(bytes);
+        for (line, (got, want)) in printed.lines().zip(want.lines()).enumerate() {
+            assert_eq!(got, want, "package {n}, line {line}");
+        }
+        assert_eq!(printed.lines().count(), want.lines().count(), "package {n}");
+        hits += printed
+            .lines()
+            .filter(|l| l.starts_with(char::is_numeric))
+            .count();
+        // A corrupted copy is refused with the reader's message.
+        let mut bad = bytes.clone();
+        let last = bad.len() - 1;
+        bad[last] ^= 1;
+        std::fs::write(&path, bad).unwrap();
+        let out = Command::new(&program).arg(&path).output().unwrap();
+        let printed = String::from_utf8(out.stdout).unwrap();
+        assert_eq!(out.status.code(), Some(1));
+        assert!(printed.starts_with("error: package: "), "{printed}");
+    }
+    assert!(hits > 500, "both codecs report hits ({hits})");
+}
