@@ -1,70 +1,17 @@
 //! Builds `tests/reader.c` against the static library and the generated header, runs it on
 //! packages of both codecs, and compares what it prints with the Rust reader's answers.
 
-use mesobake_package::grid::{Dims, DirectionGrid};
-use mesobake_package::manifest::{Accuracy, BakeInfo, InputInfo, Method, RankChoice};
-use mesobake_package::occupancy::OccupancyField;
-use mesobake_package::quantize::{Quantization, QuantizedFactor};
-use mesobake_package::svd::SvdFactors;
-use mesobake_package::{GdmContent, Package};
+use mesobake_package::Package;
+use mesobake_package::quantize::Quantization;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn encode(dims: Dims, dirs: DirectionGrid, content: GdmContent) -> Vec<u8> {
-    let input = InputInfo {
-        kind: "volume".into(),
-        bytes: 0,
-        blake3: "0".repeat(64),
-    };
-    let bake = BakeInfo {
-        res: [dims.x, dims.y, dims.z],
-        dirs: [dirs.n_theta, dirs.n_phi],
-        method: Method::Exact,
-        fast: None,
-        allow_open: false,
-    };
-    Package::encode(input, bake, content, None)
-}
+#[path = "../../mesobake-package/tests/support/mod.rs"]
+mod support;
 
 /// Two packages: pillars on a floor (occupancy) and pseudo-random u8 factors (paper-svd).
 fn packages() -> Vec<Vec<u8>> {
-    let (dims, dirs) = (
-        Dims::new(12, 10, 6).unwrap(),
-        DirectionGrid::new(4, 8).unwrap(),
-    );
-    let field = OccupancyField::from_solid(dims, |i, j, k| k == 0 || (i % 4 == 1 && j % 3 == 0));
-    let rank = 3;
-    let rows = [(12 * 10 * 8) as usize, (6 * 4) as usize];
-    let noise = |n: usize, scale: f32| {
-        let x = (n as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        scale * (x >> 40) as f32 / (1u64 << 24) as f32
-    };
-    let w: Vec<f32> = (0..rows[0] * rank).map(|n| noise(n, 4.0)).collect();
-    let e: Vec<f32> = (0..rows[1] * rank).map(|n| noise(n + 99, 1.0)).collect();
-    let (w, e) = (
-        QuantizedFactor::new(&w, rank, Quantization::U8),
-        QuantizedFactor::new(&e, rank, Quantization::U8),
-    );
-    let spectrum = vec![1.0; rows[1]];
-    let svd = SvdFactors {
-        rank_choice: RankChoice::Rank(rank),
-        spectrum: &spectrum,
-        weights: &w,
-        eigen: &e,
-        accuracy: Accuracy {
-            rmse: 0.0,
-            max_abs: 0.0,
-            escape_margin: 0.1,
-            flips: 0,
-            flip_rate: 0.0,
-            samples: 0,
-        },
-        svd_rmse: 0.0,
-    };
-    vec![
-        encode(dims, dirs, GdmContent::Occupancy(&field)),
-        encode(dims, dirs, GdmContent::PaperSvd(svd)),
-    ]
+    vec![support::pillars(), support::random_svd(3, Quantization::U8)]
 }
 
 /// What reader.c must print for `bytes`, from the Rust reader.

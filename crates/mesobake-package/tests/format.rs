@@ -2,45 +2,19 @@
 //! match closed forms, and corruption is refused.
 
 use mesobake_package::grid::{Dims, DirectionGrid, boundary_distance};
-use mesobake_package::manifest::{Accuracy, BakeInfo, GdmCodec, InputInfo, Method, RankChoice};
+use mesobake_package::manifest::{GdmCodec, RankChoice};
 use mesobake_package::occupancy::OccupancyField;
 use mesobake_package::quantize::{Quantization, QuantizedFactor};
 use mesobake_package::svd::SvdFactors;
 use mesobake_package::{GdmContent, GdmQuery, Package};
 
-fn input() -> InputInfo {
-    InputInfo {
-        kind: "volume".into(),
-        bytes: 0,
-        blake3: "0".repeat(64),
-    }
-}
-
-fn bake(dims: Dims, dirs: DirectionGrid) -> BakeInfo {
-    BakeInfo {
-        res: [dims.x, dims.y, dims.z],
-        dirs: [dirs.n_theta, dirs.n_phi],
-        method: Method::Exact,
-        fast: None,
-        allow_open: false,
-    }
-}
+#[path = "support/mod.rs"]
+mod support;
+use support::{accuracy, encode};
 
 /// A deterministic pseudo-random value in [-1, 1).
 fn noise(n: usize) -> f32 {
-    let x = (n as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    ((x >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-}
-
-fn accuracy(margin: f32) -> Accuracy {
-    Accuracy {
-        rmse: 0.0,
-        max_abs: 0.0,
-        escape_margin: margin,
-        flips: 0,
-        flip_rate: 0.0,
-        samples: 0,
-    }
+    2.0 * support::noise(n) - 1.0
 }
 
 #[test]
@@ -67,18 +41,8 @@ fn svd_packages_reconstruct_w_times_e_with_the_escape_rule() {
             accuracy: accuracy(0.25),
             svd_rmse: 0.0,
         };
-        let bytes = Package::encode(
-            input(),
-            bake(dims, dirs),
-            GdmContent::PaperSvd(factors),
-            None,
-        );
-        let again = Package::encode(
-            input(),
-            bake(dims, dirs),
-            GdmContent::PaperSvd(factors),
-            None,
-        );
+        let bytes = encode(dims, dirs, GdmContent::PaperSvd(factors));
+        let again = encode(dims, dirs, GdmContent::PaperSvd(factors));
         assert_eq!(bytes, again, "{q}: writing is deterministic");
         let pkg = Package::parse(bytes).unwrap();
         assert_eq!(pkg.manifest().codec, GdmCodec::PaperSvd);
@@ -136,12 +100,7 @@ fn occupancy_queries_match_the_closed_form_of_a_floor() {
         DirectionGrid::new(6, 8).unwrap(),
     );
     let field = OccupancyField::from_solid(dims, |_, _, k| k == 0);
-    let bytes = Package::encode(
-        input(),
-        bake(dims, dirs),
-        GdmContent::Occupancy(&field),
-        None,
-    );
+    let bytes = encode(dims, dirs, GdmContent::Occupancy(&field));
     let pkg = Package::parse(bytes).unwrap();
     assert_eq!(pkg.occupancy().unwrap().unwrap(), field);
     let query = pkg.query().unwrap();
@@ -185,12 +144,7 @@ fn every_corrupted_byte_is_refused() {
         DirectionGrid::new(2, 4).unwrap(),
     );
     let field = OccupancyField::from_solid(dims, |i, _, k| k == 0 || i == 2);
-    let bytes = Package::encode(
-        input(),
-        bake(dims, dirs),
-        GdmContent::Occupancy(&field),
-        None,
-    );
+    let bytes = encode(dims, dirs, GdmContent::Occupancy(&field));
     for at in 0..bytes.len() {
         let mut bad = bytes.clone();
         bad[at] ^= 0x10;

@@ -1,0 +1,81 @@
+//! Small packages written with the format crate alone, shared by its tests and by the tests of
+//! the crates built on it (included with `#[path]`).
+#![allow(dead_code)]
+
+use mesobake_package::grid::{Dims, DirectionGrid};
+use mesobake_package::manifest::{Accuracy, BakeInfo, InputInfo, Method, RankChoice};
+use mesobake_package::occupancy::OccupancyField;
+use mesobake_package::quantize::{Quantization, QuantizedFactor};
+use mesobake_package::svd::SvdFactors;
+use mesobake_package::{GdmContent, Package};
+
+/// Encodes `content` on the grids `dims` × `dirs` with placeholder provenance.
+pub fn encode(dims: Dims, dirs: DirectionGrid, content: GdmContent) -> Vec<u8> {
+    let input = InputInfo {
+        kind: "volume".into(),
+        bytes: 0,
+        blake3: "0".repeat(64),
+    };
+    let bake = BakeInfo {
+        res: [dims.x, dims.y, dims.z],
+        dirs: [dirs.n_theta, dirs.n_phi],
+        method: Method::Exact,
+        fast: None,
+        allow_open: false,
+    };
+    Package::encode(input, bake, content, None)
+}
+
+/// A deterministic pseudo-random value in [0, 1).
+pub fn noise(n: usize) -> f32 {
+    let x = (n as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    (x >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Accuracy statistics that only set the escape margin.
+pub fn accuracy(escape_margin: f32) -> Accuracy {
+    Accuracy {
+        rmse: 0.0,
+        max_abs: 0.0,
+        escape_margin,
+        flips: 0,
+        flip_rate: 0.0,
+        samples: 0,
+    }
+}
+
+/// An occupancy package: a floor with pillars, 12×10×6 voxels, 4×8 directions.
+pub fn pillars() -> Vec<u8> {
+    let (dims, dirs) = (
+        Dims::new(12, 10, 6).unwrap(),
+        DirectionGrid::new(4, 8).unwrap(),
+    );
+    let field = OccupancyField::from_solid(dims, |i, j, k| k == 0 || (i % 4 == 1 && j % 3 == 0));
+    encode(dims, dirs, GdmContent::Occupancy(&field))
+}
+
+/// A paper-svd package on 12×10×6 voxels and 4×8 directions whose factors (rank `rank`,
+/// quantized with `q`) are pseudo-random, W in [0, 4) and E in [0, 1), escape margin 0.1.
+pub fn random_svd(rank: usize, q: Quantization) -> Vec<u8> {
+    let (dims, dirs) = (
+        Dims::new(12, 10, 6).unwrap(),
+        DirectionGrid::new(4, 8).unwrap(),
+    );
+    let rows = [(12 * 10 * 8) as usize, (6 * 4) as usize];
+    let w: Vec<f32> = (0..rows[0] * rank).map(|n| 4.0 * noise(n)).collect();
+    let e: Vec<f32> = (0..rows[1] * rank).map(|n| noise(n + 99)).collect();
+    let (w, e) = (
+        QuantizedFactor::new(&w, rank, q),
+        QuantizedFactor::new(&e, rank, q),
+    );
+    let spectrum = vec![1.0; rows[1]];
+    let svd = SvdFactors {
+        rank_choice: RankChoice::Rank(rank),
+        spectrum: &spectrum,
+        weights: &w,
+        eigen: &e,
+        accuracy: accuracy(0.1),
+        svd_rmse: 0.0,
+    };
+    encode(dims, dirs, GdmContent::PaperSvd(svd))
+}
