@@ -1,4 +1,4 @@
-//! The CI commands end to end: bake → package → unpack (.npy, EXR), and report accuracy.
+//! The CI commands end to end: bake → package → unpack (.npy, EXR, KTX2), and report accuracy.
 
 use mesobake::package::Package;
 use mesobake::util::limits::Limits;
@@ -109,6 +109,35 @@ fn bake_then_unpack_gives_the_documented_npy_and_exr() {
         for (r, s) in samples.iter().enumerate() {
             assert_eq!(*s, factor[r * 5 + c], "{name} texel {r}");
         }
+    }
+
+    // --ktx2 alone: one KTX 2.0 file per texture section (rank 5: two groups per factor), each
+    // holding the section's bytes as its only level.
+    let textures = dir.path().join("textures");
+    succeeds(&[
+        "unpack",
+        pkg.to_str().unwrap(),
+        "--ktx2",
+        textures.to_str().unwrap(),
+    ]);
+    let sections = &package.manifest().sections;
+    assert_eq!(sections.len(), 4);
+    assert_eq!(std::fs::read_dir(&textures).unwrap().count(), 4);
+    for section in sections {
+        let file = std::fs::read(textures.join(format!("{}.ktx2", section.name))).unwrap();
+        let reader = ktx2::Reader::new(&file[..]).unwrap();
+        let h = reader.header();
+        assert_eq!(
+            (h.pixel_width, h.pixel_height),
+            (section.texture.width, section.texture.height)
+        );
+        let level = reader.levels().next().unwrap();
+        assert_eq!(
+            level.data,
+            package.section(&section.name).unwrap(),
+            "{}",
+            section.name
+        );
     }
 }
 

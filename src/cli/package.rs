@@ -10,6 +10,7 @@ use mesobake::client::Client;
 use mesobake::compress::svd::RankChoice;
 use mesobake::grid::Dims;
 use mesobake::package::bake::{PackageParams, bake_package};
+use mesobake::package::manifest::TextureDimension;
 use mesobake::package::{GdmPayload, Package};
 use mesobake::scene::package::bake_scene_package;
 use mesobake::scene::render::load_scene;
@@ -279,21 +280,40 @@ pub fn fetch(args: FetchArgs) -> Result<()> {
 pub struct UnpackArgs {
     /// The package.
     package: PathBuf,
-    /// Output .npy file.
-    #[arg(long)]
-    out: PathBuf,
+    /// Write the reconstructed GDM as a .npy file.
+    #[arg(long, required_unless_present_any = ["exr", "ktx2"])]
+    out: Option<PathBuf>,
     /// Also write the dequantized factor maps as a multi-layer OpenEXR image.
     #[arg(long)]
     exr: Option<PathBuf>,
+    /// Also write every texture section as a KTX 2.0 file `<section>.ktx2` in this directory
+    /// (created if missing), for engines' texture tooling.
+    #[arg(long)]
+    ktx2: Option<PathBuf>,
 }
 
-/// Writes a package's reconstruction (and optionally its factor maps).
+/// Writes a package's reconstruction, factor maps or textures, as asked.
 pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
     let pkg = Package::read(&args.package, limits)?;
-    let g = pkg.reconstruct(limits)?;
-    npy::write_gdm(&g, &args.out)?;
+    if let Some(out) = args.out {
+        npy::write_gdm(&pkg.reconstruct(limits)?, &out)?;
+    }
     if let Some(path) = args.exr {
         mesobake::package::exr_export::write_factors(&pkg, &path)?;
+    }
+    if let Some(dir) = args.ktx2 {
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        let mut written = 0;
+        for section in &pkg.manifest().sections {
+            if section.texture.dimension == TextureDimension::Buffer {
+                continue;
+            }
+            let data = pkg.section(&section.name).expect("listed");
+            let file = mesobake::package::ktx2::write(&section.texture, data)?;
+            write_atomic(&dir.join(format!("{}.ktx2", section.name)), &file)?;
+            written += 1;
+        }
+        eprintln!("wrote {written} KTX2 textures to {}", dir.display());
     }
     Ok(())
 }

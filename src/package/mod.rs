@@ -9,7 +9,7 @@ pub mod bake;
 pub mod exr_export;
 pub mod gi;
 
-pub use mesobake_package::{OCCUPANCY_SECTION, container, manifest};
+pub use mesobake_package::{OCCUPANCY_SECTION, container, ktx2, manifest};
 
 use crate::bake::gdm::volume_caster::VolumeCaster;
 use crate::bake::gdm::{EscapeConvention, Gdm, exact};

@@ -18,6 +18,7 @@ pub mod container;
 pub mod error;
 pub mod gi;
 pub mod grid;
+pub mod ktx2;
 pub mod manifest;
 pub mod occupancy;
 pub mod quantize;
