@@ -265,6 +265,40 @@ fn cli_writes_loadable_obj_and_rejects_bad_input() {
         &path("scene.obj"),
     ]);
     let from_scene = TriMesh::read_obj(std::path::Path::new(&path("scene.obj")), 1 << 30).unwrap();
+    // The same export as binary glTF, read back by the gltf crate: the OBJ's triangles and its
+    // positions to f32 precision.
+    succeeds(&[
+        "explicit",
+        "--scene",
+        &path("scene.json"),
+        "--out",
+        &path("scene.glb"),
+    ]);
+    let glb = std::fs::read(path("scene.glb")).unwrap();
+    let gltf = gltf::Gltf::from_slice(&glb).unwrap();
+    let blob = gltf.blob.as_deref().unwrap();
+    let mesh = gltf.meshes().next().unwrap();
+    let primitive = mesh.primitives().next().unwrap();
+    assert_eq!(primitive.mode(), gltf::mesh::Mode::Triangles);
+    let reader = primitive.reader(|_| Some(blob));
+    let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+    assert_eq!(positions.len(), from_scene.positions.len());
+    assert_eq!(
+        indices,
+        from_scene
+            .triangles
+            .iter()
+            .flatten()
+            .copied()
+            .collect::<Vec<_>>()
+    );
+    for (g, o) in positions.iter().zip(&from_scene.positions) {
+        for axis in 0..3 {
+            let (g, o) = (g[axis] as f64, o[axis]);
+            assert!((g - o).abs() <= 1e-6 * (1.0 + o.abs()), "{g} vs {o}");
+        }
+    }
     // The same geometry, up to the OBJ round trip of the base mesh (9 decimals), which moves
     // clipping and subdivision decisions at a few places: counts within 1 %.
     let (a, b) = (from_scene.triangles.len(), written.triangles.len());

@@ -1,4 +1,5 @@
-//! `mesobake explicit`: a mesh tile's triangles mapped through the shell into one OBJ.
+//! `mesobake explicit`: a mesh tile's triangles mapped through the shell into one OBJ or
+//! binary glTF.
 
 use super::output::print_json;
 use mesobake::surface::explicit::{ExplicitInput, parse_pair};
@@ -35,7 +36,7 @@ pub struct ExplicitArgs {
     /// mapping of its texture midpoint [default: 1e-3 × thickness].
     #[arg(long)]
     tolerance: Option<f64>,
-    /// Output OBJ.
+    /// Output mesh: binary glTF when it ends in `.glb`, OBJ otherwise.
     #[arg(long)]
     out: PathBuf,
     /// Print the statistics as JSON on stdout.
@@ -85,7 +86,15 @@ pub fn explicit(args: ExplicitArgs, limits: &Limits) -> Result<()> {
          largest measured edge deviation {:e}",
         s.triangles_out, s.vertices_out, s.tolerance, s.max_deviation
     );
-    write_atomic(&out, explicit.mesh.to_obj(&comment).as_bytes())?;
+    let is_glb = out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    let bytes = if is_glb {
+        explicit.mesh.to_glb(&comment)
+    } else {
+        explicit.mesh.to_obj(&comment).into_bytes()
+    };
+    write_atomic(&out, &bytes)?;
     let write_s = start.elapsed().as_secs_f64();
     eprintln!(
         "wrote {}: {} triangles, {} vertices from {} tile triangles over {} prisms \

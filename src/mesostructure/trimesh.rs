@@ -43,6 +43,77 @@ impl TriMesh {
         ]
     }
 
+    /// A binary glTF 2.0 file (`.glb`) of the mesh: one node, one mesh, one triangle
+    /// primitive with f32 positions (their bounds as glTF requires) and u32 indices,
+    /// coordinates as they are (glTF reads them as metres, y up). Deterministic.
+    pub fn to_glb(&self, generator: &str) -> Vec<u8> {
+        let mut bin: Vec<u8> =
+            Vec::with_capacity(self.positions.len() * 12 + self.triangles.len() * 12);
+        let (mut min, mut max) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for p in &self.positions {
+            for axis in 0..3 {
+                let v = p[axis] as f32;
+                (min[axis], max[axis]) = (min[axis].min(v), max[axis].max(v));
+                bin.extend(v.to_le_bytes());
+            }
+        }
+        let positions = bin.len();
+        bin.extend(
+            self.triangles
+                .iter()
+                .flatten()
+                .flat_map(|i| i.to_le_bytes()),
+        );
+        let indices = bin.len() - positions;
+        let mut json = serde_json::json!({
+            "asset": {"version": "2.0", "generator": generator},
+            "buffers": [{"byteLength": bin.len()}],
+        });
+        if !self.triangles.is_empty() {
+            const ARRAY_BUFFER: u32 = 34962;
+            const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+            const FLOAT: u32 = 5126;
+            const UNSIGNED_INT: u32 = 5125;
+            const TRIANGLES: u32 = 4;
+            let more = serde_json::json!({
+                "scene": 0,
+                "scenes": [{"nodes": [0]}],
+                "nodes": [{"mesh": 0}],
+                "meshes": [{"primitives": [{
+                    "attributes": {"POSITION": 0}, "indices": 1, "mode": TRIANGLES
+                }]}],
+                "bufferViews": [
+                    {"buffer": 0, "byteOffset": 0, "byteLength": positions, "target": ARRAY_BUFFER},
+                    {"buffer": 0, "byteOffset": positions, "byteLength": indices,
+                     "target": ELEMENT_ARRAY_BUFFER},
+                ],
+                "accessors": [
+                    {"bufferView": 0, "componentType": FLOAT, "count": self.positions.len(),
+                     "type": "VEC3", "min": min, "max": max},
+                    {"bufferView": 1, "componentType": UNSIGNED_INT,
+                     "count": 3 * self.triangles.len(), "type": "SCALAR"},
+                ],
+            });
+            json.as_object_mut()
+                .expect("an object")
+                .extend(more.as_object().expect("an object").clone());
+        }
+        let mut json = serde_json::to_vec(&json).expect("finite numbers");
+        json.resize(json.len().next_multiple_of(4), b' ');
+        bin.resize(bin.len().next_multiple_of(4), 0);
+        let total = 12 + 8 + json.len() + 8 + bin.len();
+        let mut glb = Vec::with_capacity(total);
+        glb.extend(b"glTF");
+        glb.extend(2u32.to_le_bytes());
+        glb.extend((total as u32).to_le_bytes());
+        for (chunk, kind) in [(&json, b"JSON"), (&bin, b"BIN\0")] {
+            glb.extend((chunk.len() as u32).to_le_bytes());
+            glb.extend(kind);
+            glb.extend(chunk.iter());
+        }
+        glb
+    }
+
     /// OBJ text: `v x y z` lines with 9 decimals, then `f a b c` (1-based). Deterministic.
     pub fn to_obj(&self, comment: &str) -> String {
         let mut s = String::with_capacity(self.positions.len() * 40 + self.triangles.len() * 24);
