@@ -45,7 +45,7 @@ fn run(base: &BaseMesh, shell: ShellParams, tile: &TriMesh, tolerance: f64) -> (
         tolerance,
         record_texture: true,
     };
-    let out = export(&shell, tile, &params, &Limits::default()).unwrap();
+    let out = export(&shell, tile, &params, &Limits::default(), &()).unwrap();
     (shell, out)
 }
 

@@ -1,7 +1,7 @@
 //! `mesobake explicit`: a mesh tile's triangles mapped through the shell into one OBJ or
 //! binary glTF.
 
-use super::output::print_json;
+use super::output::{Progress, print_json};
 use mesobake::surface::explicit::{ExplicitInput, parse_pair};
 use mesobake::util::fs::write_atomic;
 use mesobake::util::limits::Limits;
@@ -78,7 +78,9 @@ pub fn explicit(args: ExplicitArgs, limits: &Limits) -> Result<()> {
         input.tile.triangles.len(),
         input.base.triangles.len()
     );
-    let (shell, explicit) = input.export(tolerance, false, limits)?;
+    let progress = Progress::new("mapping prisms");
+    let (shell, explicit) = input.export(tolerance, false, limits, &progress)?;
+    progress.finish();
     let s = &explicit.stats;
     let start = Instant::now();
     let comment = format!(

@@ -75,7 +75,7 @@ impl<'a> ExplicitRenderer<'a> {
             tolerance: EXPLICIT_TOLERANCE * thickness,
             record_texture: true,
         };
-        let explicit = export(&loaded.shell, tile, &params, limits)?;
+        let explicit = export(&loaded.shell, tile, &params, limits, &())?;
         let mesh = &explicit.mesh;
         // Per triangle: f64 corners, its source, an f32 copy and the BVH's share.
         limits.check("explicit triangles", mesh.triangles.len() as u64, 256)?;

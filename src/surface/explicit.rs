@@ -80,6 +80,7 @@
 //!   inside out and may intersect its neighbours ([`ExplicitStats::folded_prisms`]).
 //! - Deterministic: prisms run in parallel but are merged in order.
 
+use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::samples;
@@ -194,12 +195,14 @@ pub struct Explicit {
 }
 
 /// Maps `tile` (tile units, z in [0, `params.tile_height`], repeating in x and y) through
-/// `shell` into object space; see the module documentation.
+/// `shell` into object space; see the module documentation. `observer` hears of each prism
+/// finished and may cancel.
 pub fn export(
     shell: &Shell,
     tile: &TriMesh,
     params: &ExplicitParams,
     limits: &Limits,
+    observer: &dyn BakeObserver,
 ) -> Result<Explicit> {
     let start = Instant::now();
     if !(params.tile_height.is_finite() && params.tile_height > 0.0) {
@@ -245,14 +248,20 @@ pub fn export(
     )?;
     let budget = limits.memory_bytes / BYTES_PER_TRIANGLE;
     let produced = AtomicU64::new(0);
+    let finished = AtomicU64::new(0);
+    let prisms = shell.prisms.len() as u64;
     let boundary = boundary_sides(shell);
     let outputs: Vec<PrismOutput> = shell
         .prisms
         .par_iter()
         .enumerate()
         .map(|(index, prism)| {
+            if observer.cancelled() {
+                return Err(Error::Cancelled);
+            }
             let ctx = PrismContext::new(prism, index as u32, boundary[index], &tile, params);
             let out = ctx.run();
+            observer.progress(finished.fetch_add(1, Ordering::Relaxed) + 1, prisms);
             let total = produced.fetch_add(out.triangles.len() as u64, Ordering::Relaxed)
                 + out.triangles.len() as u64;
             if total > budget {
@@ -1395,6 +1404,7 @@ impl ExplicitInput {
         tolerance: Option<f64>,
         record_texture: bool,
         limits: &Limits,
+        observer: &dyn BakeObserver,
     ) -> Result<(Shell, Explicit)> {
         let shell = Shell::new(&self.base, self.shell)?;
         let params = ExplicitParams {
@@ -1402,7 +1412,7 @@ impl ExplicitInput {
             tolerance: tolerance.unwrap_or(DEFAULT_RELATIVE_TOLERANCE * self.shell.thickness),
             record_texture,
         };
-        let explicit = export(&shell, &self.tile, &params, limits)?;
+        let explicit = export(&shell, &self.tile, &params, limits, observer)?;
         Ok((shell, explicit))
     }
 }
@@ -1510,7 +1520,7 @@ mod tests {
             tolerance: 1e-6,
             record_texture: true,
         };
-        export(&shell, tile, &params, &Limits::default()).unwrap()
+        export(&shell, tile, &params, &Limits::default(), &()).unwrap()
     }
 
     #[test]
