@@ -4,7 +4,7 @@
 mod cli;
 
 use clap::{Parser, Subcommand};
-use cli::{bench, explicit, gdm, package, preview, render, report, sample, server};
+use cli::{bench, explicit, gdm, package, preview, render, report, sample, server, vdm};
 use mesobake::Result;
 use mesobake::bench::counting_alloc::CountingAlloc;
 use mesobake::util::limits::{Limits, parse_bytes};
@@ -35,6 +35,12 @@ enum Command {
     /// Bake the GDM of a volume or OBJ tile and write it as .npy (float32, shape
     /// (X, Y, Z, Nθ, Nφ), voxel units, escapes +inf, inside 0).
     Gdm(gdm::GdmArgs),
+    /// Bake the view-dependent displacement map (VDM) of a height field or built-in relief
+    /// and write it as .npy (float32, shape (curvatures, Nθ, Nφ, H, W), tile units, −1 for no
+    /// hit); --compare measures the paper's resampled bake against the exact one.
+    Vdm(vdm::VdmArgs),
+    /// Write a built-in relief (height field) as a 16-bit grayscale PNG.
+    Relief(vdm::ReliefArgs),
     /// Bake a GDM package (.mbpkg) for CI builds: bake, SVD-compress, quantize, measure the
     /// error and write the package. Output is byte-identical for identical inputs and options.
     Bake(package::BakeArgs),
@@ -42,7 +48,8 @@ enum Command {
     /// as a package) before writing it.
     Fetch(package::FetchArgs),
     /// Reconstruct the dense GDM from a package into .npy (the convention of `mesobake gdm`:
-    /// escapes +inf), optionally exporting the weight maps and eigenmaps as a multi-layer EXR.
+    /// escapes +inf), export the weight maps and eigenmaps as a multi-layer EXR, or the
+    /// texture sections as KTX2 files.
     Unpack(package::UnpackArgs),
     /// Bake a built-in sample end to end and render a preview from its GDM: writes
     /// SAMPLE.mbvol, SAMPLE.obj, SAMPLE-gdm.npy and SAMPLE-preview.png into --out.
@@ -70,7 +77,7 @@ enum Command {
     /// fraction of pixels whose hit/miss mask differs.
     Compare(render::CompareArgs),
     /// Map a mesh tile's triangles through the shell into object space and write them as an
-    /// OBJ: explicit geometry, subdivided so that every edge follows the curved mapping within
+    /// OBJ or binary glTF (.glb): explicit geometry, subdivided so that every edge follows the curved mapping within
     /// --tolerance, welded (a closed tile on a closed base gives a closed mesh).
     Explicit(explicit::ExplicitArgs),
     /// Reports on what accuracy costs.
@@ -96,6 +103,8 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Sample(args) => sample::sample(args, &limits),
         Command::Gdm(args) => gdm::gdm(args, &limits),
+        Command::Vdm(args) => vdm::vdm(args, &limits),
+        Command::Relief(args) => vdm::relief(args, &limits),
         Command::Bake(args) => package::bake(args, &limits),
         Command::Fetch(args) => package::fetch(args),
         Command::Unpack(args) => package::unpack(args, &limits),

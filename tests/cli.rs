@@ -266,3 +266,85 @@ fn inputs_are_recognized_by_content_not_by_name() {
     assert_eq!(err.matches("scene:").count(), 1, "{err}");
     assert_eq!(err.matches("bad.json").count(), 1, "{err}");
 }
+
+/// Runs `mesobake args` in `dir` under a pseudo-terminal (util-linux `script`) and returns
+/// everything it wrote there.
+fn on_a_terminal(dir: &Path, args: &[&str]) -> String {
+    let quote = |s: &str| format!("'{}'", s.replace('\'', r"'\''"));
+    let command: Vec<String> = std::iter::once(env!("CARGO_BIN_EXE_mesobake"))
+        .chain(args.iter().copied())
+        .map(quote)
+        .collect();
+    let out = std::process::Command::new("script")
+        .args(["-qec", &command.join(" "), "/dev/null"])
+        .current_dir(dir)
+        .env("TERM", "xterm")
+        .output()
+        .expect("script (util-linux) runs");
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "{args:?}: {text}");
+    text
+}
+
+/// Long work shows a labelled bar on a terminal (bake with its compress stage, the truth
+/// render, the explicit export) and nothing of it when stderr is not one.
+#[test]
+fn long_work_shows_progress_on_a_terminal_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::small_scene(dir.path());
+    let scene = scene.to_str().unwrap();
+    let volume = dir.path().join("weave.mbvol");
+    succeeds(&[
+        "sample",
+        "weave",
+        "--res",
+        "16x16x8",
+        "--out",
+        volume.to_str().unwrap(),
+    ]);
+    let cases: [(&[&str], &[&str]); 3] = [
+        (
+            &[
+                "bake",
+                "--input",
+                "weave.mbvol",
+                "--out",
+                "w.mbpkg",
+                "--gdm-codec",
+                "paper-svd",
+                "--dirs",
+                "4x8",
+            ],
+            &["baking", "compress"],
+        ),
+        (
+            &[
+                "render", "--scene", scene, "--method", "truth", "--out", "t.png",
+            ],
+            &["rendering"],
+        ),
+        (
+            &["explicit", "--scene", scene, "--out", "e.glb"],
+            &["mapping prisms"],
+        ),
+    ];
+    for (args, labels) in cases {
+        let text = on_a_terminal(dir.path(), args);
+        for label in labels {
+            assert!(
+                text.contains(&format!("{label} [")),
+                "{args:?}: no {label:?} bar in {text:?}"
+            );
+        }
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_mesobake"))
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            out.status.success() && !stderr.contains(" ["),
+            "{args:?}: {stderr}"
+        );
+    }
+}

@@ -5,3 +5,4 @@
 
 pub mod gdm;
 pub mod gi;
+pub mod vdm;

@@ -13,3 +13,4 @@ pub mod render;
 pub mod report;
 pub mod sample;
 pub mod server;
+pub mod vdm;

@@ -75,6 +75,47 @@ impl HeightField {
         })
     }
 
+    /// A height field of `width` × `height` pixels (x fastest), every height finite in [0, 1].
+    pub fn new(width: u32, height: u32, heights: Vec<f32>) -> Result<HeightField> {
+        if width == 0 || height == 0 || heights.len() as u64 != u64::from(width) * u64::from(height)
+        {
+            return Err(Error::InvalidParameter(format!(
+                "a {width}×{height} height field needs {} heights, got {}",
+                u64::from(width) * u64::from(height),
+                heights.len()
+            )));
+        }
+        if let Some(n) = heights.iter().position(|h| !(0.0..=1.0).contains(h)) {
+            return Err(Error::InvalidParameter(format!(
+                "height field pixel {n}: height {} is not in [0, 1]",
+                heights[n]
+            )));
+        }
+        Ok(HeightField {
+            width,
+            height,
+            heights,
+        })
+    }
+
+    /// The field as a 16-bit grayscale PNG (height × 65535, rounded), which
+    /// [`HeightField::decode_png`] reads back to within 1/131070.
+    pub fn to_png(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut encoder = png::Encoder::new(&mut out, self.width, self.height);
+        encoder.set_color(png::ColorType::Grayscale);
+        encoder.set_depth(png::BitDepth::Sixteen);
+        let data: Vec<u8> = self
+            .heights
+            .iter()
+            .flat_map(|h| ((h * 65535.0).round() as u16).to_be_bytes())
+            .collect();
+        let mut writer = encoder.write_header().expect("a valid header");
+        writer.write_image_data(&data).expect("the whole image");
+        writer.finish().expect("in memory");
+        out
+    }
+
     /// Reads and decodes the PNG at `path`.
     pub fn read(path: &Path, limits: &Limits) -> Result<HeightField> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;

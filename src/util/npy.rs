@@ -1,4 +1,4 @@
-//! Export of a GDM as a NumPy `.npy` file (format version 1.0): little-endian float32,
+//! Export of a GDM (and of any float32 array, such as a VDM) as a NumPy `.npy` file (format version 1.0): little-endian float32,
 //! C order, shape (X, Y, Z, Nθ, Nφ), distances in voxel units, escapes as +inf, inside solid
 //! as 0. See [`crate::grid`] for where samples and directions sit.
 
@@ -11,6 +11,19 @@ use std::path::Path;
 /// convention, whose boundary distances are then written as they are.
 pub fn write_gdm(gdm: &Gdm, path: &Path) -> Result<()> {
     crate::util::fs::write_atomic_with(path, |w| write_gdm_to(gdm, w))
+}
+
+/// Writes `values`, a C-order float32 array of `shape`, to `path`.
+pub fn write_array(path: &Path, shape: &[u64], values: &[f32]) -> Result<()> {
+    debug_assert_eq!(shape.iter().product::<u64>(), values.len() as u64);
+    crate::util::fs::write_atomic_with(path, |w| {
+        w.write_all(&header(shape))?;
+        for chunk in values.chunks(1 << 16) {
+            let bytes: Vec<u8> = chunk.iter().flat_map(|v| v.to_le_bytes()).collect();
+            w.write_all(&bytes)?;
+        }
+        Ok(())
+    })
 }
 
 /// The `.npy` header for a little-endian float32 C-order array of `shape`.

@@ -1,0 +1,273 @@
+//! The view-dependent displacement map (VDM) of a height field: d(x, y, θ, φ, c), the
+//! distance along the viewing ray from the reference surface to the mesostructure, for a
+//! reference surface bent to curvature c along the view direction; −1 ([`NO_HIT`]) where the
+//! ray meets no mesostructure.
+//!
+//! **Units and conventions.** Texture units throughout: the tile is 1 × 1 in (x, y), so
+//! lengths, the relief `depth` and d are fractions of the tile's edge, and curvatures are in
+//! 1/tile (the paper's −2 … 3). The reference surface is the top of the relief (z = 0); the
+//! mesostructure surface lies `depth · (1 − h(x, y))` below it, h the height field in [0, 1]
+//! (h = 1 touches the reference surface). Sample (i, j) is texel centre ((i + ½)/W,
+//! (j + ½)/H). The view ray enters the surface at polar angle θ from the inward normal, moving
+//! along azimuth φ in texture space: direction (sin θ cos φ, sin θ sin φ, −cos θ); θ_a =
+//! (a + ½)·(π/2)/Nθ and φ_b = (b + ½)·2π/Nφ (bin centres, so never 0 or π/2), c_k evenly
+//! from c_min to c_max. Positive curvature is convex (the surface bends away from the ray).
+//!
+//! **Curved surfaces** (the paper's appendix): the surface is a cylinder of radius 1/c whose
+//! axis is perpendicular to the view's azimuth ([`bend`]); a point at arc length σ along the
+//! azimuth and depth t maps to the circle of radius 1/c − t. The VDM then stores
+//! d = l / sin θ with l the arc length σ of the hit, so that the texture offset of the hit is
+//! always d · (sin θ cos φ, sin θ sin φ); on a flat surface that is the ray's length.
+//!
+//! Two bakes ([`VdmMethod`]): [`exact`] casts every ray against the bent relief;
+//! [`paper`] bends the zero-curvature hits and resamples them over θ, as the paper does.
+
+pub mod bend;
+pub mod exact;
+pub mod paper;
+
+use crate::bake::gdm::BakeObserver;
+use crate::error::{Error, Result};
+use crate::mesostructure::height_field::HeightField;
+use crate::util::limits::Limits;
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+/// The value of a sample whose ray meets no mesostructure.
+pub const NO_HIT: f32 = -1.0;
+
+/// Largest accepted direction or curvature count.
+pub const MAX_AXIS: u32 = 1024;
+
+/// Largest accepted oversampling of the paper's bake.
+pub const MAX_OVERSAMPLING: u32 = 64;
+
+/// The view and curvature sampling of a VDM.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VdmGrid {
+    /// Polar angles over (0, π/2).
+    pub n_theta: u32,
+    /// Azimuths over (0, 2π).
+    pub n_phi: u32,
+    /// Curvatures from `c_min` to `c_max`.
+    pub n_curvature: u32,
+    /// The smallest curvature (1/tile).
+    pub c_min: f64,
+    /// The largest curvature (1/tile).
+    pub c_max: f64,
+}
+
+impl VdmGrid {
+    /// The paper's grid: 8 θ × 32 φ view directions, 16 curvatures from −2 to 3.
+    pub const PAPER: VdmGrid = VdmGrid {
+        n_theta: 8,
+        n_phi: 32,
+        n_curvature: 16,
+        c_min: -2.0,
+        c_max: 3.0,
+    };
+
+    /// Checks the counts (1 to [`MAX_AXIS`]), the curvature range (finite, ordered) and that
+    /// no curvature folds a relief of `depth`: |c|·depth < 1.
+    pub fn validate(&self, depth: f64) -> Result<()> {
+        for (name, n) in [
+            ("θ", self.n_theta),
+            ("φ", self.n_phi),
+            ("curvature", self.n_curvature),
+        ] {
+            if n == 0 || n > MAX_AXIS {
+                return Err(Error::InvalidParameter(format!(
+                    "VDM grid: the {name} count must be 1 to {MAX_AXIS}, got {n}"
+                )));
+            }
+        }
+        if !(self.c_min.is_finite() && self.c_max.is_finite() && self.c_min <= self.c_max) {
+            return Err(Error::InvalidParameter(format!(
+                "VDM grid: curvatures {} to {} are not a finite, ordered range",
+                self.c_min, self.c_max
+            )));
+        }
+        let worst = self.c_min.abs().max(self.c_max.abs());
+        if worst * depth >= 1.0 {
+            return Err(Error::InvalidParameter(format!(
+                "VDM grid: curvature {worst} bends a relief {depth} deep past the centre of \
+                 curvature (|c|·depth must stay below 1)"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Polar angle of bin `a`: (a + ½)·(π/2)/Nθ.
+    pub fn theta(&self, a: u32) -> f64 {
+        (f64::from(a) + 0.5) * FRAC_PI_2 / f64::from(self.n_theta)
+    }
+
+    /// Azimuth of bin `b`: (b + ½)·2π/Nφ.
+    pub fn phi(&self, b: u32) -> f64 {
+        (f64::from(b) + 0.5) * TAU / f64::from(self.n_phi)
+    }
+
+    /// Curvature `k`: evenly from `c_min` to `c_max` (`c_min` when there is one).
+    pub fn curvature(&self, k: u32) -> f64 {
+        if self.n_curvature == 1 {
+            return self.c_min;
+        }
+        self.c_min + (self.c_max - self.c_min) * f64::from(k) / f64::from(self.n_curvature - 1)
+    }
+}
+
+/// Which VDM bake.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VdmMethod {
+    /// Every ray cast against the relief bent to its curvature ([`exact`]).
+    Exact,
+    /// Zero-curvature casts bent and resampled over θ ([`paper`]).
+    Paper,
+}
+
+/// How to bake a VDM: the method and its knob.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VdmParams {
+    /// The bake.
+    pub method: VdmMethod,
+    /// The paper's bake: flat rays cast per θ bin before resampling (1 is the paper's).
+    pub oversampling: u32,
+}
+
+impl VdmParams {
+    /// The exact bake.
+    pub const EXACT: VdmParams = VdmParams {
+        method: VdmMethod::Exact,
+        oversampling: 1,
+    };
+    /// The paper's bake as the paper does it.
+    pub const PAPER: VdmParams = VdmParams {
+        method: VdmMethod::Paper,
+        oversampling: 1,
+    };
+}
+
+impl std::str::FromStr for VdmMethod {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "exact" => Ok(VdmMethod::Exact),
+            "paper" => Ok(VdmMethod::Paper),
+            _ => Err(Error::InvalidParameter(format!(
+                "VDM method {s:?}: expected exact or paper"
+            ))),
+        }
+    }
+}
+
+/// A relief: a height field and how deep it reaches below the reference surface.
+#[derive(Clone, Copy, Debug)]
+pub struct Relief<'a> {
+    /// Heights in [0, 1].
+    pub field: &'a HeightField,
+    /// Depth of height 0 below the reference surface (tile units, > 0).
+    pub depth: f64,
+}
+
+impl Relief<'_> {
+    /// Depth of the mesostructure surface below the reference surface at texture point
+    /// (u, v): depth · (1 − h(u, v)), h bilinear and periodic.
+    pub fn surface_depth(&self, u: f64, v: f64) -> f64 {
+        self.depth * (1.0 - self.field.sample(u, v))
+    }
+
+    /// A bound on how fast `surface_depth` changes per unit of texture distance (its
+    /// bilinear interpolation's largest slope), for steps that cannot skip a crossing.
+    pub fn slope_bound(&self) -> f64 {
+        let (w, h) = self.field.size();
+        let step = |du: f64, dv: f64, n: f64| {
+            let mut most = 0.0f64;
+            for j in 0..h {
+                for i in 0..w {
+                    let (u, v) = (
+                        (f64::from(i) + 0.5) / f64::from(w),
+                        (f64::from(j) + 0.5) / f64::from(h),
+                    );
+                    most = most.max(
+                        (self.field.sample(u + du, v + dv) - self.field.sample(u, v)).abs() * n,
+                    );
+                }
+            }
+            most
+        };
+        let (dx, dy) = (
+            step(1.0 / f64::from(w), 0.0, f64::from(w)),
+            step(0.0, 1.0 / f64::from(h), f64::from(h)),
+        );
+        // The bilinear patch's gradient is bounded by its edges' slopes (each axis), and the
+        // steepest direction by their Euclidean sum.
+        self.depth * (dx * dx + dy * dy).sqrt()
+    }
+}
+
+/// A baked VDM: `values[((k·Nθ + a)·Nφ + b)·W·H + j·W + i]` for curvature k, view (a, b),
+/// texel (i, j), so that each (curvature, view) is one W × H image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Vdm {
+    /// Texels along x and y (the height field's).
+    pub size: (u32, u32),
+    /// The view and curvature grid.
+    pub grid: VdmGrid,
+    /// The relief's depth (tile units).
+    pub depth: f64,
+    /// The samples (tile units, or [`NO_HIT`]).
+    pub values: Vec<f32>,
+}
+
+impl Vdm {
+    /// The sample at texel (i, j), view (a, b), curvature k.
+    pub fn get(&self, i: u32, j: u32, a: u32, b: u32, k: u32) -> f32 {
+        let (w, h) = (self.size.0 as usize, self.size.1 as usize);
+        let g = &self.grid;
+        let image =
+            ((k as usize * g.n_theta as usize + a as usize) * g.n_phi as usize) + b as usize;
+        self.values[image * w * h + j as usize * w + i as usize]
+    }
+}
+
+/// Bakes the VDM of `relief` on `grid` as `params` say, reporting progress to `observer`.
+pub fn bake(
+    relief: Relief,
+    grid: VdmGrid,
+    params: VdmParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<Vdm> {
+    if !(1..=MAX_OVERSAMPLING).contains(&params.oversampling) {
+        return Err(Error::InvalidParameter(format!(
+            "VDM oversampling must be 1 to {MAX_OVERSAMPLING}, got {}",
+            params.oversampling
+        )));
+    }
+    if !(relief.depth.is_finite() && relief.depth > 0.0) {
+        return Err(Error::InvalidParameter(format!(
+            "the relief depth must be finite and positive, got {}",
+            relief.depth
+        )));
+    }
+    grid.validate(relief.depth)?;
+    let (w, h) = relief.field.size();
+    let count = u64::from(w)
+        * u64::from(h)
+        * u64::from(grid.n_theta)
+        * u64::from(grid.n_phi)
+        * u64::from(grid.n_curvature);
+    limits.check("the VDM", count, 4)?;
+    let values = match params.method {
+        VdmMethod::Exact => exact::bake(relief, grid, observer)?,
+        VdmMethod::Paper => paper::bake(relief, grid, params.oversampling, observer)?,
+    };
+    Ok(Vdm {
+        size: (w, h),
+        grid,
+        depth: relief.depth,
+        values,
+    })
+}

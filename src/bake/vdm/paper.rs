@@ -1,0 +1,115 @@
+//! The paper's VDM bake (its appendix): for each texel and azimuth the rays at the grid's θ
+//! are cast once, on the flat relief (or `oversampling` rays per θ bin, evenly over (0, π/2),
+//! a knob the paper leaves at 1); for each curvature their hit points are bent with the
+//! surface ([`Bend`]), which moves each to a new view angle θ′ from the entry point, and the
+//! values l / sin θ′ are resampled over the uniform θ grid by linear interpolation. Hits whose
+//! θ′ does not exceed every earlier one (reordered: occluded after bending) are discarded.
+//! Below the first θ′ the first value holds; beyond the last, a convex surface gives
+//! [`NO_HIT`] (no intersection exists) and a flat or concave one holds the last value.
+
+use super::bend::Bend;
+use super::exact::cast;
+use super::{NO_HIT, Relief, VdmGrid};
+use crate::bake::gdm::BakeObserver;
+use crate::error::{Error, Result};
+use rayon::prelude::*;
+use std::f64::consts::FRAC_PI_2;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Bakes in parallel over azimuths, casting `oversampling` flat rays per θ bin (1 is the
+/// paper's: one per bin, at the bins' angles).
+pub fn bake(
+    relief: Relief,
+    grid: VdmGrid,
+    oversampling: u32,
+    observer: &dyn BakeObserver,
+) -> Result<Vec<f32>> {
+    let (w, h) = relief.field.size();
+    let texels = (w * h) as usize;
+    let (n_theta, n_phi, n_c) = (
+        grid.n_theta as usize,
+        grid.n_phi as usize,
+        grid.n_curvature as usize,
+    );
+    let slope = relief.slope_bound();
+    let done = AtomicU64::new(0);
+    let per_phi: Vec<Vec<f32>> = (0..grid.n_phi)
+        .into_par_iter()
+        .map(|b| {
+            if observer.cancelled() {
+                return Err(Error::Cancelled);
+            }
+            let phi = grid.phi(b);
+            // [k][a][texel] for this azimuth.
+            let mut out = vec![NO_HIT; n_c * n_theta * texels];
+            for texel in 0..texels {
+                let p = [
+                    (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
+                    (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
+                ];
+                let casts = grid.n_theta * oversampling;
+                let hits: Vec<(f64, f64)> = (0..casts)
+                    .filter_map(|m| {
+                        let theta = (f64::from(m) + 0.5) * FRAC_PI_2 / f64::from(casts);
+                        let d = cast(relief, slope, p, theta, phi, Bend { c: 0.0 })?;
+                        Some((d * theta.sin(), d * theta.cos()))
+                    })
+                    .collect();
+                for k in 0..grid.n_curvature {
+                    let column = resample(
+                        &hits,
+                        &grid,
+                        Bend {
+                            c: grid.curvature(k),
+                        },
+                    );
+                    for (a, v) in column.into_iter().enumerate() {
+                        out[(k as usize * n_theta + a) * texels + texel] = v;
+                    }
+                }
+            }
+            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
+            Ok(out)
+        })
+        .collect::<Result<_>>()?;
+    let mut values = vec![NO_HIT; n_c * n_theta * n_phi * texels];
+    for (b, block) in per_phi.iter().enumerate() {
+        for (ka, image) in block.chunks_exact(texels).enumerate() {
+            let (k, a) = (ka / n_theta, ka % n_theta);
+            values[((k * n_theta + a) * n_phi + b) * texels..][..texels].copy_from_slice(image);
+        }
+    }
+    Ok(values)
+}
+
+/// The VDM column over the grid's θ for one curvature, from the flat hits (σ, t) in θ order.
+pub fn resample(hits: &[(f64, f64)], grid: &VdmGrid, bend: Bend) -> Vec<f32> {
+    // (θ′, l / sin θ′) of the hits still seen in order after bending.
+    let mut seen: Vec<(f64, f64)> = Vec::with_capacity(hits.len());
+    for &(sigma, t) in hits {
+        let q = bend.to_plane(sigma, t);
+        let theta = q[0].atan2(-q[1]);
+        let d = if sigma == 0.0 { t } else { sigma / theta.sin() };
+        if seen.last().is_none_or(|&(last, _)| theta > last) {
+            seen.push((theta, d));
+        }
+    }
+    (0..grid.n_theta)
+        .map(|a| {
+            let theta = grid.theta(a);
+            let Some(&(first_theta, first)) = seen.first() else {
+                return NO_HIT;
+            };
+            let &(last_theta, last) = seen.last().expect("non-empty");
+            if theta <= first_theta {
+                return first as f32;
+            }
+            if theta > last_theta {
+                return if bend.c > 0.0 { NO_HIT } else { last as f32 };
+            }
+            let q = seen.partition_point(|&(th, _)| th < theta);
+            let ((t0, d0), (t1, d1)) = (seen[q - 1], seen[q]);
+            (d0 + (d1 - d0) * (theta - t0) / (t1 - t0)) as f32
+        })
+        .collect()
+}

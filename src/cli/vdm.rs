@@ -1,0 +1,255 @@
+//! `mesobake vdm`: the view-dependent displacement map of a relief as `.npy`, optionally
+//! with the paper's bake measured against the exact one; `mesobake relief`: a built-in
+//! relief as a 16-bit PNG.
+
+use super::output::{Progress, print_json};
+use mesobake::bake::vdm::{self, NO_HIT, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
+use mesobake::mesostructure::height_field::HeightField;
+use mesobake::mesostructure::reliefs::{self, ReliefKind};
+use mesobake::util::fs::write_atomic;
+use mesobake::util::limits::Limits;
+use mesobake::util::npy;
+use mesobake::{Error, Result};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Where the heights come from.
+#[derive(clap::Args)]
+#[group(required = true, multiple = false)]
+pub struct HeightSource {
+    /// A grayscale PNG height field (8 or 16 bits; white is the reference surface).
+    #[arg(long)]
+    input: Option<PathBuf>,
+    /// A built-in relief.
+    #[arg(long, value_enum)]
+    relief: Option<ReliefKind>,
+}
+
+/// Options of `mesobake vdm`.
+#[derive(clap::Args)]
+pub struct VdmArgs {
+    #[command(flatten)]
+    source: HeightSource,
+    /// Texels per side of a built-in relief.
+    #[arg(long, default_value_t = 128)]
+    size: u32,
+    /// Depth of height 0 below the reference surface, as a fraction of the tile's edge (the
+    /// relief of a volume with Z = depth · X voxels).
+    #[arg(long, default_value_t = 0.125)]
+    depth: f64,
+    /// View directions Nθ×Nφ (θ over (0, π/2)).
+    #[arg(long, default_value = "8x32", value_parser = parse_pair)]
+    dirs: [u32; 2],
+    /// Curvatures sampled evenly over --curvature-range.
+    #[arg(long, default_value_t = VdmGrid::PAPER.n_curvature)]
+    curvatures: u32,
+    /// Smallest and largest curvature, 1/tile (positive: convex).
+    #[arg(long, default_value = "-2,3", value_parser = parse_range, allow_hyphen_values = true)]
+    curvature_range: [f64; 2],
+    /// exact: every ray cast on the bent relief; paper: flat casts bent and resampled.
+    #[arg(long, default_value = "exact")]
+    method: VdmMethod,
+    /// The paper's bake: flat rays per θ bin before resampling (1 is the paper's).
+    #[arg(long, default_value_t = 1)]
+    oversampling: u32,
+    /// Also bake with the other method and report the paper's error against the exact bake.
+    #[arg(long)]
+    compare: bool,
+    /// Output .npy: float32, shape (curvatures, Nθ, Nφ, H, W), tile units, −1 for no hit.
+    #[arg(long)]
+    out: PathBuf,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+fn parse_pair(text: &str) -> std::result::Result<[u32; 2], String> {
+    let (a, b) = text
+        .split_once(['x', 'X'])
+        .ok_or("expected NθxNφ, e.g. 8x32")?;
+    let n = |s: &str| s.trim().parse::<u32>().map_err(|e| format!("{s:?}: {e}"));
+    Ok([n(a)?, n(b)?])
+}
+
+fn parse_range(text: &str) -> std::result::Result<[f64; 2], String> {
+    let (a, b) = text.split_once(',').ok_or("expected MIN,MAX, e.g. -2,3")?;
+    let n = |s: &str| s.trim().parse::<f64>().map_err(|e| format!("{s:?}: {e}"));
+    Ok([n(a)?, n(b)?])
+}
+
+/// How far the paper's bake is from the exact one.
+#[derive(Debug, Default, serde::Serialize)]
+struct Comparison {
+    /// Samples compared.
+    samples: u64,
+    /// Samples where one bake hits and the other does not.
+    hit_disagreements: u64,
+    /// Root-mean-square difference where both hit (tile units).
+    rmse: f64,
+    /// Largest absolute difference where both hit.
+    max_abs: f64,
+    /// Per curvature: hit disagreements and RMSE.
+    per_curvature: Vec<(f64, u64, f64)>,
+}
+
+fn compare(paper: &Vdm, exact: &Vdm) -> Comparison {
+    let texels = (exact.size.0 * exact.size.1) as usize;
+    let per_k = texels * (exact.grid.n_theta * exact.grid.n_phi) as usize;
+    let mut total = Comparison::default();
+    let mut sum_sq = 0.0;
+    for (k, (p, e)) in paper
+        .values
+        .chunks(per_k)
+        .zip(exact.values.chunks(per_k))
+        .enumerate()
+    {
+        let (mut flips, mut sq, mut both) = (0u64, 0.0f64, 0u64);
+        for (&p, &e) in p.iter().zip(e) {
+            if (p == NO_HIT) != (e == NO_HIT) {
+                flips += 1;
+            } else if e != NO_HIT {
+                let d = f64::from(p) - f64::from(e);
+                sq += d * d;
+                both += 1;
+                total.max_abs = total.max_abs.max(d.abs());
+            }
+        }
+        total.samples += p.len() as u64;
+        total.hit_disagreements += flips;
+        sum_sq += sq;
+        total.rmse += both as f64; // hit pairs, turned into the RMSE below
+        let rmse = (sq / both.max(1) as f64).sqrt();
+        total
+            .per_curvature
+            .push((exact.grid.curvature(k as u32), flips, rmse));
+    }
+    total.rmse = (sum_sq / total.rmse.max(1.0)).sqrt();
+    total
+}
+
+/// Bakes the VDM and writes it.
+pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
+    let start = Instant::now();
+    let field = match (&args.source.input, args.source.relief) {
+        (Some(path), _) => HeightField::read(path, limits)?,
+        (None, Some(kind)) => reliefs::height_field(kind, args.size, limits)?,
+        (None, None) => unreachable!("clap requires one source"),
+    };
+    let load_s = start.elapsed().as_secs_f64();
+    let grid = VdmGrid {
+        n_theta: args.dirs[0],
+        n_phi: args.dirs[1],
+        n_curvature: args.curvatures,
+        c_min: args.curvature_range[0],
+        c_max: args.curvature_range[1],
+    };
+    let relief = Relief {
+        field: &field,
+        depth: args.depth,
+    };
+    let bake = |method: VdmMethod| -> Result<(Vdm, f64)> {
+        let params = VdmParams {
+            method,
+            oversampling: args.oversampling,
+        };
+        let progress = Progress::new(&format!(
+            "baking VDM ({})",
+            serde_json::to_value(method)
+                .expect("a name")
+                .as_str()
+                .unwrap_or("")
+        ));
+        let start = Instant::now();
+        let vdm = vdm::bake(relief, grid, params, limits, &progress)?;
+        progress.finish();
+        Ok((vdm, start.elapsed().as_secs_f64()))
+    };
+    let (baked, bake_s) = bake(args.method)?;
+    let comparison = if args.compare {
+        let other = match args.method {
+            VdmMethod::Exact => VdmMethod::Paper,
+            VdmMethod::Paper => VdmMethod::Exact,
+        };
+        let (second, second_s) = bake(other)?;
+        let (paper, exact) = match args.method {
+            VdmMethod::Exact => (&second, &baked),
+            VdmMethod::Paper => (&baked, &second),
+        };
+        Some((compare(paper, exact), second_s))
+    } else {
+        None
+    };
+    let shape = [
+        u64::from(grid.n_curvature),
+        u64::from(grid.n_theta),
+        u64::from(grid.n_phi),
+        u64::from(baked.size.1),
+        u64::from(baked.size.0),
+    ];
+    let start = Instant::now();
+    npy::write_array(&args.out, &shape, &baked.values)?;
+    let write_s = start.elapsed().as_secs_f64();
+    let hits = baked.values.iter().filter(|&&v| v != NO_HIT).count();
+    eprintln!(
+        "wrote {}: {} samples, {:.1} % hit, baked in {bake_s:.2} s",
+        args.out.display(),
+        baked.values.len(),
+        100.0 * hits as f64 / baked.values.len().max(1) as f64
+    );
+    if let Some((c, _)) = &comparison {
+        eprintln!(
+            "paper against exact: RMSE {:.3e} (max {:.3e}) where both hit; {} of {} samples \
+             disagree on hitting",
+            c.rmse, c.max_abs, c.hit_disagreements, c.samples
+        );
+    }
+    if args.json {
+        print_json(&serde_json::json!({
+            "output": args.out,
+            "size": [baked.size.0, baked.size.1],
+            "depth": args.depth,
+            "grid": grid,
+            "method": args.method,
+            "oversampling": args.oversampling,
+            "hit_fraction": hits as f64 / baked.values.len().max(1) as f64,
+            "comparison": comparison.as_ref().map(|(c, _)| c),
+            "seconds": {
+                "load": load_s,
+                "bake": bake_s,
+                "compare_bake": comparison.as_ref().map(|(_, s)| s),
+                "write": write_s,
+            },
+        }));
+    }
+    Ok(())
+}
+
+/// Options of `mesobake relief`.
+#[derive(clap::Args)]
+pub struct ReliefArgs {
+    /// The relief.
+    #[arg(value_enum)]
+    kind: ReliefKind,
+    /// Pixels per side.
+    #[arg(long, default_value_t = 128)]
+    size: u32,
+    /// Output PNG (16-bit grayscale).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Writes a built-in relief as a PNG.
+pub fn relief(args: ReliefArgs, limits: &Limits) -> Result<()> {
+    let field = reliefs::height_field(args.kind, args.size, limits)?;
+    if args
+        .out
+        .extension()
+        .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
+    {
+        return Err(Error::InvalidParameter(format!(
+            "{}: a relief is written as PNG (name it .png)",
+            args.out.display()
+        )));
+    }
+    write_atomic(&args.out, &field.to_png())
+}

@@ -1,0 +1,358 @@
+//! The VDM bake against closed forms (a flat relief on flat, convex and concave surfaces),
+//! against a plain brute-force march, and the paper's resampled bake against the exact one.
+
+use mesobake::bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, bend::Bend, exact};
+use mesobake::grid::Dims;
+use mesobake::mesostructure::height_field::HeightField;
+use mesobake::mesostructure::reliefs::{self, ReliefKind};
+use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::util::limits::Limits;
+
+mod common;
+use common::{each_fails_with, succeeds};
+
+fn constant(h: f32) -> HeightField {
+    HeightField::new(8, 8, vec![h; 64]).unwrap()
+}
+
+const GRID: VdmGrid = VdmGrid {
+    n_theta: 8,
+    n_phi: 4,
+    n_curvature: 11,
+    c_min: -2.0,
+    c_max: 3.0,
+};
+
+/// A flat relief s0 deep: the ray from P at polar angle θ meets the circle of radius
+/// R − s0 about the centre of curvature (0, −R), R = 1/c; d = l / sin θ with l the arc
+/// length of the hit along the reference surface. Written out per case, without `Bend`.
+fn closed_form(s0: f64, theta: f64, c: f64) -> Option<f64> {
+    let (sin, cos) = theta.sin_cos();
+    if c == 0.0 {
+        return Some(s0 / cos);
+    }
+    let r = 1.0 / c;
+    if c > 0.0 {
+        // τ² − 2Rτ cos θ + 2R s0 − s0² = 0, the nearer root.
+        let disc = r * r * cos * cos - (2.0 * r * s0 - s0 * s0);
+        if disc < 0.0 {
+            return None;
+        }
+        let tau = r * cos - disc.sqrt();
+        Some(r * (tau * sin).atan2(r - tau * cos) / sin)
+    } else {
+        // Centre above at (0, |R|), the relief on the circle of radius |R| + s0.
+        let a = -r;
+        let tau = -a * cos + (a * a * cos * cos + 2.0 * a * s0 + s0 * s0).sqrt();
+        Some(a * (tau * sin).atan2(a + tau * cos) / sin)
+    }
+}
+
+#[test]
+fn a_flat_relief_matches_the_closed_form_on_every_curvature() {
+    let limits = Limits::default();
+    let field = constant(0.25);
+    let relief = Relief {
+        field: &field,
+        depth: 0.2,
+    };
+    let s0 = 0.2 * 0.75;
+    let vdm = vdm::bake(relief, GRID, VdmParams::EXACT, &limits, &()).unwrap();
+    let mut misses = 0;
+    for k in 0..GRID.n_curvature {
+        let c = GRID.curvature(k);
+        for a in 0..GRID.n_theta {
+            let want = closed_form(s0, GRID.theta(a), c);
+            for b in 0..GRID.n_phi {
+                for (i, j) in [(0, 0), (3, 5), (7, 7)] {
+                    let got = vdm.get(i, j, a, b, k);
+                    match want {
+                        Some(d) => assert!(
+                            (f64::from(got) - d).abs() < 1e-6,
+                            "c {c}, θ bin {a}: {got} vs {d}"
+                        ),
+                        None => {
+                            assert_eq!(got, NO_HIT, "c {c}, θ bin {a}");
+                            misses += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(misses > 0, "strongly convex surfaces lose the grazing rays");
+}
+
+/// The paper's bake is exact where nothing is bent; bent, its error is the resampling's, and
+/// shrinks as its flat casts get denser (the knob the paper leaves at 1).
+#[test]
+fn the_papers_bake_is_exact_when_flat_and_converges_when_bent() {
+    let limits = Limits::default();
+    let field = constant(0.25);
+    let relief = Relief {
+        field: &field,
+        depth: 0.2,
+    };
+    let zero = (0..GRID.n_curvature)
+        .find(|&k| GRID.curvature(k) == 0.0)
+        .unwrap();
+    // Largest relative error against the closed form where both hit, and hit disagreements.
+    let error = |oversampling: u32| {
+        let params = VdmParams {
+            method: VdmMethod::Paper,
+            oversampling,
+        };
+        let paper = vdm::bake(relief, GRID, params, &limits, &()).unwrap();
+        let (mut worst, mut flips) = (0.0f64, 0);
+        for k in 0..GRID.n_curvature {
+            let c = GRID.curvature(k);
+            for a in 0..GRID.n_theta {
+                let (got, want) = (
+                    paper.get(2, 3, a, 1, k),
+                    closed_form(0.15, GRID.theta(a), c),
+                );
+                match (got, want) {
+                    (NO_HIT, None) => {}
+                    (NO_HIT, Some(_)) | (_, None) => flips += 1,
+                    (g, Some(d)) => {
+                        let e = (f64::from(g) - d).abs() / d;
+                        if k == zero && oversampling == 1 {
+                            assert!(e < 1e-6, "flat: {g} vs {d}");
+                        }
+                        worst = worst.max(e);
+                    }
+                }
+            }
+        }
+        (worst, flips)
+    };
+    let (coarse, coarse_flips) = error(1);
+    let (fine, fine_flips) = error(16);
+    assert!(
+        coarse > 0.01,
+        "the paper's resampling costs accuracy ({coarse})"
+    );
+    assert!(fine < coarse / 4.0 && fine < 0.01, "{fine} vs {coarse}");
+    assert!(fine_flips <= coarse_flips, "{fine_flips} vs {coarse_flips}");
+}
+
+/// Brute force: march the bent ray in steps of 1/2048 of the tile, the relief looked up with
+/// `HeightField::sample`, the bending written out as polar coordinates.
+fn brute_force(
+    field: &HeightField,
+    depth: f64,
+    p: [f64; 2],
+    theta: f64,
+    phi: f64,
+    c: f64,
+) -> Option<f64> {
+    let (sin, cos) = theta.sin_cos();
+    let step = 1.0 / 2048.0;
+    for n in 1..20_000 {
+        let tau = n as f64 * step;
+        let (x, w) = (tau * sin, -tau * cos);
+        let (sigma, t) = if c == 0.0 {
+            (x, -w)
+        } else {
+            let r = 1.0 / c;
+            let (du, dw) = (x, w + r);
+            (
+                r * (r.signum() * du).atan2(r.signum() * dw),
+                r - r.signum() * du.hypot(dw),
+            )
+        };
+        if t < 0.0 {
+            return None;
+        }
+        let surface =
+            depth * (1.0 - field.sample(p[0] + sigma * phi.cos(), p[1] + sigma * phi.sin()));
+        if t >= surface {
+            return Some(sigma / sin);
+        }
+    }
+    None
+}
+
+#[test]
+fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
+    let limits = Limits::default();
+    for kind in [ReliefKind::Bumps, ReliefKind::Bricks] {
+        let field = reliefs::height_field(kind, 32, &limits).unwrap();
+        let relief = Relief {
+            field: &field,
+            depth: 0.125,
+        };
+        let slope = relief.slope_bound();
+        let (mut compared, mut far) = (0, 0);
+        for n in 0..400u32 {
+            let p = [
+                (f64::from(n * 37 % 32) + 0.5) / 32.0,
+                (f64::from(n * 11 % 32) + 0.5) / 32.0,
+            ];
+            let (theta, phi) = (GRID.theta(n % 8), GRID.phi(n % 4) + 0.3 * f64::from(n % 3));
+            let c = [-1.5, 0.0, 2.0][(n % 3) as usize];
+            let got = exact::cast(relief, slope, p, theta, phi, Bend { c });
+            let want = brute_force(&field, 0.125, p, theta, phi, c);
+            match (got, want) {
+                (Some(g), Some(w)) => {
+                    compared += 1;
+                    // The march overshoots by at most a step (1/2048 along the ray).
+                    far += usize::from((g - w).abs() > 2.0 / 2048.0 / theta.sin());
+                }
+                (None, None) => {}
+                _ => far += 1,
+            }
+        }
+        assert!(compared > 300, "{kind:?}: {compared}");
+        assert!(
+            far <= 2,
+            "{kind:?}: {far} of 400 rays disagree (grazing touches at most)"
+        );
+    }
+}
+
+#[test]
+fn reliefs_have_their_shapes_and_bound_their_samples_volumes() {
+    let limits = Limits::default();
+    let bumps = reliefs::height_field(ReliefKind::Bumps, 64, &limits).unwrap();
+    assert!(
+        (bumps.sample(0.125, 0.125) - 1.0).abs() < 0.02,
+        "a dome's top"
+    );
+    assert_eq!(bumps.sample(0.0, 0.0), 0.0, "the ground between domes");
+    let bricks = reliefs::height_field(ReliefKind::Bricks, 64, &limits).unwrap();
+    assert!(
+        (bricks.sample(0.25 + 1.0 / 128.0, 0.125) - 1.0).abs() < 1e-6,
+        "a brick face"
+    );
+    assert!(
+        (bricks.sample(0.5 + 1.0 / 128.0, 1.0 / 128.0) - 0.2).abs() < 1e-6,
+        "mortar"
+    );
+    // The weave's relief is the top of its volume: the volume under it holds every solid
+    // voxel of the weave.
+    let relief = reliefs::height_field(ReliefKind::Weave, 32, &limits).unwrap();
+    let dims = Dims::new(32, 32, 16).unwrap();
+    let under = relief.to_volume(dims, &limits).unwrap();
+    let weave = samples::volume(SampleKind::Weave, dims, &limits).unwrap();
+    let mut solid = 0;
+    for k in 0..16 {
+        for j in 0..32 {
+            for i in 0..32 {
+                if weave.is_solid(i, j, k) {
+                    solid += 1;
+                    assert!(under.is_solid(i, j, k), "voxel {i},{j},{k}");
+                }
+            }
+        }
+    }
+    assert!(solid > 1000);
+}
+
+#[test]
+fn bad_grids_and_reliefs_are_refused_naming_the_problem() {
+    let limits = Limits::default();
+    let field = constant(0.5);
+    let bake = |depth: f64, grid: VdmGrid| {
+        vdm::bake(
+            Relief {
+                field: &field,
+                depth,
+            },
+            grid,
+            VdmParams::EXACT,
+            &limits,
+            &(),
+        )
+        .unwrap_err()
+        .to_string()
+    };
+    assert!(bake(0.0, GRID).contains("depth"));
+    assert!(bake(f64::NAN, GRID).contains("depth"));
+    assert!(bake(0.5, GRID).contains("|c|·depth"));
+    assert!(bake(0.1, VdmGrid { n_theta: 0, ..GRID }).contains("θ count"));
+    assert!(bake(0.1, VdmGrid { c_min: 4.0, ..GRID }).contains("ordered"));
+    let tiny = Limits {
+        memory_bytes: 1000,
+        ..Limits::default()
+    };
+    assert!(
+        vdm::bake(
+            Relief {
+                field: &field,
+                depth: 0.1
+            },
+            GRID,
+            VdmParams::EXACT,
+            &tiny,
+            &()
+        )
+        .unwrap_err()
+        .to_string()
+        .contains("memory limit")
+    );
+    let e = HeightField::new(2, 2, vec![0.0, 0.5, 1.5, 0.0])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("pixel 2"), "{e}");
+}
+
+#[test]
+fn the_cli_writes_a_relief_and_its_vdm_with_the_papers_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("bumps.png");
+    let npy = dir.path().join("vdm.npy");
+    succeeds(&[
+        "relief",
+        "bumps",
+        "--size",
+        "16",
+        "--out",
+        png.to_str().unwrap(),
+    ]);
+    let field = HeightField::read(&png, &Limits::default()).unwrap();
+    assert_eq!(field.size(), (16, 16));
+    let out = succeeds(&[
+        "vdm",
+        "--input",
+        png.to_str().unwrap(),
+        "--dirs",
+        "4x8",
+        "--curvatures",
+        "3",
+        "--compare",
+        "--out",
+        npy.to_str().unwrap(),
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let comparison = &json["comparison"];
+    assert_eq!(comparison["samples"], 3 * 4 * 8 * 16 * 16);
+    assert!(
+        comparison["rmse"].as_f64().unwrap() > 0.0,
+        "bending moves the paper's values"
+    );
+    // One entry per curvature (−2, 0.5, 3).
+    assert_eq!(comparison["per_curvature"].as_array().unwrap().len(), 3);
+    let bytes = std::fs::read(&npy).unwrap();
+    let array = npyz::NpyFile::new(&bytes[..]).unwrap();
+    assert_eq!(array.shape(), &[3, 4, 8, 16, 16]);
+    let values = array.into_vec::<f32>().unwrap();
+    assert!(
+        values
+            .iter()
+            .all(|v| *v == -1.0 || (*v >= 0.0 && v.is_finite()))
+    );
+    each_fails_with(&[
+        (vec!["vdm", "--out", "x.npy"], "--input"),
+        (
+            vec!["vdm", "--relief", "bumps", "--depth=-1", "--out", "x.npy"],
+            "depth",
+        ),
+        (
+            vec!["vdm", "--relief", "bumps", "--dirs", "4", "--out", "x.npy"],
+            "NθxNφ",
+        ),
+        (vec!["relief", "bumps", "--out", "x.npy"], "PNG"),
+    ]);
+}
