@@ -2,6 +2,8 @@
 //! against a plain brute-force march, and the paper's resampled bake against the exact one.
 
 use mesobake::bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, bend::Bend, exact};
+use mesobake::compress::quantize::Quantization;
+use mesobake::compress::vdm::{VdmMatrix, compress};
 use mesobake::grid::Dims;
 use mesobake::mesostructure::height_field::HeightField;
 use mesobake::mesostructure::reliefs::{self, ReliefKind};
@@ -321,6 +323,10 @@ fn the_cli_writes_a_relief_and_its_vdm_with_the_papers_error() {
         "--curvatures",
         "3",
         "--compare",
+        "--rank",
+        "6",
+        "--quant",
+        "u8",
         "--out",
         npy.to_str().unwrap(),
         "--json",
@@ -334,6 +340,17 @@ fn the_cli_writes_a_relief_and_its_vdm_with_the_papers_error() {
     );
     // One entry per curvature (−2, 0.5, 3).
     assert_eq!(comparison["per_curvature"].as_array().unwrap().len(), 3);
+    let compression = &json["compression"];
+    assert_eq!(
+        (
+            compression["vdm_rank"].as_u64(),
+            compression["mvm_rank"].as_u64()
+        ),
+        (Some(6), Some(4))
+    );
+    // u8 codes: one byte per weight and eigen entry.
+    assert_eq!(compression["bytes"], 6 * (8 * 16 * 16 + 3 * 5));
+    assert!(compression["accuracy"]["flip_rate"].as_f64().unwrap() < 0.5);
     let bytes = std::fs::read(&npy).unwrap();
     let array = npyz::NpyFile::new(&bytes[..]).unwrap();
     assert_eq!(array.shape(), &[3, 4, 8, 16, 16]);
@@ -355,4 +372,74 @@ fn the_cli_writes_a_relief_and_its_vdm_with_the_papers_error() {
         ),
         (vec!["relief", "bumps", "--out", "x.npy"], "PNG"),
     ]);
+}
+
+/// A small bumps VDM with convex curvatures, so that the MVM matters.
+fn small_bumps() -> vdm::Vdm {
+    let limits = Limits::default();
+    let field = reliefs::height_field(ReliefKind::Bumps, 16, &limits).unwrap();
+    let grid = VdmGrid {
+        n_theta: 6,
+        n_phi: 4,
+        n_curvature: 3,
+        c_min: -2.0,
+        c_max: 5.0,
+    };
+    let relief = Relief {
+        field: &field,
+        depth: 0.15,
+    };
+    vdm::bake(relief, grid, VdmParams::EXACT, &limits, &()).unwrap()
+}
+
+#[test]
+fn the_mvm_reproduces_every_bins_silhouette_and_full_rank_is_lossless() {
+    let vdm = small_bumps();
+    let misses = vdm.values.iter().filter(|&&v| v == NO_HIT).count();
+    assert!(misses > 100, "the convex curvatures lose views ({misses})");
+    let matrix = VdmMatrix::new(&vdm);
+    let g = vdm.grid;
+    for k in 0..g.n_curvature {
+        for b in 0..g.n_phi {
+            for t in 0..256u32 {
+                let theta_mvm = f64::from(matrix.mvm(t as usize, b, k));
+                for a in 0..g.n_theta {
+                    let hit = vdm.get(t % 16, t / 16, a, b, k) != NO_HIT;
+                    assert_eq!(
+                        g.theta(a) <= theta_mvm,
+                        hit,
+                        "texel {t}, bin {a},{b}, c {k}"
+                    );
+                }
+            }
+        }
+    }
+    // Every component kept, in f32: the decisions and the displacements come back.
+    let full = (g.n_curvature * (g.n_theta + 1)) as usize;
+    let c = compress(&vdm, full, full, Quantization::F32, &Limits::default()).unwrap();
+    assert_eq!(c.accuracy.samples, vdm.values.len() as u64);
+    assert_eq!(c.accuracy.silhouette_flips, 0);
+    assert!(c.accuracy.rmse < 1e-4, "{:?}", c.accuracy);
+}
+
+#[test]
+fn truncation_and_quantization_cost_what_they_should() {
+    let vdm = small_bumps();
+    let limits = Limits::default();
+    let run =
+        |k: usize, m: usize, q: Quantization| compress(&vdm, k, m, q, &limits).unwrap().accuracy;
+    let (paper, small) = (run(8, 4, Quantization::F32), run(3, 2, Quantization::F32));
+    assert!(paper.rmse < small.rmse, "{paper:?} vs {small:?}");
+    assert!(
+        paper.silhouette_flips <= small.silhouette_flips,
+        "{paper:?} vs {small:?}"
+    );
+    let u8 = run(8, 4, Quantization::U8);
+    assert!(u8.rmse >= paper.rmse, "{u8:?} vs {paper:?}");
+    for (k, m) in [(0, 0), (4, 5), (65, 4)] {
+        let e = compress(&vdm, k, m, Quantization::F16, &limits)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("VDM ranks"), "{e}");
+    }
 }

@@ -4,6 +4,8 @@
 
 use super::output::{Progress, print_json};
 use mesobake::bake::vdm::{self, NO_HIT, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
+use mesobake::compress::quantize::Quantization;
+use mesobake::compress::vdm::compress;
 use mesobake::mesostructure::height_field::HeightField;
 use mesobake::mesostructure::reliefs::{self, ReliefKind};
 use mesobake::util::fs::write_atomic;
@@ -52,6 +54,16 @@ pub struct VdmArgs {
     /// The paper's bake: flat rays per θ bin before resampling (1 is the paper's).
     #[arg(long, default_value_t = 1)]
     oversampling: u32,
+    /// Also compress (MVM, joint SVD with shared weights) to this many components and report
+    /// what it costs: silhouette flips, displacement error, bytes.
+    #[arg(long)]
+    rank: Option<usize>,
+    /// Components of the MVM's reconstruction (the paper: 4 of 8).
+    #[arg(long, default_value_t = 4)]
+    mvm_rank: usize,
+    /// Number format of the compressed factors.
+    #[arg(long, default_value = "f16")]
+    quant: Quantization,
     /// Also bake with the other method and report the paper's error against the exact bake.
     #[arg(long)]
     compare: bool,
@@ -179,6 +191,33 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
     } else {
         None
     };
+    let compression = match args.rank {
+        Some(rank) => {
+            let start = Instant::now();
+            let c = compress(&baked, rank, args.mvm_rank.min(rank), args.quant, limits)?;
+            let bytes = (c.weights.codes.len() + c.eigen.codes.len()) as u64;
+            eprintln!(
+                "compressed to {} + {} components ({}): {bytes} bytes (from {}); silhouette \
+                 flips {:.3} %, displacement RMSE {:.3e}",
+                c.vdm_rank,
+                c.mvm_rank,
+                args.quant,
+                4 * baked.values.len(),
+                100.0 * c.accuracy.flip_rate,
+                c.accuracy.rmse
+            );
+            Some(serde_json::json!({
+                "vdm_rank": c.vdm_rank,
+                "mvm_rank": c.mvm_rank,
+                "quantization": args.quant,
+                "bytes": bytes,
+                "uncompressed_bytes": 4 * baked.values.len(),
+                "accuracy": c.accuracy,
+                "seconds": start.elapsed().as_secs_f64(),
+            }))
+        }
+        None => None,
+    };
     let shape = [
         u64::from(grid.n_curvature),
         u64::from(grid.n_theta),
@@ -213,6 +252,7 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
             "oversampling": args.oversampling,
             "hit_fraction": hits as f64 / baked.values.len().max(1) as f64,
             "comparison": comparison.as_ref().map(|(c, _)| c),
+            "compression": compression,
             "seconds": {
                 "load": load_s,
                 "bake": bake_s,

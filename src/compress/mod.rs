@@ -8,6 +8,7 @@ pub mod layout;
 pub mod split;
 pub mod svd;
 pub mod tiled;
+pub mod vdm;
 
 /// The occupancy codec, part of the package format.
 pub use mesobake_package::occupancy;

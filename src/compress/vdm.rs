@@ -1,0 +1,267 @@
+//! VDM compression as the paper does it: the maximal view polar angle map (MVM) θ_MVM(x, y,
+//! φ, c) replaces the VDM's −1 values, and one truncated SVD with shared weights factors
+//! A = [A_VDM, A_MVM], rows (φ, y, x), columns (c, θ) for the VDM then (c) for the MVM:
+//! d(x, y, θ, φ, c) ≈ Σᵢ Wᵢ(x, y, φ)·E_VDMᵢ(θ, c) over the first `vdm_rank` components and
+//! θ_MVM(x, y, φ, c) ≈ Σᵢ Wᵢ(x, y, φ)·E_MVMᵢ(c) over the first `mvm_rank` (the paper: 8 and
+//! 4). Both factors are quantized like a GDM's ([`Quantization`]).
+//!
+//! **MVM.** On the θ grid, a texel's hits at one azimuth and curvature are the bins up to some
+//! last one (a convex surface loses the grazing views); θ_MVM is taken halfway between the
+//! last bin that hits and the first that does not (π/2 when all hit), so that the decision
+//! θ ≤ θ_MVM reproduces every bin's. Each −1 is replaced by the value of the last bin that
+//! hits (0 when none does), keeping the VDM continuous along θ for the SVD. A renderer calls a
+//! view a silhouette (no hit) when θ_V > θ̃_MVM.
+
+use crate::bake::vdm::{NO_HIT, Vdm, VdmGrid};
+use crate::compress::quantize::{Quantization, QuantizedFactor};
+use crate::compress::svd::{BlockOrder, RankChoice, RowSource, Truncated, truncated_svd};
+use crate::error::{Error, Result};
+use crate::util::limits::Limits;
+use std::f64::consts::FRAC_PI_2;
+
+/// The VDM with its −1 values filled, and its MVM, in the SVD's layout.
+pub struct VdmMatrix<'a> {
+    vdm: &'a Vdm,
+    /// The VDM, −1 values replaced (the layout of [`Vdm::values`]).
+    filled: Vec<f32>,
+    /// θ_MVM per curvature, azimuth and texel: `[(k·Nφ + b)·W·H + t]`.
+    mvm: Vec<f32>,
+}
+
+impl<'a> VdmMatrix<'a> {
+    /// Computes the MVM and fills the VDM's −1 values (see the module documentation).
+    pub fn new(vdm: &'a Vdm) -> Self {
+        let g = vdm.grid;
+        let texels = (vdm.size.0 * vdm.size.1) as usize;
+        let (nt, np) = (g.n_theta as usize, g.n_phi as usize);
+        let mut filled = vdm.values.clone();
+        let mut mvm = vec![0.0f32; g.n_curvature as usize * np * texels];
+        for k in 0..g.n_curvature as usize {
+            for b in 0..np {
+                for t in 0..texels {
+                    let at = |a: usize| ((k * nt + a) * np + b) * texels + t;
+                    let last = (0..nt).rev().find(|&a| vdm.values[at(a)] != NO_HIT);
+                    let theta = match last {
+                        Some(a) if a + 1 == nt => FRAC_PI_2,
+                        Some(a) => 0.5 * (g.theta(a as u32) + g.theta(a as u32 + 1)),
+                        None => 0.0,
+                    };
+                    mvm[(k * np + b) * texels + t] = theta as f32;
+                    let fill = last.map_or(0.0, |a| vdm.values[at(a)]);
+                    for a in 0..nt {
+                        if filled[at(a)] == NO_HIT {
+                            filled[at(a)] = fill;
+                        }
+                    }
+                }
+            }
+        }
+        VdmMatrix { vdm, filled, mvm }
+    }
+
+    /// θ_MVM of texel `t` at azimuth `b`, curvature `k`.
+    pub fn mvm(&self, t: usize, b: u32, k: u32) -> f32 {
+        let texels = (self.vdm.size.0 * self.vdm.size.1) as usize;
+        self.mvm[(k as usize * self.vdm.grid.n_phi as usize + b as usize) * texels + t]
+    }
+}
+
+impl RowSource for VdmMatrix<'_> {
+    fn rows(&self) -> usize {
+        (self.vdm.size.0 * self.vdm.size.1 * self.vdm.grid.n_phi) as usize
+    }
+
+    fn cols(&self) -> usize {
+        let g = self.vdm.grid;
+        (g.n_curvature * (g.n_theta + 1)) as usize
+    }
+
+    /// Column after column: each column's rows are runs of consecutive texels.
+    fn read_block(&self, start: usize, out: &mut [f32]) -> BlockOrder {
+        let g = self.vdm.grid;
+        let texels = (self.vdm.size.0 * self.vdm.size.1) as usize;
+        let (nt, np, nc) = (g.n_theta as usize, g.n_phi as usize, g.n_curvature as usize);
+        let count = out.len() / self.cols();
+        for (c, column) in out.chunks_exact_mut(count).enumerate() {
+            let (source, image_of): (&[f32], Box<dyn Fn(usize) -> usize>) = if c < nc * nt {
+                (&self.filled, Box::new(move |b| c * np + b))
+            } else {
+                (&self.mvm, Box::new(move |b| (c - nc * nt) * np + b))
+            };
+            let mut row = start;
+            let mut written = 0;
+            while written < count {
+                let (b, t) = (row / texels, row % texels);
+                let run = (texels - t).min(count - written);
+                let from = image_of(b) * texels + t;
+                column[written..written + run].copy_from_slice(&source[from..from + run]);
+                (row, written) = (row + run, written + run);
+            }
+        }
+        BlockOrder::ColumnMajor
+    }
+}
+
+/// What compression costs a VDM.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct VdmAccuracy {
+    /// Samples (texel, view, curvature).
+    pub samples: u64,
+    /// Samples whose silhouette decision (θ > θ̃_MVM) differs from the bake's hit or miss.
+    pub silhouette_flips: u64,
+    /// `silhouette_flips` over `samples`.
+    pub flip_rate: f64,
+    /// RMS displacement error over the samples both call hits (tile units).
+    pub rmse: f64,
+    /// Largest displacement error there.
+    pub max_abs: f64,
+}
+
+/// A compressed VDM: the joint factorization, its quantized factors and accuracy.
+#[derive(Clone, Debug)]
+pub struct CompressedVdm {
+    /// Texels and grid of the VDM.
+    pub size: (u32, u32),
+    /// The view and curvature grid.
+    pub grid: VdmGrid,
+    /// Components of the VDM's reconstruction.
+    pub vdm_rank: usize,
+    /// Components of the MVM's reconstruction (≤ `vdm_rank`).
+    pub mvm_rank: usize,
+    /// The unquantized factorization (rank `vdm_rank`) and the spectrum.
+    pub svd: Truncated,
+    /// W, rows (φ, y, x), quantized.
+    pub weights: QuantizedFactor,
+    /// E, rows: the VDM's columns (c, θ), then the MVM's (c), quantized.
+    pub eigen: QuantizedFactor,
+    /// Measured against the VDM it was made from.
+    pub accuracy: VdmAccuracy,
+}
+
+/// Largest rank of a VDM factorization.
+pub const MAX_VDM_RANK: usize = 64;
+
+/// Compresses `vdm`: MVM, joint SVD to `vdm_rank` components (the MVM uses the first
+/// `mvm_rank`), quantization to `q`, and the accuracy of what a renderer reconstructs.
+pub fn compress(
+    vdm: &Vdm,
+    vdm_rank: usize,
+    mvm_rank: usize,
+    q: Quantization,
+    limits: &Limits,
+) -> Result<CompressedVdm> {
+    if !(1..=MAX_VDM_RANK).contains(&vdm_rank) || !(1..=vdm_rank).contains(&mvm_rank) {
+        return Err(Error::InvalidParameter(format!(
+            "VDM ranks: the VDM's must be 1 to {MAX_VDM_RANK} and the MVM's 1 to the VDM's, \
+             got {vdm_rank} and {mvm_rank}"
+        )));
+    }
+    let matrix = VdmMatrix::new(vdm);
+    let svd = truncated_svd(&matrix, RankChoice::Rank(vdm_rank), limits)?;
+    let k = svd.rank;
+    let weights = QuantizedFactor::new(&svd.weights, k, q);
+    let eigen = QuantizedFactor::new(&svd.eigen, k, q);
+    let mut compressed = CompressedVdm {
+        size: vdm.size,
+        grid: vdm.grid,
+        vdm_rank: k,
+        mvm_rank: mvm_rank.min(k),
+        svd,
+        weights,
+        eigen,
+        accuracy: VdmAccuracy::default(),
+    };
+    compressed.accuracy = compressed.measure(vdm);
+    Ok(compressed)
+}
+
+impl CompressedVdm {
+    /// The dequantized factors, ready for queries.
+    pub fn decode(&self) -> DecodedVdm {
+        DecodedVdm {
+            size: self.size,
+            grid: self.grid,
+            rank: self.weights.rank,
+            vdm_rank: self.vdm_rank,
+            mvm_rank: self.mvm_rank,
+            weights: self.weights.dequantize(),
+            eigen: self.eigen.dequantize(),
+        }
+    }
+
+    /// Compares every sample's reconstruction with `vdm`.
+    fn measure(&self, vdm: &Vdm) -> VdmAccuracy {
+        let decoded = self.decode();
+        let g = self.grid;
+        let mut acc = VdmAccuracy::default();
+        let mut sum_sq = 0.0;
+        let mut both = 0u64;
+        for k in 0..g.n_curvature {
+            for a in 0..g.n_theta {
+                for b in 0..g.n_phi {
+                    for j in 0..self.size.1 {
+                        for i in 0..self.size.0 {
+                            let truth = vdm.get(i, j, a, b, k);
+                            acc.samples += 1;
+                            match (truth == NO_HIT, decoded.distance(i, j, a, b, k)) {
+                                (true, None) => {}
+                                (false, Some(d)) => {
+                                    let err = f64::from(d - truth).abs();
+                                    sum_sq += err * err;
+                                    both += 1;
+                                    acc.max_abs = acc.max_abs.max(err);
+                                }
+                                _ => acc.silhouette_flips += 1,
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        acc.flip_rate = acc.silhouette_flips as f64 / acc.samples.max(1) as f64;
+        acc.rmse = (sum_sq / both.max(1) as f64).sqrt();
+        acc
+    }
+}
+
+/// A compressed VDM's dequantized factors, answering queries as a renderer does.
+#[derive(Clone, Debug)]
+pub struct DecodedVdm {
+    size: (u32, u32),
+    grid: VdmGrid,
+    rank: usize,
+    vdm_rank: usize,
+    mvm_rank: usize,
+    weights: Vec<f32>,
+    eigen: Vec<f32>,
+}
+
+impl DecodedVdm {
+    /// Σᵢ<n Wᵢ(row)·Eᵢ(col).
+    fn dot(&self, row: usize, col: usize, n: usize) -> f32 {
+        let (w, e) = (
+            &self.weights[row * self.rank..][..n],
+            &self.eigen[col * self.rank..][..n],
+        );
+        w.iter().zip(e).map(|(w, e)| w * e).sum()
+    }
+
+    /// The reconstructed θ_MVM at texel (i, j), azimuth b, curvature k.
+    pub fn max_theta(&self, i: u32, j: u32, b: u32, k: u32) -> f32 {
+        let (width, height) = self.size;
+        let row = ((b * height + j) * width + i) as usize;
+        let col = (self.grid.n_curvature * self.grid.n_theta + k) as usize;
+        self.dot(row, col, self.mvm_rank)
+    }
+
+    /// The reconstructed displacement at texel (i, j), view (a, b), curvature k, or `None`
+    /// where the reconstructed MVM calls the view a silhouette.
+    pub fn distance(&self, i: u32, j: u32, a: u32, b: u32, k: u32) -> Option<f32> {
+        if self.grid.theta(a) as f32 > self.max_theta(i, j, b, k) {
+            return None;
+        }
+        let (width, height) = self.size;
+        let row = ((b * height + j) * width + i) as usize;
+        Some(self.dot(row, (k * self.grid.n_theta + a) as usize, self.vdm_rank))
+    }
+}
