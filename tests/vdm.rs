@@ -184,7 +184,7 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
             field: &field,
             depth: 0.125,
         };
-        let slope = relief.slope_bound();
+        let slopes = relief.slopes();
         let (mut compared, mut far) = (0, 0);
         for n in 0..400u32 {
             let p = [
@@ -193,7 +193,7 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
             ];
             let (theta, phi) = (GRID.theta(n % 8), GRID.phi(n % 4) + 0.3 * f64::from(n % 3));
             let c = [-1.5, 0.0, 2.0][(n % 3) as usize];
-            let got = exact::cast(relief, slope, p, theta, phi, Bend { c });
+            let got = exact::cast(relief, &slopes, p, theta, phi, Bend { c });
             let want = brute_force(&field, 0.125, p, theta, phi, c);
             match (got, want) {
                 (Some(g), Some(w)) => {

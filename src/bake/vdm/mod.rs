@@ -178,32 +178,95 @@ impl Relief<'_> {
         self.depth * (1.0 - self.field.sample(u, v))
     }
 
-    /// A bound on how fast `surface_depth` changes per unit of texture distance (its
-    /// bilinear interpolation's largest slope), for steps that cannot skip a crossing.
-    pub fn slope_bound(&self) -> f64 {
-        let (w, h) = self.field.size();
-        let step = |du: f64, dv: f64, n: f64| {
-            let mut most = 0.0f64;
-            for j in 0..h {
-                for i in 0..w {
-                    let (u, v) = (
-                        (f64::from(i) + 0.5) / f64::from(w),
-                        (f64::from(j) + 0.5) / f64::from(h),
-                    );
-                    most = most.max(
-                        (self.field.sample(u + du, v + dv) - self.field.sample(u, v)).abs() * n,
-                    );
-                }
-            }
-            most
+    /// Bounds on how fast `surface_depth` changes, block by block.
+    pub fn slopes(&self) -> SlopeMap {
+        SlopeMap::new(self)
+    }
+}
+
+/// Texels per side of a [`SlopeMap`] block.
+const SLOPE_BLOCK: u32 = 8;
+
+/// Bounds on the slope of a relief's depth (its bilinear interpolation's, per unit of texture
+/// distance), per block of cells, so that sphere tracing can step far over flat regions and
+/// still never skip a crossing near steep ones. Cell (i, j) is the bilinear patch between texel
+/// centres (i, j) and (i + 1, j + 1); its gradient is at most the Euclidean sum of its largest
+/// edge slopes along x and y.
+#[derive(Clone, Debug)]
+pub struct SlopeMap {
+    size: (u32, u32),
+    blocks: (u32, u32),
+    /// Per block, the largest slope of its cells.
+    max: Vec<f64>,
+    /// Texture distance covered by [`SlopeMap::near`] around any point.
+    reach: f64,
+}
+
+impl SlopeMap {
+    fn new(relief: &Relief) -> SlopeMap {
+        let (w, h) = relief.field.size();
+        let height = |i: u32, j: u32| {
+            relief.field.sample(
+                (f64::from(i % w) + 0.5) / f64::from(w),
+                (f64::from(j % h) + 0.5) / f64::from(h),
+            )
         };
-        let (dx, dy) = (
-            step(1.0 / f64::from(w), 0.0, f64::from(w)),
-            step(0.0, 1.0 / f64::from(h), f64::from(h)),
+        let blocks = (w.div_ceil(SLOPE_BLOCK), h.div_ceil(SLOPE_BLOCK));
+        let mut max = vec![0.0f64; (blocks.0 * blocks.1) as usize];
+        for j in 0..h {
+            for i in 0..w {
+                let corners = [
+                    height(i, j),
+                    height(i + 1, j),
+                    height(i, j + 1),
+                    height(i + 1, j + 1),
+                ];
+                let sx = (corners[1] - corners[0])
+                    .abs()
+                    .max((corners[3] - corners[2]).abs());
+                let sy = (corners[2] - corners[0])
+                    .abs()
+                    .max((corners[3] - corners[1]).abs());
+                let slope = relief.depth * (sx * f64::from(w)).hypot(sy * f64::from(h));
+                let block = ((j / SLOPE_BLOCK) * blocks.0 + i / SLOPE_BLOCK) as usize;
+                max[block] = max[block].max(slope);
+            }
+        }
+        // The 3 × 3 blocks around a cell cover at least the smallest block's width of cells on
+        // every side (the last block of a row or column may be partial).
+        let cells = |n: u32| SLOPE_BLOCK.min(n - SLOPE_BLOCK * (n.div_ceil(SLOPE_BLOCK) - 1));
+        let reach = (f64::from(cells(w)) / f64::from(w)).min(f64::from(cells(h)) / f64::from(h));
+        SlopeMap {
+            size: (w, h),
+            blocks,
+            max,
+            reach,
+        }
+    }
+
+    /// The largest slope within [`SlopeMap::reach`] of texture point (u, v).
+    pub fn near(&self, u: f64, v: f64) -> f64 {
+        let (w, h) = self.size;
+        let cell =
+            |x: f64, n: u32| ((x * f64::from(n) - 0.5).floor() as i64).rem_euclid(i64::from(n));
+        let (bx, by) = (
+            cell(u, w) / i64::from(SLOPE_BLOCK),
+            cell(v, h) / i64::from(SLOPE_BLOCK),
         );
-        // The bilinear patch's gradient is bounded by its edges' slopes (each axis), and the
-        // steepest direction by their Euclidean sum.
-        self.depth * (dx * dx + dy * dy).sqrt()
+        let (nx, ny) = (i64::from(self.blocks.0), i64::from(self.blocks.1));
+        let mut most = 0.0f64;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let block = (by + dy).rem_euclid(ny) * nx + (bx + dx).rem_euclid(nx);
+                most = most.max(self.max[block as usize]);
+            }
+        }
+        most
+    }
+
+    /// The texture distance around any point that [`SlopeMap::near`] covers.
+    pub fn reach(&self) -> f64 {
+        self.reach
     }
 }
 

@@ -31,7 +31,7 @@ pub fn bake(
         grid.n_phi as usize,
         grid.n_curvature as usize,
     );
-    let slope = relief.slope_bound();
+    let slopes = relief.slopes();
     let done = AtomicU64::new(0);
     let per_phi: Vec<Vec<f32>> = (0..grid.n_phi)
         .into_par_iter()
@@ -51,7 +51,7 @@ pub fn bake(
                 let hits: Vec<(f64, f64)> = (0..casts)
                     .filter_map(|m| {
                         let theta = (f64::from(m) + 0.5) * FRAC_PI_2 / f64::from(casts);
-                        let d = cast(relief, slope, p, theta, phi, Bend { c: 0.0 })?;
+                        let d = cast(relief, &slopes, p, theta, phi, Bend { c: 0.0 })?;
                         Some((d * theta.sin(), d * theta.cos()))
                     })
                     .collect();
