@@ -108,7 +108,7 @@ fn compare(paper: &Vdm, exact: &Vdm) -> Comparison {
     let texels = (exact.size.0 * exact.size.1) as usize;
     let per_k = texels * (exact.grid.n_theta * exact.grid.n_phi) as usize;
     let mut total = Comparison::default();
-    let mut sum_sq = 0.0;
+    let (mut sum_sq, mut hit_pairs) = (0.0, 0u64);
     for (k, (p, e)) in paper
         .values
         .chunks(per_k)
@@ -128,14 +128,13 @@ fn compare(paper: &Vdm, exact: &Vdm) -> Comparison {
         }
         total.samples += p.len() as u64;
         total.hit_disagreements += flips;
-        sum_sq += sq;
-        total.rmse += both as f64; // hit pairs, turned into the RMSE below
+        (sum_sq, hit_pairs) = (sum_sq + sq, hit_pairs + both);
         let rmse = (sq / both.max(1) as f64).sqrt();
         total
             .per_curvature
             .push((exact.grid.curvature(k as u32), flips, rmse));
     }
-    total.rmse = (sum_sq / total.rmse.max(1.0)).sqrt();
+    total.rmse = (sum_sq / hit_pairs.max(1) as f64).sqrt();
     total
 }
 
@@ -164,13 +163,7 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
             method,
             oversampling: args.oversampling,
         };
-        let progress = Progress::new(&format!(
-            "baking VDM ({})",
-            serde_json::to_value(method)
-                .expect("a name")
-                .as_str()
-                .unwrap_or("")
-        ));
+        let progress = Progress::new(&format!("baking VDM ({})", method.name()));
         let start = Instant::now();
         let vdm = vdm::bake(relief, grid, params, limits, &progress)?;
         progress.finish();

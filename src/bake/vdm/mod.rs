@@ -149,16 +149,25 @@ impl VdmParams {
     };
 }
 
+impl VdmMethod {
+    /// The name on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            VdmMethod::Exact => "exact",
+            VdmMethod::Paper => "paper",
+        }
+    }
+}
+
 impl std::str::FromStr for VdmMethod {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "exact" => Ok(VdmMethod::Exact),
-            "paper" => Ok(VdmMethod::Paper),
-            _ => Err(Error::InvalidParameter(format!(
-                "VDM method {s:?}: expected exact or paper"
-            ))),
-        }
+        [VdmMethod::Exact, VdmMethod::Paper]
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                Error::InvalidParameter(format!("VDM method {s:?}: expected exact or paper"))
+            })
     }
 }
 
