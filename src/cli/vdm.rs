@@ -89,55 +89,6 @@ fn parse_range(text: &str) -> std::result::Result<[f64; 2], String> {
     Ok([n(a)?, n(b)?])
 }
 
-/// How far the paper's bake is from the exact one.
-#[derive(Debug, Default, serde::Serialize)]
-struct Comparison {
-    /// Samples compared.
-    samples: u64,
-    /// Samples where one bake hits and the other does not.
-    hit_disagreements: u64,
-    /// Root-mean-square difference where both hit (tile units).
-    rmse: f64,
-    /// Largest absolute difference where both hit.
-    max_abs: f64,
-    /// Per curvature: hit disagreements and RMSE.
-    per_curvature: Vec<(f64, u64, f64)>,
-}
-
-fn compare(paper: &Vdm, exact: &Vdm) -> Comparison {
-    let texels = (exact.size.0 * exact.size.1) as usize;
-    let per_k = texels * (exact.grid.n_theta * exact.grid.n_phi) as usize;
-    let mut total = Comparison::default();
-    let (mut sum_sq, mut hit_pairs) = (0.0, 0u64);
-    for (k, (p, e)) in paper
-        .values
-        .chunks(per_k)
-        .zip(exact.values.chunks(per_k))
-        .enumerate()
-    {
-        let (mut flips, mut sq, mut both) = (0u64, 0.0f64, 0u64);
-        for (&p, &e) in p.iter().zip(e) {
-            if (p == NO_HIT) != (e == NO_HIT) {
-                flips += 1;
-            } else if e != NO_HIT {
-                let d = f64::from(p) - f64::from(e);
-                sq += d * d;
-                both += 1;
-                total.max_abs = total.max_abs.max(d.abs());
-            }
-        }
-        total.samples += p.len() as u64;
-        total.hit_disagreements += flips;
-        (sum_sq, hit_pairs) = (sum_sq + sq, hit_pairs + both);
-        let rmse = (sq / both.max(1) as f64).sqrt();
-        total
-            .per_curvature
-            .push((exact.grid.curvature(k as u32), flips, rmse));
-    }
-    total.rmse = (sum_sq / hit_pairs.max(1) as f64).sqrt();
-    total
-}
-
 /// Bakes the VDM and writes it.
 pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
     let start = Instant::now();
@@ -180,7 +131,7 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
             VdmMethod::Exact => (&second, &baked),
             VdmMethod::Paper => (&baked, &second),
         };
-        Some((compare(paper, exact), second_s))
+        Some((vdm::compare(paper, exact)?, second_s))
     } else {
         None
     };

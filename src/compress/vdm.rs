@@ -14,7 +14,7 @@
 
 use crate::bake::vdm::{NO_HIT, Vdm, VdmGrid};
 use crate::compress::quantize::{Quantization, QuantizedFactor};
-use crate::compress::svd::{BlockOrder, RankChoice, RowSource, Truncated, truncated_svd};
+use crate::compress::svd::{BlockOrder, RankChoice, RowSource, truncated_svd};
 use crate::error::{Error, Result};
 use crate::util::limits::Limits;
 use std::f64::consts::FRAC_PI_2;
@@ -128,8 +128,8 @@ pub struct CompressedVdm {
     pub vdm_rank: usize,
     /// Components of the MVM's reconstruction (≤ `vdm_rank`).
     pub mvm_rank: usize,
-    /// The unquantized factorization (rank `vdm_rank`) and the spectrum.
-    pub svd: Truncated,
+    /// All singular values of the matrix, descending.
+    pub spectrum: Vec<f64>,
     /// W, rows (φ, y, x), quantized.
     pub weights: QuantizedFactor,
     /// E, rows: the VDM's columns (c, θ), then the MVM's (c), quantized.
@@ -166,7 +166,7 @@ pub fn compress(
         grid: vdm.grid,
         vdm_rank: k,
         mvm_rank: mvm_rank.min(k),
-        svd,
+        spectrum: svd.spectrum,
         weights,
         eigen,
         accuracy: VdmAccuracy::default(),

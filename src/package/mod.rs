@@ -106,7 +106,7 @@ impl Package {
             .map_err(|e| Error::io(path, e))?
             .len();
         limits.check(&format!("package {}", path.display()), len, 1)?;
-        Ok(Package(mesobake_package::Package::read(path, len)?))
+        Package::parse(std::fs::read(path).map_err(|e| Error::io(path, e))?)
     }
 
     /// Refuses a package whose voxel grid is not a scene's `resolution`.

@@ -7,6 +7,7 @@
 use mesobake_package::grid::boundary_distance;
 use mesobake_package::manifest::{GdmInfo, TexelFormat, Texture, TextureDimension};
 use mesobake_package::{OCCUPANCY_SECTION, Package};
+use std::collections::HashMap;
 use wgpu::util::DeviceExt;
 
 /// The shaders' parameters (`Params` in common.wgsl).
@@ -127,28 +128,31 @@ impl Viewer {
         });
         let mut encoder = self.device.create_command_encoder(&Default::default());
         let groups = [dims.x.div_ceil(GROUP), dims.y.div_ceil(GROUP)];
+        // Each entry point is compiled once, however many texture groups it runs over.
+        let mut pipelines: HashMap<&str, wgpu::ComputePipeline> = HashMap::new();
         let mut dispatch = |shader: &str,
-                            entry: &str,
+                            entry: &'static str,
                             params: Params,
                             textures: &[&wgpu::TextureView],
                             integer: bool| {
-            let source = format!("{}\n{shader}", include_str!("common.wgsl"));
-            let module = self
-                .device
-                .create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(entry),
-                    source: wgpu::ShaderSource::Wgsl(source.into()),
-                });
-            let pipeline = self
-                .device
-                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(&self.layout(textures.len(), integer)),
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
+            let pipeline = pipelines.entry(entry).or_insert_with(|| {
+                let source = format!("{}\n{shader}", include_str!("common.wgsl"));
+                let module = self
+                    .device
+                    .create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some(entry),
+                        source: wgpu::ShaderSource::Wgsl(source.into()),
+                    });
+                self.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(&self.layout(textures.len(), integer)),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            });
             let uniform = self
                 .device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -184,14 +188,13 @@ impl Viewer {
                 entries: &entries,
             });
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&pipeline);
+            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &globals, &[]);
             pass.set_bind_group(1, &textures, &[]);
             pass.dispatch_workgroups(groups[0], groups[1], 1);
         };
         match &package.manifest().gdm {
             Some(gdm) => {
-                let mut last = params;
                 for (g, (w, e)) in gdm
                     .weights
                     .sections
@@ -202,24 +205,12 @@ impl Viewer {
                     let p = svd_group_params(params, gdm, g);
                     let (w, e) = (self.upload(package, w), self.upload(package, e));
                     dispatch(include_str!("svd.wgsl"), "svd_group", p, &[&w, &e], false);
-                    last = p;
                 }
-                let threshold = (1.0 - gdm.accuracy.escape_margin)
+                // The escape pass reads only the accumulated values: no textures.
+                let mut escape = params;
+                escape.dir[3] = (1.0 - gdm.accuracy.escape_margin)
                     * boundary_distance(dims, &dirs, dims.z - 1, a);
-                last.dir[3] = threshold;
-                // The escape pass binds the last group's textures (its layout wants them) but
-                // reads only the accumulated values.
-                let (w, e) = (
-                    self.upload(package, gdm.weights.sections.last().ok_or("rank 0")?),
-                    self.upload(package, gdm.eigen.sections.last().ok_or("rank 0")?),
-                );
-                dispatch(
-                    include_str!("svd.wgsl"),
-                    "svd_escape",
-                    last,
-                    &[&w, &e],
-                    false,
-                );
+                dispatch(include_str!("svd.wgsl"), "svd_escape", escape, &[], false);
             }
             None => {
                 let occupancy = self.upload(package, OCCUPANCY_SECTION);

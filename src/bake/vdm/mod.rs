@@ -23,7 +23,10 @@
 //! [`paper`] bends the zero-curvature hits and resamples them over θ, as the paper does.
 
 pub mod bend;
+pub mod compare;
 pub mod exact;
+
+pub use compare::{VdmError, compare};
 pub mod paper;
 
 use crate::bake::gdm::BakeObserver;
@@ -140,11 +143,6 @@ impl VdmParams {
     /// The exact bake.
     pub const EXACT: VdmParams = VdmParams {
         method: VdmMethod::Exact,
-        oversampling: 1,
-    };
-    /// The paper's bake as the paper does it.
-    pub const PAPER: VdmParams = VdmParams {
-        method: VdmMethod::Paper,
         oversampling: 1,
     };
 }
