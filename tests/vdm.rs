@@ -8,6 +8,7 @@ use mesobake::grid::Dims;
 use mesobake::mesostructure::height_field::HeightField;
 use mesobake::mesostructure::reliefs::{self, ReliefKind};
 use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake::package::vdm::VdmPackage;
 use mesobake::util::limits::Limits;
 
 mod common;
@@ -442,4 +443,113 @@ fn truncation_and_quantization_cost_what_they_should() {
             .to_string();
         assert!(e.contains("VDM ranks"), "{e}");
     }
+}
+
+#[test]
+fn the_cli_packages_a_vdm_and_unpack_reconstructs_it_as_measured() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let bake = |package: &str| {
+        let out = succeeds(&[
+            "vdm",
+            "--relief",
+            "bricks",
+            "--size",
+            "16",
+            "--dirs",
+            "4x8",
+            "--curvatures",
+            "3",
+            "--rank",
+            "6",
+            "--quant",
+            "u8",
+            "--out",
+            &path("vdm.npy"),
+            "--package",
+            package,
+            "--json",
+        ]);
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let json = bake(&path("a.mbpkg"));
+    bake(&path("b.mbpkg"));
+    let bytes = std::fs::read(path("a.mbpkg")).unwrap();
+    assert_eq!(
+        bytes,
+        std::fs::read(path("b.mbpkg")).unwrap(),
+        "deterministic"
+    );
+    let pkg = VdmPackage::parse(bytes).unwrap();
+    let m = pkg.manifest();
+    assert_eq!((m.input.kind.as_str(), m.relief.size), ("relief", [16, 16]));
+    assert_eq!((m.vdm.vdm_rank, m.vdm.mvm_rank), (6, 4));
+    let accuracy = &json["compression"]["accuracy"];
+    assert_eq!(
+        serde_json::to_value(m.vdm.accuracy).unwrap(),
+        *accuracy,
+        "the manifest records what the CLI measured"
+    );
+
+    // The package's reconstruction against the bake: as many silhouette flips and no larger
+    // displacement error than measured at compression (an independent path: the textures
+    // unpacked, not the compressor's factors).
+    succeeds(&[
+        "unpack",
+        &path("a.mbpkg"),
+        "--out",
+        &path("back.npy"),
+        "--ktx2",
+        &path("ktx2"),
+    ]);
+    let read = |name: &str| {
+        let bytes = std::fs::read(path(name)).unwrap();
+        let array = npyz::NpyFile::new(&bytes[..]).unwrap();
+        assert_eq!(array.shape(), &[3, 4, 8, 16, 16]);
+        array.into_vec::<f32>().unwrap()
+    };
+    let (baked, back) = (read("vdm.npy"), read("back.npy"));
+    let mut flips = 0;
+    let mut max_abs = 0.0f64;
+    for (b, r) in baked.iter().zip(&back) {
+        match (*b == NO_HIT, *r == NO_HIT) {
+            (false, false) => max_abs = max_abs.max(f64::from(r - b).abs()),
+            (true, true) => {}
+            _ => flips += 1,
+        }
+    }
+    assert_eq!(flips, accuracy["silhouette_flips"].as_u64().unwrap());
+    assert!(flips < baked.len() as u64 / 10, "{flips} flips");
+    assert!((max_abs - accuracy["max_abs"].as_f64().unwrap()).abs() < 1e-6);
+    let mut ktx: Vec<String> = std::fs::read_dir(path("ktx2"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    ktx.sort();
+    let expected = [
+        "vdm.eigen.0",
+        "vdm.eigen.1",
+        "vdm.mvm.0",
+        "vdm.weights.0",
+        "vdm.weights.1",
+    ];
+    assert_eq!(ktx, expected.map(|n| format!("{n}.ktx2")));
+    each_fails_with(&[
+        (
+            vec!["unpack", &path("a.mbpkg"), "--exr", "x.exr"],
+            "VDM package",
+        ),
+        (
+            vec![
+                "vdm",
+                "--relief",
+                "bumps",
+                "--package",
+                "x.mbpkg",
+                "--rank",
+                "0",
+            ],
+            "VDM ranks",
+        ),
+    ]);
 }

@@ -6,18 +6,22 @@ use super::codec::CodecOptions;
 use super::gdm::BakeOptions;
 use super::output::{Progress, print_json};
 use mesobake::bake::gdm::Method;
+use mesobake::bake::vdm::{NO_HIT, VdmGrid};
 use mesobake::client::Client;
 use mesobake::compress::svd::RankChoice;
 use mesobake::grid::Dims;
 use mesobake::package::bake::{PackageParams, bake_package};
-use mesobake::package::manifest::TextureDimension;
+use mesobake::package::container;
+use mesobake::package::manifest::{Section, TextureDimension};
+use mesobake::package::vdm::VdmPackage;
 use mesobake::package::{GdmPayload, Package};
 use mesobake::scene::package::bake_scene_package;
 use mesobake::scene::render::load_scene;
-use mesobake::util::fs::write_atomic;
+use mesobake::util::fs::{read_bounded, write_atomic};
 use mesobake::util::limits::Limits;
 use mesobake::util::npy;
 use mesobake::{Error, Result};
+use mesobake_package::vdm::{VDM_FORMAT_NAME, VdmQuery};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -280,7 +284,7 @@ pub fn fetch(args: FetchArgs) -> Result<()> {
 pub struct UnpackArgs {
     /// The package.
     package: PathBuf,
-    /// Write the reconstructed GDM as a .npy file.
+    /// Write the reconstructed GDM (or VDM, −1 for silhouettes) as a .npy file.
     #[arg(long, required_unless_present_any = ["exr", "ktx2"])]
     out: Option<PathBuf>,
     /// Also write the dequantized factor maps as a multi-layer OpenEXR image.
@@ -294,26 +298,78 @@ pub struct UnpackArgs {
 
 /// Writes a package's reconstruction, factor maps or textures, as asked.
 pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
-    let pkg = Package::read(&args.package, limits)?;
-    if let Some(out) = args.out {
-        npy::write_gdm(&pkg.reconstruct(limits)?, &out)?;
+    let bytes = read_bounded(&args.package, "package", limits.memory_bytes)?;
+    let context = |e: mesobake_package::Error| Error::from(e).context(args.package.display());
+    if container::format(&bytes).map_err(context)? == VDM_FORMAT_NAME {
+        let pkg = VdmPackage::parse(bytes).map_err(context)?;
+        if args.exr.is_some() {
+            return Err(Error::InvalidParameter(
+                "--exr writes a GDM package's factor maps; this is a VDM package".into(),
+            ));
+        }
+        if let Some(out) = &args.out {
+            let values = reconstruct_vdm(
+                &pkg.query(),
+                &pkg.manifest().bake.grid,
+                pkg.manifest().relief.size,
+            );
+            let g = pkg.manifest().bake.grid;
+            let [w, h] = pkg.manifest().relief.size;
+            let shape = [g.n_curvature, g.n_theta, g.n_phi, h, w].map(u64::from);
+            npy::write_array(out, &shape, &values)?;
+        }
+        return write_ktx2(args.ktx2.as_deref(), &pkg.manifest().sections, |name| {
+            pkg.section(name)
+        });
+    }
+    let pkg = Package::parse(bytes).map_err(|e| e.context(args.package.display()))?;
+    if let Some(out) = &args.out {
+        npy::write_gdm(&pkg.reconstruct(limits)?, out)?;
     }
     if let Some(path) = args.exr {
         mesobake::package::exr_export::write_factors(&pkg, &path)?;
     }
-    if let Some(dir) = args.ktx2 {
-        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        let mut written = 0;
-        for section in &pkg.manifest().sections {
-            if section.texture.dimension == TextureDimension::Buffer {
-                continue;
+    write_ktx2(args.ktx2.as_deref(), &pkg.manifest().sections, |name| {
+        pkg.section(name)
+    })
+}
+
+/// A VDM package's reconstruction in the bake's layout, −1 where its MVM calls the view a
+/// silhouette.
+fn reconstruct_vdm(query: &VdmQuery, g: &VdmGrid, [w, h]: [u32; 2]) -> Vec<f32> {
+    let mut values = Vec::with_capacity((g.n_curvature * g.n_theta * g.n_phi * w * h) as usize);
+    for k in 0..g.n_curvature {
+        for a in 0..g.n_theta {
+            for b in 0..g.n_phi {
+                for j in 0..h {
+                    for i in 0..w {
+                        values.push(query.distance(i, j, a, b, k).unwrap_or(NO_HIT));
+                    }
+                }
             }
-            let data = pkg.section(&section.name).expect("listed");
-            let file = mesobake::package::ktx2::write(&section.texture, data)?;
-            write_atomic(&dir.join(format!("{}.ktx2", section.name)), &file)?;
-            written += 1;
         }
-        eprintln!("wrote {written} KTX2 textures to {}", dir.display());
     }
+    values
+}
+
+/// Writes every texture section as `<name>.ktx2` in `dir`, when asked.
+fn write_ktx2<'a>(
+    dir: Option<&Path>,
+    sections: &[Section],
+    bytes_of: impl Fn(&str) -> Option<&'a [u8]>,
+) -> Result<()> {
+    let Some(dir) = dir else { return Ok(()) };
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut written = 0;
+    for section in sections {
+        if section.texture.dimension == TextureDimension::Buffer {
+            continue;
+        }
+        let data = bytes_of(&section.name).expect("listed");
+        let file = mesobake::package::ktx2::write(&section.texture, data)?;
+        write_atomic(&dir.join(format!("{}.ktx2", section.name)), &file)?;
+        written += 1;
+    }
+    eprintln!("wrote {written} KTX2 textures to {}", dir.display());
     Ok(())
 }

@@ -8,7 +8,8 @@ use mesobake::compress::quantize::Quantization;
 use mesobake::compress::vdm::compress;
 use mesobake::mesostructure::height_field::HeightField;
 use mesobake::mesostructure::reliefs::{self, ReliefKind};
-use mesobake::util::fs::write_atomic;
+use mesobake::package;
+use mesobake::util::fs::{read_bounded, write_atomic};
 use mesobake::util::limits::Limits;
 use mesobake::util::npy;
 use mesobake::{Error, Result};
@@ -54,8 +55,8 @@ pub struct VdmArgs {
     /// The paper's bake: flat rays per θ bin before resampling (1 is the paper's).
     #[arg(long, default_value_t = 1)]
     oversampling: u32,
-    /// Also compress (MVM, joint SVD with shared weights) to this many components and report
-    /// what it costs: silhouette flips, displacement error, bytes.
+    /// Compress (MVM, joint SVD with shared weights) to this many components and report what
+    /// it costs: silhouette flips, displacement error, bytes.
     #[arg(long)]
     rank: Option<usize>,
     /// Components of the MVM's reconstruction (the paper: 4 of 8).
@@ -68,12 +69,19 @@ pub struct VdmArgs {
     #[arg(long)]
     compare: bool,
     /// Output .npy: float32, shape (curvatures, Nθ, Nφ, H, W), tile units, −1 for no hit.
+    #[arg(long, required_unless_present = "package")]
+    out: Option<PathBuf>,
+    /// Output VDM package (`.mbpkg`): the compressed VDM and MVM as textures (--rank
+    /// defaults to 8 here, the paper's).
     #[arg(long)]
-    out: PathBuf,
+    package: Option<PathBuf>,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     json: bool,
 }
+
+/// Components kept when packaging without --rank: the paper's 8.
+const DEFAULT_RANK: usize = 8;
 
 fn parse_pair(text: &str) -> std::result::Result<[u32; 2], String> {
     let (a, b) = text
@@ -92,9 +100,18 @@ fn parse_range(text: &str) -> std::result::Result<[f64; 2], String> {
 /// Bakes the VDM and writes it.
 pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
     let start = Instant::now();
-    let field = match (&args.source.input, args.source.relief) {
-        (Some(path), _) => HeightField::read(path, limits)?,
-        (None, Some(kind)) => reliefs::height_field(kind, args.size, limits)?,
+    let (field, input) = match (&args.source.input, args.source.relief) {
+        (Some(path), _) => {
+            let bytes = read_bounded(path, "height field", limits.memory_bytes)?;
+            let field =
+                HeightField::decode_png(&bytes, limits).map_err(|e| e.context(path.display()))?;
+            (field, package::vdm::input_info("height_field", &bytes))
+        }
+        (None, Some(kind)) => {
+            let field = reliefs::height_field(kind, args.size, limits)?;
+            let png = field.to_png();
+            (field, package::vdm::input_info("relief", &png))
+        }
         (None, None) => unreachable!("clap requires one source"),
     };
     let load_s = start.elapsed().as_secs_f64();
@@ -109,11 +126,15 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
         field: &field,
         depth: args.depth,
     };
+    let params_of = |method: VdmMethod| VdmParams {
+        method,
+        oversampling: match method {
+            VdmMethod::Exact => 1,
+            VdmMethod::Paper => args.oversampling,
+        },
+    };
     let bake = |method: VdmMethod| -> Result<(Vdm, f64)> {
-        let params = VdmParams {
-            method,
-            oversampling: args.oversampling,
-        };
+        let params = params_of(method);
         let progress = Progress::new(&format!("baking VDM ({})", method.name()));
         let start = Instant::now();
         let vdm = vdm::bake(relief, grid, params, limits, &progress)?;
@@ -135,10 +156,16 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
     } else {
         None
     };
-    let compression = match args.rank {
+    let rank = args.rank.or(args.package.is_some().then_some(DEFAULT_RANK));
+    let compression = match rank {
         Some(rank) => {
             let start = Instant::now();
             let c = compress(&baked, rank, args.mvm_rank.min(rank), args.quant, limits)?;
+            if let Some(path) = &args.package {
+                let bytes = package::vdm::encode(input, &baked, params_of(args.method), &c);
+                write_atomic(path, &bytes)?;
+                eprintln!("wrote {}: {} bytes", path.display(), bytes.len());
+            }
             let bytes = (c.weights.codes.len() + c.eigen.codes.len()) as u64;
             eprintln!(
                 "compressed to {} + {} components ({}): {bytes} bytes (from {}); silhouette \
@@ -170,12 +197,13 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
         u64::from(baked.size.0),
     ];
     let start = Instant::now();
-    npy::write_array(&args.out, &shape, &baked.values)?;
+    if let Some(out) = &args.out {
+        npy::write_array(out, &shape, &baked.values)?;
+    }
     let write_s = start.elapsed().as_secs_f64();
     let hits = baked.values.iter().filter(|&&v| v != NO_HIT).count();
     eprintln!(
-        "wrote {}: {} samples, {:.1} % hit, baked in {bake_s:.2} s",
-        args.out.display(),
+        "{} samples, {:.1} % hit, baked in {bake_s:.2} s",
         baked.values.len(),
         100.0 * hits as f64 / baked.values.len().max(1) as f64
     );
@@ -189,6 +217,7 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
     if args.json {
         print_json(&serde_json::json!({
             "output": args.out,
+            "package": args.package,
             "size": [baked.size.0, baked.size.1],
             "depth": args.depth,
             "grid": grid,

@@ -17,6 +17,7 @@ use crate::compress::quantize::{Quantization, QuantizedFactor};
 use crate::compress::svd::{BlockOrder, RankChoice, RowSource, truncated_svd};
 use crate::error::{Error, Result};
 use crate::util::limits::Limits;
+pub use mesobake_package::vdm::{MAX_VDM_RANK, VdmAccuracy, VdmQuery};
 use std::f64::consts::FRAC_PI_2;
 
 /// The VDM with its −1 values filled, and its MVM, in the SVD's layout.
@@ -102,21 +103,6 @@ impl RowSource for VdmMatrix<'_> {
     }
 }
 
-/// What compression costs a VDM.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct VdmAccuracy {
-    /// Samples (texel, view, curvature).
-    pub samples: u64,
-    /// Samples whose silhouette decision (θ > θ̃_MVM) differs from the bake's hit or miss.
-    pub silhouette_flips: u64,
-    /// `silhouette_flips` over `samples`.
-    pub flip_rate: f64,
-    /// RMS displacement error over the samples both call hits (tile units).
-    pub rmse: f64,
-    /// Largest displacement error there.
-    pub max_abs: f64,
-}
-
 /// A compressed VDM: the joint factorization, its quantized factors and accuracy.
 #[derive(Clone, Debug)]
 pub struct CompressedVdm {
@@ -137,9 +123,6 @@ pub struct CompressedVdm {
     /// Measured against the VDM it was made from.
     pub accuracy: VdmAccuracy,
 }
-
-/// Largest rank of a VDM factorization.
-pub const MAX_VDM_RANK: usize = 64;
 
 /// Compresses `vdm`: MVM, joint SVD to `vdm_rank` components (the MVM uses the first
 /// `mvm_rank`), quantization to `q`, and the accuracy of what a renderer reconstructs.
@@ -177,16 +160,14 @@ pub fn compress(
 
 impl CompressedVdm {
     /// The dequantized factors, ready for queries.
-    pub fn decode(&self) -> DecodedVdm {
-        DecodedVdm {
-            size: self.size,
-            grid: self.grid,
-            rank: self.weights.rank,
-            vdm_rank: self.vdm_rank,
-            mvm_rank: self.mvm_rank,
-            weights: self.weights.dequantize(),
-            eigen: self.eigen.dequantize(),
-        }
+    pub fn decode(&self) -> VdmQuery {
+        VdmQuery::new(
+            self.size,
+            self.grid,
+            self.mvm_rank,
+            &self.weights,
+            &self.eigen,
+        )
     }
 
     /// Compares every sample's reconstruction with `vdm`.
@@ -221,47 +202,5 @@ impl CompressedVdm {
         acc.flip_rate = acc.silhouette_flips as f64 / acc.samples.max(1) as f64;
         acc.rmse = (sum_sq / both.max(1) as f64).sqrt();
         acc
-    }
-}
-
-/// A compressed VDM's dequantized factors, answering queries as a renderer does.
-#[derive(Clone, Debug)]
-pub struct DecodedVdm {
-    size: (u32, u32),
-    grid: VdmGrid,
-    rank: usize,
-    vdm_rank: usize,
-    mvm_rank: usize,
-    weights: Vec<f32>,
-    eigen: Vec<f32>,
-}
-
-impl DecodedVdm {
-    /// Σᵢ<n Wᵢ(row)·Eᵢ(col).
-    fn dot(&self, row: usize, col: usize, n: usize) -> f32 {
-        let (w, e) = (
-            &self.weights[row * self.rank..][..n],
-            &self.eigen[col * self.rank..][..n],
-        );
-        w.iter().zip(e).map(|(w, e)| w * e).sum()
-    }
-
-    /// The reconstructed θ_MVM at texel (i, j), azimuth b, curvature k.
-    pub fn max_theta(&self, i: u32, j: u32, b: u32, k: u32) -> f32 {
-        let (width, height) = self.size;
-        let row = ((b * height + j) * width + i) as usize;
-        let col = (self.grid.n_curvature * self.grid.n_theta + k) as usize;
-        self.dot(row, col, self.mvm_rank)
-    }
-
-    /// The reconstructed displacement at texel (i, j), view (a, b), curvature k, or `None`
-    /// where the reconstructed MVM calls the view a silhouette.
-    pub fn distance(&self, i: u32, j: u32, a: u32, b: u32, k: u32) -> Option<f32> {
-        if self.grid.theta(a) as f32 > self.max_theta(i, j, b, k) {
-            return None;
-        }
-        let (width, height) = self.size;
-        let row = ((b * height + j) * width + i) as usize;
-        Some(self.dot(row, (k * self.grid.n_theta + a) as usize, self.vdm_rank))
     }
 }

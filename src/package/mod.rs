@@ -8,6 +8,7 @@
 pub mod bake;
 pub mod exr_export;
 pub mod gi;
+pub mod vdm;
 
 pub use mesobake_package::{OCCUPANCY_SECTION, container, ktx2, manifest};
 

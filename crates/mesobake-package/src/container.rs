@@ -2,7 +2,7 @@
 //! manifest last. Every byte is covered by a checksum or must be zero, so any corruption is
 //! detected. The byte-exact layout is specified in `docs/package-format.md`.
 
-use super::manifest::{FORMAT_NAME, Manifest, TextureDimension};
+use super::manifest::{Section, TextureDimension};
 use crate::error::{Error, Result};
 
 /// The first eight bytes of every package.
@@ -27,16 +27,34 @@ fn invalid(message: impl Into<String>) -> Error {
     Error::Package(message.into())
 }
 
-/// Lays out `payloads` (one per entry of `manifest.sections`, in order) and the manifest,
+/// A manifest the container holds: a JSON object whose `format` and `version` fields say what
+/// it is, listing the binary sections.
+pub trait ContainerManifest: serde::Serialize + serde::de::DeserializeOwned {
+    /// The value of the manifest's `format` field.
+    const FORMAT: &'static str;
+    /// The binary sections, in file order.
+    fn sections(&self) -> &[Section];
+    /// The binary sections, for [`assemble`] to place.
+    fn sections_mut(&mut self) -> &mut [Section];
+}
+
+/// The fields every manifest starts with.
+#[derive(serde::Deserialize)]
+struct Head {
+    format: String,
+    version: u32,
+}
+
+/// Lays out `payloads` (one per entry of the manifest's sections, in order) and the manifest,
 /// filling in each section's offset, length and checksum.
-pub fn assemble(manifest: &mut Manifest, payloads: &[Vec<u8>]) -> Vec<u8> {
+pub fn assemble<M: ContainerManifest>(manifest: &mut M, payloads: &[Vec<u8>]) -> Vec<u8> {
     assert_eq!(
-        manifest.sections.len(),
+        manifest.sections().len(),
         payloads.len(),
         "one payload per section"
     );
     let mut file = vec![0u8; HEADER_BYTES];
-    for (section, payload) in manifest.sections.iter_mut().zip(payloads) {
+    for (section, payload) in manifest.sections_mut().iter_mut().zip(payloads) {
         file.resize(file.len().next_multiple_of(ALIGNMENT as usize), 0);
         section.offset = file.len() as u64;
         section.bytes = payload.len() as u64;
@@ -61,10 +79,41 @@ pub fn assemble(manifest: &mut Manifest, payloads: &[Vec<u8>]) -> Vec<u8> {
     file
 }
 
-/// Validates the container structure of `bytes` and returns its manifest: header, checksums,
-/// section bounds, alignment, texture sizes and zero padding. What the sections mean is
-/// checked by the caller.
-pub fn parse(bytes: &[u8]) -> Result<Manifest> {
+/// The `format` field of the package in `bytes` (`"mesobake-package"` for a GDM package,
+/// `"mesobake-vdm-package"` for a VDM package), after checking the header and the manifest's
+/// checksum; the sections are not checked.
+pub fn format(bytes: &[u8]) -> Result<String> {
+    let (json, _) = manifest_json(bytes)?;
+    Ok(head(json)?.format)
+}
+
+fn head(json: &[u8]) -> Result<Head> {
+    serde_json::from_slice(json).map_err(|e| invalid(format!("the manifest is not valid: {e}")))
+}
+
+/// Validates the container structure of `bytes` and returns its manifest, which must be an
+/// `M`: header, checksums, the manifest's format and version, section bounds, alignment,
+/// texture sizes and zero padding. What the sections mean is checked by the caller.
+pub fn parse<M: ContainerManifest>(bytes: &[u8]) -> Result<M> {
+    let (json, manifest_offset) = manifest_json(bytes)?;
+    let head = head(json)?;
+    if head.format != M::FORMAT || head.version != VERSION {
+        return Err(invalid(format!(
+            "the manifest describes {:?} version {}, not {:?} version {VERSION}",
+            head.format,
+            head.version,
+            M::FORMAT
+        )));
+    }
+    let manifest: M = serde_json::from_slice(json)
+        .map_err(|e| invalid(format!("the manifest is not valid: {e}")))?;
+    check_sections(bytes, manifest.sections(), manifest_offset)?;
+    Ok(manifest)
+}
+
+/// Checks the header and the manifest's placement and checksum; returns the manifest's bytes
+/// and offset.
+fn manifest_json(bytes: &[u8]) -> Result<(&[u8], u64)> {
     if bytes.len() < HEADER_BYTES {
         return Err(invalid(format!(
             "truncated: {} bytes, shorter than the {HEADER_BYTES}-byte header",
@@ -118,29 +167,20 @@ pub fn parse(bytes: &[u8]) -> Result<Manifest> {
     if crc32fast::hash(json) != u32_at(32) {
         return Err(invalid("manifest checksum mismatch: the file is corrupt"));
     }
-    let manifest: Manifest = serde_json::from_slice(json)
-        .map_err(|e| invalid(format!("the manifest is not valid: {e}")))?;
-    if manifest.format != FORMAT_NAME || manifest.version != VERSION {
-        return Err(invalid(format!(
-            "the manifest describes {:?} version {}, not {FORMAT_NAME:?} version {VERSION}",
-            manifest.format, manifest.version
-        )));
-    }
-    check_sections(bytes, &manifest, manifest_offset)?;
-    Ok(manifest)
+    Ok((json, manifest_offset))
 }
 
 /// Checks section bounds, order, alignment, sizes, checksums and the zero padding between.
-fn check_sections(bytes: &[u8], manifest: &Manifest, manifest_offset: u64) -> Result<()> {
-    if manifest.sections.len() > MAX_SECTIONS {
+fn check_sections(bytes: &[u8], sections: &[Section], manifest_offset: u64) -> Result<()> {
+    if sections.len() > MAX_SECTIONS {
         return Err(invalid(format!(
             "{} sections, over the limit of {MAX_SECTIONS}",
-            manifest.sections.len()
+            sections.len()
         )));
     }
     let mut names = std::collections::BTreeSet::new();
     let mut end = HEADER_BYTES as u64;
-    for s in &manifest.sections {
+    for s in sections {
         let what = format!("section {:?}", s.name);
         if !names.insert(s.name.as_str()) {
             return Err(invalid(format!("{what} appears twice")));

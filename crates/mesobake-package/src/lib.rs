@@ -23,6 +23,7 @@ pub mod manifest;
 pub mod occupancy;
 pub mod quantize;
 pub mod svd;
+pub mod vdm;
 
 pub use error::{Error, Result};
 
@@ -34,7 +35,7 @@ use manifest::{
 use occupancy::OccupancyField;
 use quantize::QuantizedFactor;
 use std::path::Path;
-use svd::{CHANNELS, SvdFactors, SvdGdm};
+use svd::{SvdFactors, SvdGdm};
 
 /// A validated package in memory.
 #[derive(Debug)]
@@ -100,6 +101,50 @@ fn occupancy_texture(dims: Dims) -> Texture {
         height: dims.y,
         depth: dims.z,
     }
+}
+
+/// The bytes of the file at `path`, refused before reading when over `max_bytes`.
+fn read_limited(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
+    let io = |source| Error::Io {
+        path: path.into(),
+        source,
+    };
+    let len = std::fs::metadata(path).map_err(io)?.len();
+    if len > max_bytes {
+        return Err(Error::Package(format!(
+            "{}: {len} bytes, over the limit of {max_bytes}",
+            path.display()
+        )));
+    }
+    std::fs::read(path).map_err(io)
+}
+
+/// The bytes of section `name` of a validated package, if listed.
+fn section<'a>(sections: &[Section], bytes: &'a [u8], name: &str) -> Option<&'a [u8]> {
+    let s = sections.iter().find(|s| s.name == name)?;
+    Some(&bytes[s.offset as usize..][..s.bytes as usize])
+}
+
+/// The bytes and texel format of each named section of a validated package, for
+/// [`QuantizedFactor::unpack`].
+fn groups<'a>(
+    sections: &[Section],
+    bytes: &'a [u8],
+    names: &[String],
+) -> Vec<(&'a [u8], TexelFormat)> {
+    names
+        .iter()
+        .map(|name| {
+            let s = sections
+                .iter()
+                .find(|s| &s.name == name)
+                .expect("validated");
+            (
+                &bytes[s.offset as usize..][..s.bytes as usize],
+                s.texture.format,
+            )
+        })
+        .collect()
 }
 
 /// Checks that section `name` exists with texture `expected`.
@@ -182,7 +227,7 @@ impl Package {
     /// it describes (grids, the codec's entry, ranks, decode parameters, every section's
     /// texture shape, an occupancy field's distances, the radiance transfer's sections).
     pub fn parse(bytes: Vec<u8>) -> Result<Package> {
-        let manifest = container::parse(&bytes)?;
+        let manifest: Manifest = container::parse(&bytes)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
         let [x, y, z] = manifest.bake.res;
         let dims = Dims::new(x, y, z).map_err(|e| bad(e.to_string()))?;
@@ -230,18 +275,7 @@ impl Package {
     /// Reads and validates the package at `path`, refusing files over `max_bytes` before
     /// reading them.
     pub fn read(path: &Path, max_bytes: u64) -> Result<Package> {
-        let io = |source| Error::Io {
-            path: path.into(),
-            source,
-        };
-        let len = std::fs::metadata(path).map_err(io)?.len();
-        if len > max_bytes {
-            return Err(Error::Package(format!(
-                "{}: {len} bytes, over the limit of {max_bytes}",
-                path.display()
-            )));
-        }
-        Package::parse(std::fs::read(path).map_err(io)?)
+        Package::parse(read_limited(path, max_bytes)?)
     }
 
     /// The manifest.
@@ -261,8 +295,7 @@ impl Package {
 
     /// The bytes of section `name`, if present.
     pub fn section(&self, name: &str) -> Option<&[u8]> {
-        let s = self.manifest.sections.iter().find(|s| s.name == name)?;
-        Some(&self.bytes[s.offset as usize..][..s.bytes as usize])
+        section(&self.manifest.sections, &self.bytes, name)
     }
 
     /// The whole package's bytes.
@@ -277,35 +310,14 @@ impl Package {
         let rows_w = self.dims.x as usize * self.dims.y as usize * self.dirs.n_phi as usize;
         let rows_e = self.dims.z as usize * self.dirs.n_theta as usize;
         let unpack = |info: &FactorInfo, rows: usize| {
-            let (rank, format) = (g.rank as usize, g.quantization);
-            let elem = format.bytes();
-            let mut codes = vec![0u8; rows * rank * elem];
-            for (group, name) in info.sections.iter().enumerate() {
-                let t = self
-                    .manifest
-                    .sections
-                    .iter()
-                    .find(|s| &s.name == name)
-                    .expect("validated")
-                    .texture;
-                let bytes = self.section(name).expect("validated");
-                for r in 0..rows {
-                    let texel = r * t.format.texel_bytes() as usize;
-                    for ch in 0..CHANNELS.min(rank - group * CHANNELS) {
-                        let c = group * CHANNELS + ch;
-                        codes[(r * rank + c) * elem..][..elem]
-                            .copy_from_slice(&bytes[texel + ch * elem..][..elem]);
-                    }
-                }
-            }
-            QuantizedFactor {
+            let groups = groups(&self.manifest.sections, &self.bytes, &info.sections);
+            QuantizedFactor::unpack(
+                &groups,
                 rows,
-                rank,
-                format,
-                scale: info.scale.clone(),
-                bias: info.bias.clone(),
-                codes,
-            }
+                g.quantization,
+                info.scale.clone(),
+                info.bias.clone(),
+            )
         };
         Some((unpack(&g.weights, rows_w), unpack(&g.eigen, rows_e)))
     }

@@ -39,6 +39,16 @@ pub struct Manifest {
     pub sections: Vec<Section>,
 }
 
+impl crate::container::ContainerManifest for Manifest {
+    const FORMAT: &'static str = FORMAT_NAME;
+    fn sections(&self) -> &[Section] {
+        &self.sections
+    }
+    fn sections_mut(&mut self) -> &mut [Section] {
+        &mut self.sections
+    }
+}
+
 /// Identity of the input file.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]

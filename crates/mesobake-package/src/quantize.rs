@@ -7,7 +7,10 @@
 //! (q / 255) followed by one fused multiply–add.
 
 use crate::error::{Error, Result};
+use crate::manifest::{TexelFormat, Texture};
+use crate::svd::CHANNELS;
 use half::f16;
+use std::ops::Range;
 
 /// The number format of quantized maps (f16 by default).
 #[derive(
@@ -124,6 +127,60 @@ impl QuantizedFactor {
     pub fn code(&self, r: usize, c: usize) -> &[u8] {
         let b = self.format.bytes();
         &self.codes[(r * self.rank + c) * b..][..b]
+    }
+
+    /// The bytes of `texture` holding components 4·`group` onwards (at most four, and below
+    /// `components`) of the factor's rows `rows`: texel t is row `rows.start + t`; channels
+    /// past the last component are zero.
+    pub fn pack_group(
+        &self,
+        rows: Range<usize>,
+        components: usize,
+        group: usize,
+        texture: &Texture,
+    ) -> Vec<u8> {
+        let len = texture.byte_len().expect("writer textures are small") as usize;
+        let mut bytes = vec![0u8; len];
+        let (elem, texel) = (self.format.bytes(), texture.format.texel_bytes() as usize);
+        for (t, r) in rows.enumerate() {
+            for ch in 0..CHANNELS.min(components - group * CHANNELS) {
+                let code = self.code(r, group * CHANNELS + ch);
+                bytes[t * texel + ch * elem..][..elem].copy_from_slice(code);
+            }
+        }
+        bytes
+    }
+
+    /// The factor of `rows` rows and `scale.len()` components stored in `groups` (the bytes
+    /// and texel format of each texture, in group order, as [`QuantizedFactor::pack_group`]
+    /// writes them); the textures must hold `rows` texels of the right format.
+    pub fn unpack(
+        groups: &[(&[u8], TexelFormat)],
+        rows: usize,
+        format: Quantization,
+        scale: Vec<f32>,
+        bias: Vec<f32>,
+    ) -> QuantizedFactor {
+        let (rank, elem) = (scale.len(), format.bytes());
+        let mut codes = vec![0u8; rows * rank * elem];
+        for (group, (bytes, texel_format)) in groups.iter().enumerate() {
+            let texel = texel_format.texel_bytes() as usize;
+            for r in 0..rows {
+                for ch in 0..CHANNELS.min(rank - group * CHANNELS) {
+                    let c = group * CHANNELS + ch;
+                    codes[(r * rank + c) * elem..][..elem]
+                        .copy_from_slice(&bytes[r * texel + ch * elem..][..elem]);
+                }
+            }
+        }
+        QuantizedFactor {
+            rows,
+            rank,
+            format,
+            scale,
+            bias,
+            codes,
+        }
     }
 
     /// The decoded m × k row-major values.

@@ -66,22 +66,6 @@ pub fn factor_texture(
     }
 }
 
-/// Packs the components of `factor` that `group` holds into `texture`'s bytes (texel r is
-/// factor row r); channels past the rank are zero.
-fn pack(factor: &QuantizedFactor, group: usize, texture: &Texture) -> Vec<u8> {
-    let len = texture.byte_len().expect("writer textures are small") as usize;
-    let mut bytes = vec![0u8; len];
-    let elem = factor.format.bytes();
-    for r in 0..factor.rows {
-        let texel = r * texture.format.texel_bytes() as usize;
-        for ch in 0..CHANNELS.min(factor.rank - group * CHANNELS) {
-            let code = factor.code(r, group * CHANNELS + ch);
-            bytes[texel + ch * elem..][..elem].copy_from_slice(code);
-        }
-    }
-    bytes
-}
-
 /// The sections (with their bytes) and the manifest entry of `svd`.
 pub(crate) fn sections(
     svd: &SvdFactors,
@@ -95,7 +79,8 @@ pub(crate) fn sections(
         let names: Vec<String> = (0..groups).map(|g| format!("gdm.{name}.{g}")).collect();
         for (g, section) in names.iter().enumerate() {
             let texture = factor_texture(weights, q, rank, g, dims, dirs);
-            out.push((Section::new(section, texture), pack(factor, g, &texture)));
+            let bytes = factor.pack_group(0..factor.rows, rank, g, &texture);
+            out.push((Section::new(section, texture), bytes));
         }
         FactorInfo {
             sections: names,

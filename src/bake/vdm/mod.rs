@@ -33,101 +33,11 @@ use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::mesostructure::height_field::HeightField;
 use crate::util::limits::Limits;
-use std::f64::consts::{FRAC_PI_2, TAU};
 
 /// The value of a sample whose ray meets no mesostructure.
 pub const NO_HIT: f32 = -1.0;
 
-/// Largest accepted direction or curvature count.
-pub const MAX_AXIS: u32 = 1024;
-
-/// Largest accepted oversampling of the paper's bake.
-pub const MAX_OVERSAMPLING: u32 = 64;
-
-/// The view and curvature sampling of a VDM.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct VdmGrid {
-    /// Polar angles over (0, π/2).
-    pub n_theta: u32,
-    /// Azimuths over (0, 2π).
-    pub n_phi: u32,
-    /// Curvatures from `c_min` to `c_max`.
-    pub n_curvature: u32,
-    /// The smallest curvature (1/tile).
-    pub c_min: f64,
-    /// The largest curvature (1/tile).
-    pub c_max: f64,
-}
-
-impl VdmGrid {
-    /// The paper's grid: 8 θ × 32 φ view directions, 16 curvatures from −2 to 3.
-    pub const PAPER: VdmGrid = VdmGrid {
-        n_theta: 8,
-        n_phi: 32,
-        n_curvature: 16,
-        c_min: -2.0,
-        c_max: 3.0,
-    };
-
-    /// Checks the counts (1 to [`MAX_AXIS`]), the curvature range (finite, ordered) and that
-    /// no curvature folds a relief of `depth`: |c|·depth < 1.
-    pub fn validate(&self, depth: f64) -> Result<()> {
-        for (name, n) in [
-            ("θ", self.n_theta),
-            ("φ", self.n_phi),
-            ("curvature", self.n_curvature),
-        ] {
-            if n == 0 || n > MAX_AXIS {
-                return Err(Error::InvalidParameter(format!(
-                    "VDM grid: the {name} count must be 1 to {MAX_AXIS}, got {n}"
-                )));
-            }
-        }
-        if !(self.c_min.is_finite() && self.c_max.is_finite() && self.c_min <= self.c_max) {
-            return Err(Error::InvalidParameter(format!(
-                "VDM grid: curvatures {} to {} are not a finite, ordered range",
-                self.c_min, self.c_max
-            )));
-        }
-        let worst = self.c_min.abs().max(self.c_max.abs());
-        if worst * depth >= 1.0 {
-            return Err(Error::InvalidParameter(format!(
-                "VDM grid: curvature {worst} bends a relief {depth} deep past the centre of \
-                 curvature (|c|·depth must stay below 1)"
-            )));
-        }
-        Ok(())
-    }
-
-    /// Polar angle of bin `a`: (a + ½)·(π/2)/Nθ.
-    pub fn theta(&self, a: u32) -> f64 {
-        (f64::from(a) + 0.5) * FRAC_PI_2 / f64::from(self.n_theta)
-    }
-
-    /// Azimuth of bin `b`: (b + ½)·2π/Nφ.
-    pub fn phi(&self, b: u32) -> f64 {
-        (f64::from(b) + 0.5) * TAU / f64::from(self.n_phi)
-    }
-
-    /// Curvature `k`: evenly from `c_min` to `c_max` (`c_min` when there is one).
-    pub fn curvature(&self, k: u32) -> f64 {
-        if self.n_curvature == 1 {
-            return self.c_min;
-        }
-        self.c_min + (self.c_max - self.c_min) * f64::from(k) / f64::from(self.n_curvature - 1)
-    }
-}
-
-/// Which VDM bake.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum VdmMethod {
-    /// Every ray cast against the relief bent to its curvature ([`exact`]).
-    Exact,
-    /// Zero-curvature casts bent and resampled over θ ([`paper`]).
-    Paper,
-}
+pub use mesobake_package::vdm::{MAX_AXIS, MAX_OVERSAMPLING, VdmGrid, VdmMethod};
 
 /// How to bake a VDM: the method and its knob.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -145,28 +55,6 @@ impl VdmParams {
         method: VdmMethod::Exact,
         oversampling: 1,
     };
-}
-
-impl VdmMethod {
-    /// The name on the command line and in reports.
-    pub fn name(self) -> &'static str {
-        match self {
-            VdmMethod::Exact => "exact",
-            VdmMethod::Paper => "paper",
-        }
-    }
-}
-
-impl std::str::FromStr for VdmMethod {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self> {
-        [VdmMethod::Exact, VdmMethod::Paper]
-            .into_iter()
-            .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                Error::InvalidParameter(format!("VDM method {s:?}: expected exact or paper"))
-            })
-    }
 }
 
 /// A relief: a height field and how deep it reaches below the reference surface.

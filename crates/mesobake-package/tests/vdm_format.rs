@@ -1,0 +1,218 @@
+//! VDM packages with the format crate alone: what is written reads back and reconstructs as
+//! the shared-weights SVD says, writing is deterministic, and corrupt or inconsistent
+//! packages are refused by name.
+
+use mesobake_package::Package;
+use mesobake_package::container;
+use mesobake_package::manifest::{FORMAT_NAME, InputInfo, TexelFormat, TextureDimension};
+use mesobake_package::quantize::{Quantization, QuantizedFactor};
+use mesobake_package::vdm::{
+    ReliefInfo, VDM_FORMAT_NAME, VdmAccuracy, VdmBakeInfo, VdmContent, VdmGrid, VdmManifest,
+    VdmMethod, VdmPackage,
+};
+
+#[path = "support/mod.rs"]
+mod support;
+
+const SIZE: [u32; 2] = [5, 3];
+const GRID: VdmGrid = VdmGrid {
+    n_theta: 3,
+    n_phi: 4,
+    n_curvature: 2,
+    c_min: -1.0,
+    c_max: 2.0,
+};
+const RANK: usize = 5; // two texture groups, the second one channel wide
+const MVM_RANK: usize = 3;
+
+/// W (rows (φ, y, x)) in [0, 1) and E (rows (c, θ), then (c)) in [0, 1.2): a mix of
+/// silhouettes and hits.
+fn factors(q: Quantization) -> (QuantizedFactor, QuantizedFactor) {
+    let rows = (SIZE[0] * SIZE[1] * GRID.n_phi) as usize;
+    let cols = (GRID.n_curvature * (GRID.n_theta + 1)) as usize;
+    let w: Vec<f32> = (0..rows * RANK).map(support::noise).collect();
+    let e: Vec<f32> = (0..cols * RANK)
+        .map(|x| 1.2 * support::noise(x + 7919))
+        .collect();
+    (
+        QuantizedFactor::new(&w, RANK, q),
+        QuantizedFactor::new(&e, RANK, q),
+    )
+}
+
+fn encode(weights: &QuantizedFactor, eigen: &QuantizedFactor) -> Vec<u8> {
+    let input = InputInfo {
+        kind: "relief".into(),
+        bytes: 0,
+        blake3: "0".repeat(64),
+    };
+    let spectrum = vec![1.0; (GRID.n_curvature * (GRID.n_theta + 1)) as usize];
+    VdmPackage::encode(
+        input,
+        VdmContent {
+            relief: ReliefInfo {
+                size: SIZE,
+                depth: 0.125,
+            },
+            bake: VdmBakeInfo {
+                grid: GRID,
+                method: VdmMethod::Exact,
+                oversampling: 1,
+            },
+            mvm_rank: MVM_RANK,
+            spectrum: &spectrum,
+            weights,
+            eigen,
+            accuracy: VdmAccuracy::default(),
+        },
+    )
+}
+
+#[test]
+fn vdm_packages_reconstruct_the_shared_weights_svd() {
+    for q in Quantization::ALL {
+        let (w, e) = factors(q);
+        let bytes = encode(&w, &e);
+        assert_eq!(bytes, encode(&w, &e), "{q}: writing is deterministic");
+        let pkg = VdmPackage::parse(bytes).unwrap();
+        let m = pkg.manifest();
+        assert_eq!((m.vdm.vdm_rank, m.vdm.mvm_rank), (5, 3));
+        let texture = |name: &str| {
+            let s = m.sections.iter().find(|s| s.name == name).unwrap();
+            (
+                s.texture.dimension,
+                s.texture.width,
+                s.texture.height,
+                s.texture.depth,
+            )
+        };
+        assert_eq!(texture("vdm.weights.1"), (TextureDimension::D3, 5, 3, 4));
+        assert_eq!(texture("vdm.eigen.0"), (TextureDimension::D2, 3, 2, 1));
+        assert_eq!(texture("vdm.mvm.0"), (TextureDimension::D2, 2, 1, 1));
+        assert!(!m.sections.iter().any(|s| s.name == "vdm.mvm.1"));
+        let mvm_format = m.sections.iter().find(|s| s.name == "vdm.mvm.0").unwrap();
+        assert_eq!(mvm_format.texture.format, TexelFormat::of(q, MVM_RANK));
+
+        let (wd, ed) = (w.dequantize(), e.dequantize());
+        let dot = |row: usize, col: usize, n: usize| -> f32 {
+            (0..n)
+                .map(|l| wd[row * RANK + l] * ed[col * RANK + l])
+                .sum()
+        };
+        let query = pkg.query();
+        let (mut hits, mut silhouettes) = (0, 0);
+        for k in 0..GRID.n_curvature {
+            for a in 0..GRID.n_theta {
+                for b in 0..GRID.n_phi {
+                    for j in 0..SIZE[1] {
+                        for i in 0..SIZE[0] {
+                            let row = ((b * SIZE[1] + j) * SIZE[0] + i) as usize;
+                            let mvm_col = (GRID.n_curvature * GRID.n_theta + k) as usize;
+                            let max_theta = dot(row, mvm_col, MVM_RANK);
+                            let got_max = query.max_theta(i, j, b, k);
+                            // Same products, same order: equal to rounding.
+                            assert!((got_max - max_theta).abs() <= 1e-6, "{q}");
+                            let expected = (GRID.theta(a) as f32 <= got_max)
+                                .then(|| dot(row, (k * GRID.n_theta + a) as usize, RANK));
+                            match (query.distance(i, j, a, b, k), expected) {
+                                (Some(d), Some(x)) => {
+                                    assert!((d - x).abs() <= 1e-6, "{q}: {d} vs {x}");
+                                    hits += 1;
+                                }
+                                (None, None) => silhouettes += 1,
+                                (got, x) => panic!("{q}: {i},{j},{a},{b},{k}: {got:?} vs {x:?}"),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            hits > 0 && silhouettes > 0,
+            "{q}: {hits} hits, {silhouettes} silhouettes"
+        );
+    }
+}
+
+#[test]
+fn every_corrupted_byte_of_a_vdm_package_is_refused() {
+    let (w, e) = factors(Quantization::U8);
+    let bytes = encode(&w, &e);
+    for at in 0..bytes.len() {
+        let mut bad = bytes.clone();
+        bad[at] ^= 0x04;
+        assert!(
+            VdmPackage::parse(bad).is_err(),
+            "byte {at} of {}",
+            bytes.len()
+        );
+    }
+}
+
+#[test]
+fn the_two_package_kinds_tell_themselves_apart() {
+    let (w, e) = factors(Quantization::F16);
+    let vdm = encode(&w, &e);
+    let gdm = support::pillars();
+    assert_eq!(container::format(&vdm).unwrap(), VDM_FORMAT_NAME);
+    assert_eq!(container::format(&gdm).unwrap(), FORMAT_NAME);
+    let e = Package::parse(vdm).unwrap_err().to_string();
+    assert!(e.contains("mesobake-vdm-package"), "{e}");
+    let e = VdmPackage::parse(gdm).unwrap_err().to_string();
+    assert!(e.contains("\"mesobake-package\""), "{e}");
+}
+
+/// The package with its manifest changed by `edit`, checksums and offsets redone.
+fn reassembled(edit: impl Fn(&mut VdmManifest)) -> Result<VdmPackage, String> {
+    let (w, e) = factors(Quantization::U8);
+    let pkg = VdmPackage::parse(encode(&w, &e)).unwrap();
+    let mut manifest = pkg.manifest().clone();
+    let payloads: Vec<Vec<u8>> = manifest
+        .sections
+        .iter()
+        .map(|s| pkg.section(&s.name).unwrap().to_vec())
+        .collect();
+    edit(&mut manifest);
+    VdmPackage::parse(container::assemble(&mut manifest, &payloads)).map_err(|e| e.to_string())
+}
+
+#[test]
+fn inconsistent_vdm_manifests_are_refused_by_name() {
+    assert!(
+        reassembled(|_| {}).is_ok(),
+        "the unchanged manifest is valid"
+    );
+    type Edit = Box<dyn Fn(&mut VdmManifest)>;
+    let cases: [(&str, Edit); 8] = [
+        ("ranks", Box::new(|m| m.vdm.mvm_rank = 6)),
+        ("ranks", Box::new(|m| m.vdm.vdm_rank = 0)),
+        ("oversampling", Box::new(|m| m.bake.oversampling = 2)),
+        ("past the centre", Box::new(|m| m.bake.grid.c_max = 9.0)),
+        ("relief depth", Box::new(|m| m.relief.depth = -0.1)),
+        (
+            "spectrum",
+            Box::new(|m| {
+                m.vdm.spectrum.pop();
+            }),
+        ),
+        ("mvm factor", Box::new(|m| m.vdm.mvm.scale.push(1.0))),
+        (
+            "vdm.eigen.0",
+            Box::new(|m| {
+                let s = m
+                    .sections
+                    .iter_mut()
+                    .find(|s| s.name == "vdm.eigen.0")
+                    .unwrap();
+                // As many bytes as before: only the layout check can refuse it.
+                s.texture.dimension = TextureDimension::D3;
+            }),
+        ),
+    ];
+    for (what, edit) in cases {
+        match reassembled(edit) {
+            Ok(_) => panic!("{what}: accepted"),
+            Err(e) => assert!(e.contains(what), "{what}: {e}"),
+        }
+    }
+}
