@@ -13,7 +13,7 @@ use mesobake::mesostructure::samples::{SampleKind, mesh};
 use mesobake::render::image::compare;
 use mesobake::render::render_image;
 use mesobake::render::truth::{TruthRenderer, TruthShading};
-use mesobake::scene::render::{GdmSource, RenderMethod, load_scene, render};
+use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render};
 use mesobake::util::limits::Limits;
 use std::path::Path;
 
@@ -42,11 +42,11 @@ fn the_truth_and_the_explicit_geometry_agree_on_a_mesh_tile_scene() {
     let dir = tempfile::tempdir().unwrap();
     let limits = Limits::default();
     let loaded = load_scene(&chain_tile_scene(dir.path(), 256), &limits).unwrap();
-    let truth = render(&loaded, RenderMethod::Truth, GdmSource::Bake, &limits, &()).unwrap();
+    let truth = render(&loaded, RenderMethod::Truth, MapSource::Bake, &limits, &()).unwrap();
     let explicit = render(
         &loaded,
         RenderMethod::Explicit,
-        GdmSource::Bake,
+        MapSource::Bake,
         &limits,
         &(),
     )

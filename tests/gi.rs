@@ -467,12 +467,12 @@ fn flat_slab_with(
 
 /// [`flat_slab`] rendered by the GDM renderer.
 fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::render::Rendered {
-    use mesobake::scene::render::{GdmSource, RenderMethod, render};
+    use mesobake::scene::render::{MapSource, RenderMethod, render};
     let loaded = flat_slab(effects, c, ground);
     render(
         &loaded,
         RenderMethod::Gdm,
-        GdmSource::Bake,
+        MapSource::Bake,
         &Limits::default(),
         &(),
     )
@@ -594,7 +594,7 @@ fn the_gi_report_measures_against_its_references() {
 
 #[test]
 fn the_path_tracer_reflects_albedo_times_radiance_on_a_slab_without_sh_truncation() {
-    use mesobake::scene::render::{GdmSource, RenderMethod, render};
+    use mesobake::scene::render::{MapSource, RenderMethod, render};
     // Every cosine-distributed direction from the slab's top escapes upwards, so each path
     // brings exactly the sky's radiance above the horizon: ρ·c with no variance, also under
     // the half-dark sky where the SH pipeline's band-3 truncation gives 0.989·ρ·c.
@@ -604,7 +604,7 @@ fn the_path_tracer_reflects_albedo_times_radiance_on_a_slab_without_sh_truncatio
         let r = render(
             &loaded,
             RenderMethod::Truth,
-            GdmSource::Bake,
+            MapSource::Bake,
             &Limits::default(),
             &(),
         )
@@ -625,7 +625,7 @@ fn the_path_tracer_reflects_albedo_times_radiance_on_a_slab_without_sh_truncatio
 
 #[test]
 fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
-    use mesobake::scene::render::{GdmSource, RenderMethod, render};
+    use mesobake::scene::render::{MapSource, RenderMethod, render};
     // A grey material (ρ = 0.5, k_s = 0.3) makes both lobes weigh ρ + k_s, and a narrow lobe
     // (Blinn–Phong 400: Phong 100) about the mirror of a near-vertical view lies wholly above
     // the horizon (its mass below is under 1e-20): every path brings (ρ + k_s)·c, no variance.
@@ -640,7 +640,7 @@ fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
         let r = render(
             &loaded,
             RenderMethod::Truth,
-            GdmSource::Bake,
+            MapSource::Bake,
             &Limits::default(),
             &(),
         )
@@ -659,7 +659,7 @@ fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
 
 #[test]
 fn path_traced_and_rtv_white_furnaces_agree() {
-    use mesobake::scene::render::{GdmSource, RenderMethod, render};
+    use mesobake::scene::render::{MapSource, RenderMethod, render};
     // Pillars and bars on a floor, albedo 1, under radiance 1 everywhere: every surface
     // point's radiance is 1, which the path tracer reaches with enough bounces and the RTV
     // with enough bounces (without macro shadows the incident SH is the constant's).
@@ -695,7 +695,7 @@ fn path_traced_and_rtv_white_furnaces_agree() {
     let limits = Limits::default();
     let loaded = mesobake::scene::render::load_scene(&path, &limits).unwrap();
     let mean = |method| {
-        let r = render(&loaded, method, GdmSource::Bake, &limits, &()).unwrap();
+        let r = render(&loaded, method, MapSource::Bake, &limits, &()).unwrap();
         let hits: Vec<f64> = r
             .image
             .rgb

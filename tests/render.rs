@@ -18,7 +18,7 @@ use mesobake::render::image::compare;
 use mesobake::render::quality::{Quality, ShadingFrame, ShadowMethod};
 use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
-use mesobake::scene::render::{GdmSource, RenderMethod, render};
+use mesobake::scene::render::{MapSource, RenderMethod, render};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake::surface::base_mesh::BaseMesh;
 use mesobake::surface::shell::{Shell, ShellParams};
@@ -81,6 +81,7 @@ fn loaded(base: BaseMesh, volume: &Volume, shell: ShellParams, scene: &str) -> L
         base_report,
         mesostructure: Mesostructure::Volume(VolumeCaster::new(volume)),
         material: MaterialVolume::from_volume(volume, DVec3::splat(0.7)),
+        height_field: None,
         environment: None,
     }
 }
@@ -442,7 +443,7 @@ fn render_json(json: &str, method: RenderMethod) -> mesobake::render::image::Ima
     let scene = Scene::from_json(json).unwrap();
     let limits = Limits::default();
     let loaded = LoadedScene::load(scene, std::path::Path::new("."), &limits).unwrap();
-    render(&loaded, method, GdmSource::Bake, &limits, &())
+    render(&loaded, method, MapSource::Bake, &limits, &())
         .unwrap()
         .image
 }
@@ -495,7 +496,7 @@ fn scaled_scenes_render_the_same_image() {
             let (mask, differ, psnr) = match method {
                 RenderMethod::Truth => (0.0025, 4096 / 50, 30.0),
                 RenderMethod::Gdm => (0.01, 4096 / 12, 24.0),
-                RenderMethod::Explicit => unreachable!("not rendered here"),
+                RenderMethod::Explicit | RenderMethod::Vdm => unreachable!("not rendered here"),
             };
             assert!(
                 c.psnr_db >= psnr && c.mask_disagreement <= mask && differing <= differ,
@@ -535,7 +536,7 @@ fn high_curvature_shells_are_reported_and_render_finite_images() {
             (&loaded, RenderMethod::Gdm),
             (&high, RenderMethod::Gdm),
         ] {
-            let image = render(loaded, method, GdmSource::Bake, &limits, &())
+            let image = render(loaded, method, MapSource::Bake, &limits, &())
                 .unwrap()
                 .image;
             assert!(
@@ -555,7 +556,7 @@ fn high_curvature_shells_are_reported_and_render_finite_images() {
         report.inverted > 0 && report.inverted < report.prisms / 4,
         "{report:?}"
     );
-    let image = render(&loaded, RenderMethod::Gdm, GdmSource::Bake, &limits, &())
+    let image = render(&loaded, RenderMethod::Gdm, MapSource::Bake, &limits, &())
         .unwrap()
         .image;
     assert!(image.rgb.iter().flatten().all(|c| c.is_finite()));
@@ -795,7 +796,7 @@ fn a_sample_tile_scene_renders_like_its_obj_tile() {
         let scene = Scene::from_json(&v.to_string()).unwrap();
         let limits = Limits::default();
         let loaded = LoadedScene::load(scene, dir.path(), &limits).unwrap();
-        render(&loaded, RenderMethod::Truth, GdmSource::Bake, &limits, &())
+        render(&loaded, RenderMethod::Truth, MapSource::Bake, &limits, &())
             .unwrap()
             .image
     };

@@ -1,6 +1,9 @@
 //! The VDM bake against closed forms (a flat relief on flat, convex and concave surfaces),
 //! against a plain brute-force march, and the paper's resampled bake against the exact one.
 
+use glam::DVec3;
+use mesobake::bake::gdm::caster::{Caster, Trace};
+use mesobake::bake::gdm::height_field_caster::HeightFieldCaster;
 use mesobake::bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, bend::Bend, exact};
 use mesobake::compress::quantize::Quantization;
 use mesobake::compress::vdm::{VdmMatrix, compress};
@@ -552,4 +555,61 @@ fn the_cli_packages_a_vdm_and_unpack_reconstructs_it_as_measured() {
             "VDM ranks",
         ),
     ]);
+}
+
+#[test]
+fn the_flat_vdm_is_what_the_exact_height_field_caster_finds() {
+    // Two independent exact intersectors of the same bilinear relief: the VDM's sphere
+    // tracing with bisection (tile units, from the reference surface) and the height-field
+    // caster's per-cell quadratic (voxel units, any origin). Tolerance: the bake's 1e-7 along
+    // the ray plus rounding.
+    let limits = Limits::default();
+    let field = reliefs::height_field(ReliefKind::Bumps, 16, &limits).unwrap();
+    let depth = 0.2;
+    let grid = VdmGrid {
+        n_theta: 6,
+        n_phi: 8,
+        n_curvature: 1,
+        c_min: 0.0,
+        c_max: 0.0,
+    };
+    let relief = Relief {
+        field: &field,
+        depth,
+    };
+    let vdm = vdm::bake(relief, grid, VdmParams::EXACT, &limits, &()).unwrap();
+    let dims = Dims::new(16, 16, 8).unwrap();
+    let caster = HeightFieldCaster::new(field.clone(), dims, &limits).unwrap();
+    // Voxel units: a tile is 16 voxels across and `depth` tiles is 8 voxels deep.
+    let scale = DVec3::new(16.0, 16.0, 8.0 / depth);
+    let mut hits = 0;
+    for a in 0..grid.n_theta {
+        for b in 0..grid.n_phi {
+            let (theta, phi) = (grid.theta(a), grid.phi(b));
+            let dir = DVec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                -theta.cos(),
+            );
+            let voxel_dir = (dir * scale).normalize();
+            for j in 0..16 {
+                for i in 0..16 {
+                    let origin = [f64::from(i) + 0.5, f64::from(j) + 0.5, 8.0];
+                    let d = f64::from(vdm.get(i, j, a, b, 0));
+                    let Trace::Hit(t) = caster.trace(origin, voxel_dir.to_array(), f64::INFINITY)
+                    else {
+                        panic!("a flat relief with a floor is always hit ({i},{j},{a},{b})");
+                    };
+                    // The caster's distance back in tile units.
+                    let tile_t = t / (dir * scale).length();
+                    assert!(
+                        (d - tile_t).abs() < 1e-5,
+                        "{i},{j},{a},{b}: {d} vs {tile_t}"
+                    );
+                    hits += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(hits, 6 * 8 * 256);
 }

@@ -6,8 +6,8 @@ use mesobake::package::Package;
 use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render::quality::Quality;
-use mesobake::scene::package::check_package_input;
-use mesobake::scene::render::{GdmSource, RenderMethod, load_scene, render_substituted};
+use mesobake::scene::package::{check_input, check_package_input};
+use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
 use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -20,12 +20,13 @@ pub struct RenderArgs {
     #[arg(long)]
     scene: PathBuf,
     /// truth: exact mapping into the real mesostructure; gdm: the real-time algorithm;
-    /// explicit (mesh tiles only): the tile's triangles mapped through the shell and ray cast
-    /// as a plain mesh, the truth's independent check.
+    /// vdm (height fields): the VDM real-time algorithm; explicit (mesh tiles only): the
+    /// tile's triangles mapped through the shell and ray cast as a plain mesh, the truth's
+    /// independent check.
     #[arg(long, default_value = "gdm")]
     method: RenderMethod,
-    /// For --method gdm: render from this package instead of baking the exact GDM. It must
-    /// have been baked from the scene's mesostructure (unless --force).
+    /// For --method gdm or vdm: render from this (GDM or VDM) package instead of baking. It
+    /// must have been baked from the scene's mesostructure (unless --force).
     #[arg(long)]
     package: Option<PathBuf>,
     /// Render --package even when it was baked from another mesostructure than the scene's.
@@ -66,26 +67,39 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         loaded.scene.quality = quality;
     }
     let load_s = start.elapsed().as_secs_f64();
-    let package = match (&package, method) {
+    let dir = scene.parent().unwrap_or(Path::new("."));
+    let (package, vdm_package) = match (&package, method) {
         (Some(path), RenderMethod::Gdm) => {
             let package = Package::read(path, limits)?;
             if !force {
-                let dir = scene.parent().unwrap_or(Path::new("."));
                 check_package_input(&package, &loaded.scene, dir)
                     .map_err(|e| e.context(path.display()))?;
             }
-            Some(package)
+            (Some(package), None)
         }
-        (None, _) => None,
+        (Some(path), RenderMethod::Vdm) => {
+            let package = mesobake::package::vdm::read(path, limits)?;
+            if !force {
+                check_input(&package.manifest().input, &loaded.scene, dir)
+                    .map_err(|e| e.context(path.display()))?;
+            }
+            (None, Some(package))
+        }
+        (None, _) => (None, None),
         (Some(_), RenderMethod::Truth | RenderMethod::Explicit) => {
             return Err(Error::InvalidParameter(
-                "--package only applies to --method gdm".into(),
+                "--package only applies to --method gdm and vdm".into(),
             ));
         }
     };
-    let source = package.as_ref().map_or(GdmSource::Bake, GdmSource::Package);
+    let source = match (&package, &vdm_package) {
+        (Some(p), _) => MapSource::Package(p),
+        (_, Some(p)) => MapSource::VdmPackage(p),
+        _ => MapSource::Bake,
+    };
     let progress = Progress::new(match (method, &source) {
-        (RenderMethod::Gdm, GdmSource::Bake) => "baking GDM (exact)",
+        (RenderMethod::Gdm, MapSource::Bake) => "baking GDM (exact)",
+        (RenderMethod::Vdm, MapSource::Bake) => "baking VDM",
         _ => "rendering",
     });
     let mut rendered = render_substituted(&loaded, method, source, substitute, limits, &progress)?;

@@ -162,7 +162,7 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
             let start = Instant::now();
             let c = compress(&baked, rank, args.mvm_rank.min(rank), args.quant, limits)?;
             if let Some(path) = &args.package {
-                let bytes = package::vdm::encode(input, &baked, params_of(args.method), &c);
+                let bytes = package::vdm::encode(input, &field, &baked, params_of(args.method), &c);
                 write_atomic(path, &bytes)?;
                 eprintln!("wrote {}: {} bytes", path.display(), bytes.len());
             }

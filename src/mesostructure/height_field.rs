@@ -1,7 +1,8 @@
 //! Height-field mesostructure: a grayscale PNG (8 or 16 bits) whose pixel value, over its
 //! maximum, is the height as a fraction of the volume's depth (0 = bottom, 1 = top), tileable
 //! in x and y. It is baked as the volume it bounds: the voxel column under each height is
-//! solid, so every GDM path (and every renderer) handles it like any other volume.
+//! solid, and so is the bottom layer (the relief's floor), so every GDM path (and every
+//! renderer) handles it like any other volume.
 
 use crate::error::{Error, Result};
 use crate::grid::Dims;
@@ -127,6 +128,11 @@ impl HeightField {
         (self.width, self.height)
     }
 
+    /// The heights, x fastest.
+    pub fn heights(&self) -> &[f32] {
+        &self.heights
+    }
+
     /// The height at texture position (u, v), bilinear between pixel centres, wrapping in
     /// both directions.
     pub fn sample(&self, u: f64, v: f64) -> f64 {
@@ -145,7 +151,9 @@ impl HeightField {
 
     /// The volume under the surface on grid `dims`: voxel (i, j, k)'s density is the fraction
     /// of its height below the surface at its column's centre (threshold ½, so a voxel is
-    /// solid iff its centre lies below the surface).
+    /// solid iff its centre lies below the surface), and the bottom layer is solid: the
+    /// relief's floor, where a height of 0 lies (and a VDM's rays end), is a surface rather
+    /// than a hole through the shell.
     pub fn to_volume(&self, dims: Dims, limits: &Limits) -> Result<Volume> {
         limits.check("volume densities", dims.voxel_count(), 4)?;
         let columns: Vec<f64> = (0..dims.y)
@@ -158,9 +166,13 @@ impl HeightField {
             .collect();
         let density = (0..dims.z)
             .flat_map(|k| {
-                columns
-                    .iter()
-                    .map(move |&top| (top - f64::from(k)).clamp(0.0, 1.0))
+                columns.iter().map(move |&top| {
+                    if k == 0 {
+                        1.0
+                    } else {
+                        (top - f64::from(k)).clamp(0.0, 1.0)
+                    }
+                })
             })
             .map(|d| d as f32)
             .collect();
@@ -219,7 +231,8 @@ mod tests {
             let top = 6.0 * j as f64 / 3.0;
             for k in 0..6 {
                 let centre = k as f64 + 0.5;
-                assert_eq!(v.is_solid(1, j, k), centre < top, "column {j}, voxel {k}");
+                let expected = centre < top || k == 0;
+                assert_eq!(v.is_solid(1, j, k), expected, "column {j}, voxel {k}");
             }
         }
     }

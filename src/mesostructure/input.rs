@@ -1,6 +1,7 @@
 //! Loading a mesostructure input file of either kind into something rays can be cast into.
 
 use crate::bake::gdm::caster::Caster;
+use crate::bake::gdm::height_field_caster::HeightFieldCaster;
 use crate::bake::gdm::mesh_caster::MeshCaster;
 use crate::bake::gdm::volume_caster::VolumeCaster;
 use crate::error::{Error, Result};
@@ -19,6 +20,8 @@ pub enum Mesostructure {
     Volume(VolumeCaster),
     /// An OBJ tile on a chosen grid.
     Mesh(Box<MeshCaster>),
+    /// A height field on a chosen grid, cast exactly.
+    HeightField(HeightFieldCaster),
 }
 
 impl Mesostructure {
@@ -27,13 +30,14 @@ impl Mesostructure {
         match self {
             Mesostructure::Volume(c) => c,
             Mesostructure::Mesh(c) => c.as_ref(),
+            Mesostructure::HeightField(c) => c,
         }
     }
 
     /// The mesh tile's triangles (tile units), for a mesh tile.
     pub fn tile_mesh(&self) -> Option<&crate::mesostructure::trimesh::TriMesh> {
         match self {
-            Mesostructure::Volume(_) => None,
+            Mesostructure::Volume(_) | Mesostructure::HeightField(_) => None,
             Mesostructure::Mesh(c) => Some(c.tile()),
         }
     }
@@ -74,8 +78,10 @@ pub fn load(
         }
         FileKind::Png => {
             let res = needs_res("a height field")?;
-            let volume = HeightField::read(path, limits)?.to_volume(res, limits)?;
-            Ok(Mesostructure::Volume(VolumeCaster::new(&volume)))
+            let field = HeightField::read(path, limits)?;
+            Ok(Mesostructure::HeightField(HeightFieldCaster::new(
+                field, res, limits,
+            )?))
         }
         FileKind::Obj => {
             let res = needs_res("an OBJ tile")?;

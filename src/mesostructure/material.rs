@@ -4,11 +4,13 @@
 //! Normals are the negated gradient of the solid fraction, by a 3×3×3 Sobel filter over voxel
 //! centres (periodic in x and y, clamped in z), trilinearly interpolated and normalized. The
 //! fraction is a volume's density clamped to [0, 1] (the samples' 27-point coverage, which
-//! gives smooth normals where binary occupancy gives facets), or 0/1 occupancy.
+//! gives smooth normals where binary occupancy gives facets), or 0/1 occupancy. The volume
+//! under a height field takes the height field's own normals instead.
 //! Albedo is looked up in the voxel a quarter voxel past the hit along the ray (inside the
 //! solid that was hit), falling back to the scene's material albedo where the volume has none.
 
 use crate::grid::{Dims, Wrap, trilinear_corners};
+use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::volume::{Occupancy, Volume};
 use glam::{DVec3, Vec3};
 
@@ -37,6 +39,39 @@ impl MaterialVolume {
             volume.albedo(),
             default_albedo,
         )
+    }
+
+    /// For the volume under a height field ([`HeightField::to_volume`]) on grid `dims`: the
+    /// height field's own normal in every voxel of a column, from the gradient of the
+    /// bilinear heights by central differences one pixel apart at the column's centre (in
+    /// voxel units (−Z/X·∂h/∂u, −Z/Y·∂h/∂v, 1)), instead of the staircase's Sobel gradient;
+    /// what a VDM renderer shades with.
+    pub fn from_height_field(field: &HeightField, dims: Dims, default_albedo: DVec3) -> Self {
+        let (w, h) = field.size();
+        let (du, dv) = (1.0 / f64::from(w), 1.0 / f64::from(h));
+        let column = |i: u32, j: u32| {
+            let u = (f64::from(i) + 0.5) / f64::from(dims.x);
+            let v = (f64::from(j) + 0.5) / f64::from(dims.y);
+            let gu = (field.sample(u + du, v) - field.sample(u - du, v)) / (2.0 * du);
+            let gv = (field.sample(u, v + dv) - field.sample(u, v - dv)) / (2.0 * dv);
+            let z = f64::from(dims.z);
+            Vec3::new(
+                (-gu * z / f64::from(dims.x)) as f32,
+                (-gv * z / f64::from(dims.y)) as f32,
+                1.0,
+            )
+        };
+        let columns: Vec<Vec3> = (0..dims.y)
+            .flat_map(|j| (0..dims.x).map(move |i| (i, j)))
+            .map(|(i, j)| column(i, j))
+            .collect();
+        let normal = (0..dims.z).flat_map(|_| columns.iter().copied()).collect();
+        MaterialVolume {
+            dims,
+            albedo: None,
+            default_albedo,
+            normal,
+        }
     }
 
     /// From an occupancy grid and optional per-voxel sRGB albedo.

@@ -106,6 +106,7 @@ pub fn load_input(
     let kind = match meso {
         Mesostructure::Volume(_) => "volume",
         Mesostructure::Mesh(_) => "mesh",
+        Mesostructure::HeightField(_) => "height_field",
     };
     let info = InputInfo {
         kind: kind.into(),

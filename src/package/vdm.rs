@@ -4,6 +4,7 @@
 use crate::bake::vdm::{Vdm, VdmParams};
 use crate::compress::vdm::CompressedVdm;
 use crate::error::{Error, Result};
+use crate::mesostructure::height_field::HeightField;
 use crate::util::fs::read_bounded;
 use crate::util::limits::Limits;
 use mesobake_package::manifest::InputInfo;
@@ -11,10 +12,11 @@ pub use mesobake_package::vdm::VdmPackage;
 use mesobake_package::vdm::{ReliefInfo, VdmBakeInfo, VdmContent};
 use std::path::Path;
 
-/// The package bytes of `compressed`, made from `vdm` baked as `params` say from the height
-/// field identified by `input` (deterministic).
+/// The package bytes of `compressed`, made from `vdm` baked as `params` say from `field`,
+/// identified by `input` (deterministic).
 pub fn encode(
     input: InputInfo,
+    field: &HeightField,
     vdm: &Vdm,
     params: VdmParams,
     compressed: &CompressedVdm,
@@ -34,6 +36,7 @@ pub fn encode(
         weights: &compressed.weights,
         eigen: &compressed.eigen,
         accuracy: compressed.accuracy,
+        heights: field.heights(),
     };
     VdmPackage::encode(input, content)
 }

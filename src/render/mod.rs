@@ -14,6 +14,7 @@ pub mod path_tracer;
 pub mod prism_map;
 pub mod quality;
 pub mod truth;
+pub mod vdm_renderer;
 
 use crate::bake::gdm::BakeObserver;
 use crate::scene::Camera;

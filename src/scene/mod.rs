@@ -9,8 +9,10 @@ pub mod package;
 pub mod plan;
 pub mod preview;
 pub mod render;
+pub mod vdm;
 
 use crate::bake::gdm::caster::Caster;
+use crate::bake::gdm::height_field_caster::HeightFieldCaster;
 use crate::bake::gdm::mesh_caster::MeshCaster;
 use crate::bake::gdm::volume_caster::VolumeCaster;
 use crate::bake::gdm::{BakeObserver, Gdm};
@@ -21,6 +23,7 @@ use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::input::Mesostructure;
 use crate::mesostructure::material::MaterialVolume;
 use crate::mesostructure::mesh_tile::MeshTile;
+use crate::mesostructure::reliefs::{self, ReliefKind};
 use crate::mesostructure::samples::{self, SampleKind};
 use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume_format;
@@ -31,6 +34,7 @@ use crate::util::limits::Limits;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use vdm::VdmSettings;
 
 /// Largest accepted scene file.
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
@@ -84,6 +88,9 @@ pub struct Scene {
     /// Knobs of the global-illumination bakes.
     #[serde(default, skip_serializing_if = "GiParams::is_default")]
     pub gi: GiParams,
+    /// How the VDM of a height-field mesostructure is baked and compressed.
+    #[serde(default, skip_serializing_if = "VdmSettings::is_default")]
+    pub vdm: VdmSettings,
 }
 
 /// Where a scene's environment light comes from.
@@ -182,6 +189,9 @@ pub enum MesostructureSource {
     /// A grayscale PNG height field ([`crate::mesostructure::height_field`]), the volume under it on the
     /// scene's resolution.
     HeightField(PathBuf),
+    /// A built-in relief ([`crate::mesostructure::reliefs`]) of X × X pixels (the scene's
+    /// resolution must have X = Y), the volume under it on the scene's resolution.
+    Relief(ReliefKind),
 }
 
 /// Blinn–Phong reflectance; the diffuse albedo comes from the volume where it has one.
@@ -403,6 +413,7 @@ impl Scene {
             )));
         }
         self.quality.validate()?;
+        self.vdm.validate()?;
         self.shell.validate()?;
         self.camera.validate()?;
         for light in &self.lights {
@@ -504,6 +515,8 @@ pub struct LoadedScene {
     pub mesostructure: Mesostructure,
     /// Albedo and normals of the mesostructure.
     pub material: MaterialVolume,
+    /// The height field of a height-field or relief mesostructure (what a VDM is baked from).
+    pub height_field: Option<HeightField>,
     /// The environment map, loaded only when the effects call for environment lighting.
     pub environment: Option<Environment>,
 }
@@ -522,6 +535,7 @@ impl LoadedScene {
         let shell = Shell::new(&base, scene.shell)?;
         let dims = scene.dims()?;
         let default_albedo = DVec3::from(scene.material.albedo);
+        let mut height_field = None;
         let (mesostructure, material) = match &scene.mesostructure {
             MesostructureSource::Sample(kind) => {
                 let volume = samples::volume(*kind, dims, limits)?;
@@ -540,10 +554,22 @@ impl LoadedScene {
                 let material = MaterialVolume::from_volume(&volume, default_albedo);
                 (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
             }
-            MesostructureSource::HeightField(p) => {
-                let volume = HeightField::read(&resolve(p), limits)?.to_volume(dims, limits)?;
-                let material = MaterialVolume::from_volume(&volume, default_albedo);
-                (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+            MesostructureSource::HeightField(_) | MesostructureSource::Relief(_) => {
+                let field = match &scene.mesostructure {
+                    MesostructureSource::HeightField(p) => HeightField::read(&resolve(p), limits)?,
+                    MesostructureSource::Relief(kind) if dims.x == dims.y => {
+                        reliefs::height_field(*kind, dims.x, limits)?
+                    }
+                    _ => {
+                        return Err(Error::Scene(format!(
+                            "a built-in relief is square: the resolution {dims} needs X = Y"
+                        )));
+                    }
+                };
+                let material = MaterialVolume::from_height_field(&field, dims, default_albedo);
+                height_field = Some(field.clone());
+                let caster = HeightFieldCaster::new(field, dims, limits)?;
+                (Mesostructure::HeightField(caster), material)
             }
             MesostructureSource::Tile(_) | MesostructureSource::SampleTile(_) => {
                 let mesh = match &scene.mesostructure {
@@ -575,6 +601,7 @@ impl LoadedScene {
             shell,
             mesostructure,
             material,
+            height_field,
             environment,
         })
     }

@@ -16,6 +16,7 @@ use crate::bake::gi::rtv::{self, RtvStats};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
+use crate::mesostructure::reliefs;
 use crate::package::bake::{PackageParams, StageSeconds, compress_gdm};
 use crate::package::gi::GiPayload;
 use crate::package::manifest::{BakeInfo, GdmCodec};
@@ -205,8 +206,14 @@ pub fn scene_package(
 /// package would render the scene's shell with the wrong geometry, silently.
 pub fn check_package_input(package: &Package, scene: &Scene, scene_dir: &Path) -> Result<()> {
     package.check_grid(scene.dims()?)?;
+    check_input(&package.manifest().input, scene, scene_dir)
+}
+
+/// Checks that a package's recorded input identity `found` is that of `scene`'s
+/// mesostructure (see [`check_package_input`]; a VDM package's height field is identified
+/// the same way).
+pub fn check_input(found: &InputInfo, scene: &Scene, scene_dir: &Path) -> Result<()> {
     let expected = input_identity(scene, scene_dir)?;
-    let found = &package.manifest().input;
     if found.blake3 == expected.blake3 {
         return Ok(());
     }
@@ -235,10 +242,14 @@ fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
             let path = scene_dir.join(p);
             std::fs::read(&path).map_err(|e| Error::io(path, e))?
         }
+        MesostructureSource::Relief(kind) => {
+            reliefs::height_field(*kind, scene.resolution[0], &Limits::default())?.to_png()
+        }
     };
     Ok(InputInfo {
         kind: match scene.mesostructure {
             MesostructureSource::HeightField(_) => "height_field",
+            MesostructureSource::Relief(_) => "relief",
             MesostructureSource::Tile(_) | MesostructureSource::SampleTile(_) => "mesh",
             MesostructureSource::Volume(_) | MesostructureSource::Sample(_) => "volume",
         }

@@ -2,8 +2,11 @@
 //! one, picks the renderer and times each stage (`mesobake render`).
 
 use crate::bake::gdm::BakeObserver;
+use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
+use crate::mesostructure::height_field::HeightField;
 use crate::package::Package;
+use crate::package::vdm::VdmPackage;
 use crate::render::explicit::ExplicitRenderer;
 use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
@@ -11,6 +14,7 @@ use crate::render::image::Image;
 use crate::render::path_tracer::PathTracer;
 use crate::render::render_image_observed;
 use crate::render::truth::TruthRenderer;
+use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::gi::{GiReport, GiShading};
 use crate::scene::{Effect, LoadedScene, Scene};
 use crate::util::limits::Limits;
@@ -30,6 +34,9 @@ pub enum RenderMethod {
     /// The explicit geometry (mesh tiles only): the tile's triangles mapped through the shell,
     /// ray cast as a plain mesh; the truth's independent check.
     Explicit,
+    /// The VDM per-pixel algorithm (height-field mesostructure): the shell's top surface
+    /// rendered with the view-dependent displacement map.
+    Vdm,
 }
 
 impl FromStr for RenderMethod {
@@ -39,8 +46,9 @@ impl FromStr for RenderMethod {
             "truth" => Ok(RenderMethod::Truth),
             "gdm" => Ok(RenderMethod::Gdm),
             "explicit" => Ok(RenderMethod::Explicit),
+            "vdm" => Ok(RenderMethod::Vdm),
             _ => Err(Error::InvalidParameter(format!(
-                "render method {s:?}: expected truth, gdm or explicit"
+                "render method {s:?}: expected truth, gdm, vdm or explicit"
             ))),
         }
     }
@@ -51,7 +59,7 @@ impl FromStr for RenderMethod {
 pub struct RenderSeconds {
     /// Loading the scene's inputs and building the shell.
     pub load: f64,
-    /// Baking (exact) or reading the GDM; 0 for the ground truth.
+    /// Baking or reading the GDM (or the VDM); 0 for the ground truth.
     pub gdm: f64,
     /// Building the acceleration structure and rendering the pixels.
     pub render: f64,
@@ -67,12 +75,15 @@ pub struct Rendered {
     pub gi: Option<GiReport>,
 }
 
-/// The GDM a `gdm` render uses.
-pub enum GdmSource<'a> {
-    /// Bake the exact GDM of the scene's mesostructure on its grids.
+/// The GDM a `gdm` render or the VDM a `vdm` render uses.
+pub enum MapSource<'a> {
+    /// Bake the scene's: the exact GDM of its mesostructure on its grids, or the VDM of its
+    /// height field as its VDM settings say.
     Bake,
-    /// This package (its grid must match the scene's resolution).
+    /// This GDM package (its grid must match the scene's resolution).
     Package(&'a Package),
+    /// This VDM package (of the scene's height field).
+    VdmPackage(&'a VdmPackage),
 }
 
 /// Reads the scene at `path` and loads its inputs (paths relative to the scene's folder).
@@ -86,7 +97,7 @@ pub fn load_scene(path: &Path, limits: &Limits) -> Result<LoadedScene> {
 pub fn render(
     loaded: &LoadedScene,
     method: RenderMethod,
-    source: GdmSource,
+    source: MapSource,
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Rendered> {
@@ -105,7 +116,7 @@ pub fn render(
 pub fn render_substituted(
     loaded: &LoadedScene,
     method: RenderMethod,
-    source: GdmSource,
+    source: MapSource,
     substitutions: Substitutions,
     limits: &Limits,
     observer: &dyn BakeObserver,
@@ -129,16 +140,52 @@ pub fn render_substituted(
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
-        RenderMethod::Explicit if environment => {
+        RenderMethod::Vdm | RenderMethod::Explicit if environment => {
             return Err(Error::InvalidParameter(
                 "environment lighting is rendered by the path tracer (method truth) or the GDM \
-                 renderer; the explicit renderer shades point and directional lights only"
+                 renderer; the explicit and VDM renderers shade point and directional lights \
+                 only"
                     .into(),
             ));
         }
         RenderMethod::Explicit => {
             let start = Instant::now();
             let r = ExplicitRenderer::new(loaded, limits)?;
+            observer.stage("rendering");
+            let image =
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
+            seconds.render = start.elapsed().as_secs_f64();
+            image
+        }
+        RenderMethod::Vdm => {
+            let start = Instant::now();
+            let (baked, field);
+            let (query, relief) = match source {
+                MapSource::Bake => {
+                    baked = loaded.bake_vdm(limits, observer)?;
+                    (baked.compressed.decode(), baked.relief)
+                }
+                MapSource::VdmPackage(pkg) => {
+                    let [w, h] = pkg.manifest().relief.size;
+                    field = HeightField::new(w, h, pkg.heights())?;
+                    let depth = pkg.manifest().relief.depth;
+                    (
+                        pkg.query(),
+                        Relief {
+                            field: &field,
+                            depth,
+                        },
+                    )
+                }
+                MapSource::Package(_) => {
+                    return Err(Error::InvalidParameter(
+                        "method vdm renders a VDM package, not a GDM package".into(),
+                    ));
+                }
+            };
+            seconds.gdm = start.elapsed().as_secs_f64();
+            let start = Instant::now();
+            let r = VdmRenderer::new(&loaded.shell, &query, relief)?;
             observer.stage("rendering");
             let image =
                 render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
@@ -160,7 +207,7 @@ pub fn render_substituted(
             let (raw, raw_lookup, from_package);
             let mut gi = None;
             let lookup: &dyn GdmLookup = match source {
-                GdmSource::Bake => {
+                MapSource::Bake => {
                     raw = loaded.bake_gdm(limits, observer)?;
                     raw_lookup = RawLookup::new(&raw);
                     if environment {
@@ -170,7 +217,12 @@ pub fn render_substituted(
                     }
                     &raw_lookup
                 }
-                GdmSource::Package(pkg) => {
+                MapSource::VdmPackage(_) => {
+                    return Err(Error::InvalidParameter(
+                        "method gdm renders a GDM package, not a VDM package".into(),
+                    ));
+                }
+                MapSource::Package(pkg) => {
                     pkg.check_grid(scene.dims()?)?;
                     if environment {
                         gi = Some(GiShading::from_package(loaded, pkg)?);

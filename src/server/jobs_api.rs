@@ -25,7 +25,9 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
         MesostructureSource::Volume(p) => wanted.push((p, "volume")),
         MesostructureSource::Tile(p) => wanted.push((p, "mesh_tile")),
         MesostructureSource::HeightField(p) => wanted.push((p, "height_field")),
-        MesostructureSource::Sample(_) | MesostructureSource::SampleTile(_) => {}
+        MesostructureSource::Sample(_)
+        | MesostructureSource::SampleTile(_)
+        | MesostructureSource::Relief(_) => {}
     }
     if let BaseMeshSource::Obj(p) = &scene.base_mesh {
         wanted.push((p, "base_mesh"));

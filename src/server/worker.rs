@@ -45,7 +45,9 @@ pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
         MesostructureSource::Volume(p)
         | MesostructureSource::Tile(p)
         | MesostructureSource::HeightField(p) => resolve(p)?,
-        MesostructureSource::Sample(_) | MesostructureSource::SampleTile(_) => {}
+        MesostructureSource::Sample(_)
+        | MesostructureSource::SampleTile(_)
+        | MesostructureSource::Relief(_) => {}
     }
     if let BaseMeshSource::Obj(p) = &mut scene.base_mesh {
         resolve(p)?;

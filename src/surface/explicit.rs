@@ -1380,6 +1380,11 @@ impl ExplicitInput {
             MesostructureSource::Tile(p) => {
                 TriMesh::read_obj(&dir.join(p), limits.memory_bytes / 8)?
             }
+            MesostructureSource::Relief(_) => {
+                return Err(Error::Scene(
+                    "explicit geometry needs triangles, but the mesostructure is a relief".into(),
+                ));
+            }
             MesostructureSource::Volume(p) | MesostructureSource::HeightField(p) => {
                 return Err(Error::Scene(format!(
                     "{}: explicit geometry needs triangles, but the mesostructure is the \

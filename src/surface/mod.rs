@@ -3,5 +3,6 @@
 //! a mesh tile mapped through that shell ([`explicit`]).
 
 pub mod base_mesh;
+pub mod curvature;
 pub mod explicit;
 pub mod shell;

@@ -19,6 +19,9 @@ use std::path::Path;
 /// The value of [`VdmManifest::format`].
 pub const VDM_FORMAT_NAME: &str = "mesobake-vdm-package";
 
+/// The section of the height field.
+pub const HEIGHT_SECTION: &str = "vdm.height";
+
 /// Largest accepted direction or curvature count.
 pub const MAX_AXIS: u32 = 1024;
 
@@ -251,6 +254,20 @@ pub struct VdmContent<'a> {
     pub eigen: &'a QuantizedFactor,
     /// The reconstruction's error against the bake.
     pub accuracy: VdmAccuracy,
+    /// The height field h(i, j) in [0, 1], row by row (x fastest): its relief lies
+    /// depth·(1 − h) below the reference surface.
+    pub heights: &'a [f32],
+}
+
+/// The texture of the height-field section.
+fn height_texture(size: [u32; 2]) -> Texture {
+    Texture {
+        dimension: TextureDimension::D2,
+        format: TexelFormat::R32float,
+        width: size[0],
+        height: size[1],
+        depth: 1,
+    }
 }
 
 /// The three factors of a VDM package, as named in its sections.
@@ -335,8 +352,14 @@ impl VdmPackage {
         };
         let (q, rank) = (content.weights.format, content.weights.rank);
         let vdm_rows = (shape.grid.n_curvature * shape.grid.n_theta) as usize;
-        let mut sections = Vec::new();
-        let mut payloads = Vec::new();
+        let mut sections = vec![Section::new(HEIGHT_SECTION, height_texture(shape.size))];
+        let mut payloads = vec![
+            content
+                .heights
+                .iter()
+                .flat_map(|h| h.to_le_bytes())
+                .collect(),
+        ];
         let mut factor = |factor: Factor| {
             let (source, rows, components) = match factor {
                 Factor::Weights => (content.weights, 0..content.weights.rows, rank),
@@ -468,7 +491,26 @@ impl VdmPackage {
                 crate::expect_section(&manifest.sections, section, expected, bad)?;
             }
         }
-        Ok(VdmPackage { manifest, bytes })
+        crate::expect_section(
+            &manifest.sections,
+            HEIGHT_SECTION,
+            height_texture(size),
+            bad,
+        )?;
+        let package = VdmPackage { manifest, bytes };
+        if package.heights().iter().any(|h| !(0.0..=1.0).contains(h)) {
+            return Err(bad("the height field holds values outside [0, 1]".into()));
+        }
+        Ok(package)
+    }
+
+    /// The height field h(i, j), row by row (x fastest).
+    pub fn heights(&self) -> Vec<f32> {
+        let bytes = self.section(HEIGHT_SECTION).expect("validated");
+        bytes
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect()
     }
 
     /// Reads and validates the VDM package at `path`, refusing files over `max_bytes` before
@@ -574,6 +616,11 @@ impl VdmQuery {
         }
     }
 
+    /// The texels [W, H] of the VDM.
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
     fn weights(&self, i: u32, j: u32, b: u32) -> &[f32] {
         let (w, h) = self.size;
         let row = ((b * h + j) * w + i) as usize;
@@ -605,5 +652,81 @@ impl VdmQuery {
                 .map(|(w, e)| w * e)
                 .sum(),
         )
+    }
+    /// The displacement a renderer reads between the samples, or `None` for a silhouette: each
+    /// factor filtered as a GPU's linear sampler filters its texture (see
+    /// `docs/package-format.md`): W(x, y, φ) trilinearly with x, y and φ periodic, E(θ, c)
+    /// bilinearly and E_MVM(c) linearly with θ and c clamped to the first and last samples;
+    /// the silhouette test θ > θ̃_MVM takes W at the texel holding (x, y) (the paper's
+    /// nearest sample), still linear in φ. x, y in tiles, θ from the inward normal, φ in
+    /// radians, c in 1/tile.
+    pub fn sample(&self, x: f64, y: f64, theta: f64, phi: f64, c: f64) -> Option<f32> {
+        let (w, h) = self.size;
+        let g = self.grid;
+        let periodic = |t: f64, n: u32| {
+            let f = t * f64::from(n) - 0.5;
+            let i0 = f.floor();
+            let i = i0.rem_euclid(f64::from(n)) as u32 % n;
+            (i, (i + 1) % n, (f - i0) as f32)
+        };
+        let clamped = |f: f64, n: u32| {
+            let f = f.clamp(0.0, f64::from(n - 1));
+            let i = (f.floor() as u32).min(n - 1);
+            (i, (i + 1).min(n - 1), (f - f64::from(i)) as f32)
+        };
+        let k_f = if g.n_curvature > 1 && g.c_max > g.c_min {
+            (c - g.c_min) / (g.c_max - g.c_min) * f64::from(g.n_curvature - 1)
+        } else {
+            0.0
+        };
+        let (k0, k1, wk) = clamped(k_f, g.n_curvature);
+        let b = periodic(phi / TAU, g.n_phi);
+        // The silhouette: W at the texel holding (x, y), linear in φ.
+        let texel = |t: f64, n: u32| (t * f64::from(n)).floor().rem_euclid(f64::from(n)) as u32 % n;
+        let (i, j) = (texel(x, w), texel(y, h));
+        let mut weights = [0.0f32; MAX_VDM_RANK];
+        self.blend(&mut weights, &[(i, j, b.0, 1.0 - b.2), (i, j, b.1, b.2)]);
+        let mvm = |k: u32| &self.mvm[k as usize * self.mvm_rank..][..self.mvm_rank];
+        let max_theta: f32 = (0..self.mvm_rank)
+            .map(|l| weights[l] * (mvm(k0)[l] * (1.0 - wk) + mvm(k1)[l] * wk))
+            .sum();
+        if theta as f32 > max_theta {
+            return None;
+        }
+        let (xi, yj) = (periodic(x, w), periodic(y, h));
+        let mut corners = Vec::with_capacity(8);
+        for (bb, wb) in [(b.0, 1.0 - b.2), (b.1, b.2)] {
+            for (jj, wj) in [(yj.0, 1.0 - yj.2), (yj.1, yj.2)] {
+                for (ii, wi) in [(xi.0, 1.0 - xi.2), (xi.1, xi.2)] {
+                    corners.push((ii, jj, bb, wi * wj * wb));
+                }
+            }
+        }
+        weights = [0.0; MAX_VDM_RANK];
+        self.blend(&mut weights, &corners);
+        let (a0, a1, wa) = clamped(theta / FRAC_PI_2 * f64::from(g.n_theta) - 0.5, g.n_theta);
+        let eigen = |k: u32, a: u32| {
+            let col = (k * g.n_theta + a) as usize;
+            &self.eigen[col * self.vdm_rank..][..self.vdm_rank]
+        };
+        let (e00, e01, e10, e11) = (eigen(k0, a0), eigen(k0, a1), eigen(k1, a0), eigen(k1, a1));
+        Some(
+            (0..self.vdm_rank)
+                .map(|l| {
+                    let low = e00[l] * (1.0 - wa) + e01[l] * wa;
+                    let high = e10[l] * (1.0 - wa) + e11[l] * wa;
+                    weights[l] * (low * (1.0 - wk) + high * wk)
+                })
+                .sum(),
+        )
+    }
+
+    /// Adds Σ weight·W(i, j, b) over `corners` (i, j, b, weight) to `out`.
+    fn blend(&self, out: &mut [f32; MAX_VDM_RANK], corners: &[(u32, u32, u32, f32)]) {
+        for &(i, j, b, weight) in corners {
+            for (o, w) in out.iter_mut().zip(self.weights(i, j, b)) {
+                *o += weight * w;
+            }
+        }
     }
 }

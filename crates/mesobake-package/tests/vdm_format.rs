@@ -47,6 +47,9 @@ fn encode(weights: &QuantizedFactor, eigen: &QuantizedFactor) -> Vec<u8> {
         blake3: "0".repeat(64),
     };
     let spectrum = vec![1.0; (GRID.n_curvature * (GRID.n_theta + 1)) as usize];
+    let heights: Vec<f32> = (0..SIZE[0] * SIZE[1])
+        .map(|t| support::noise(t as usize))
+        .collect();
     VdmPackage::encode(
         input,
         VdmContent {
@@ -64,6 +67,7 @@ fn encode(weights: &QuantizedFactor, eigen: &QuantizedFactor) -> Vec<u8> {
             weights,
             eigen,
             accuracy: VdmAccuracy::default(),
+            heights: &heights,
         },
     )
 }
@@ -87,6 +91,9 @@ fn vdm_packages_reconstruct_the_shared_weights_svd() {
             )
         };
         assert_eq!(texture("vdm.weights.1"), (TextureDimension::D3, 5, 3, 4));
+        assert_eq!(texture("vdm.height"), (TextureDimension::D2, 5, 3, 1));
+        let heights: Vec<f32> = (0..15).map(support::noise).collect();
+        assert_eq!(pkg.heights(), heights);
         assert_eq!(texture("vdm.eigen.0"), (TextureDimension::D2, 3, 2, 1));
         assert_eq!(texture("vdm.mvm.0"), (TextureDimension::D2, 2, 1, 1));
         assert!(!m.sections.iter().any(|s| s.name == "vdm.mvm.1"));
@@ -167,12 +174,12 @@ fn reassembled(edit: impl Fn(&mut VdmManifest)) -> Result<VdmPackage, String> {
     let (w, e) = factors(Quantization::U8);
     let pkg = VdmPackage::parse(encode(&w, &e)).unwrap();
     let mut manifest = pkg.manifest().clone();
+    edit(&mut manifest);
     let payloads: Vec<Vec<u8>> = manifest
         .sections
         .iter()
         .map(|s| pkg.section(&s.name).unwrap().to_vec())
         .collect();
-    edit(&mut manifest);
     VdmPackage::parse(container::assemble(&mut manifest, &payloads)).map_err(|e| e.to_string())
 }
 
@@ -183,8 +190,12 @@ fn inconsistent_vdm_manifests_are_refused_by_name() {
         "the unchanged manifest is valid"
     );
     type Edit = Box<dyn Fn(&mut VdmManifest)>;
-    let cases: [(&str, Edit); 8] = [
+    let cases: [(&str, Edit); 9] = [
         ("ranks", Box::new(|m| m.vdm.mvm_rank = 6)),
+        (
+            "vdm.height",
+            Box::new(|m| m.sections.retain(|s| s.name != "vdm.height")),
+        ),
         ("ranks", Box::new(|m| m.vdm.vdm_rank = 0)),
         ("oversampling", Box::new(|m| m.bake.oversampling = 2)),
         ("past the centre", Box::new(|m| m.bake.grid.c_max = 9.0)),

@@ -9,6 +9,7 @@ pub mod caster;
 pub mod compare;
 pub mod exact;
 pub mod fast;
+pub mod height_field_caster;
 pub mod interpolate;
 pub mod mesh_caster;
 pub mod mesh_template;

@@ -1,0 +1,306 @@
+//! The VDM software renderer: the paper's per-pixel algorithm for view-dependent displacement
+//! maps, exactly as the shaders run it (the executable specification of the WGSL pipeline).
+//!
+//! The reference surface is the top of the shell: one triangle per base triangle, rendered
+//! like a plain mesh. Each prism's mean frame M (object → texture, tile units in x and y, the
+//! shell's height as z from 0 at the base to 1 at the top) followed by S = diag(1, 1, depth)
+//! maps object space to the VDM's space, where the relief is `depth` tiles deep and the
+//! VDM was baked; A = S·M.
+//!
+//! Per camera ray and per front-facing top triangle it crosses, nearest first (a rasterized
+//! fragment; the first one that is not a silhouette is shaded, as a depth test after discards
+//! would keep):
+//! 1. texture coordinate T (tile units) and, interpolated from the triangle's corners, the
+//!    curvature c_V along the view: per corner the paper's c = k_max (V·C_max)² + k_min
+//!    (V·C_min)² over 1 − (V·N)², with V the direction from the corner to the eye
+//!    ([`VertexCurvature::along`]), in 1/object unit;
+//! 2. the view in VDM space, D = A·dir: θ_V from the inward normal, φ_V its azimuth; the
+//!    curvature in 1/tile, c_V · ℓ with ℓ = |A⁻¹·(cos φ_V, sin φ_V, 0)| the object length of
+//!    one tile along the view's azimuth;
+//! 3. silhouette determination: the VDM query ([`VdmQuery::sample`]) says none;
+//! 4. real texture coordinate T' = T + d·sin θ_V·(cos φ_V, sin φ_V), the relief's depth
+//!    there t' = depth·(1 − h(T')) (h bilinear, periodic), and the hit P' = P + A⁻¹·(T' − T,
+//!    −t') (the flat offset);
+//! 5. shading at P' with the normal of the height field at T' (central differences one texel
+//!    apart, in VDM space (−depth·∂h/∂x, −depth·∂h/∂y, 1), mapped to object space by Aᵀ) and
+//!    the scene's albedo;
+//! 6. shadow determination, per light: the light's direction in VDM space, L = A·l (θ_L from
+//!    the outward normal, φ_L), and its curvature c_L interpolated like c_V; the light ray
+//!    from P' leaves the reference surface (bent to c_L along φ_L) at arc length σ from the
+//!    point above P', where the surface normal has turned by c_L·σ, so it enters there at
+//!    θ'' = θ_L − c_L·σ towards φ_L + π; the light reaches P' iff the VDM there,
+//!    d_L = VDM(T' + σ·(cos φ_L, sin φ_L), θ'', φ_L + π, c_L), is not a silhouette and
+//!    reaches P': d_L ≥ σ / sin θ'' − [`SHADOW_TOLERANCE`] (for c_L = 0, σ = t'·tan θ_L and
+//!    the bound is the paper's t'·sec θ_L). A ray that never leaves a concave surface is
+//!    shadowed.
+
+use super::accel::BoxBvh;
+use super::gdm_renderer::intersect;
+use super::lighting::shade;
+use crate::bake::vdm::Relief;
+use crate::error::{Error, Result};
+use crate::scene::{Effect, Scene};
+use crate::surface::curvature::{VertexCurvature, vertex_curvatures};
+use crate::surface::shell::{FaceTriangle, Shell};
+use glam::{DMat3, DVec2, DVec3};
+use mesobake_package::vdm::VdmQuery;
+use std::f64::consts::FRAC_PI_2;
+
+/// How far short of the light's entry point the VDM may answer, in texels, and still let the
+/// light through: the interpolated VDM's error near the surface it reaches.
+pub const SHADOW_TOLERANCE: f64 = 1.0;
+
+/// One top triangle prepared for the per-pixel algorithm (what the shaders receive).
+#[derive(Clone, Debug)]
+struct TopFace {
+    triangle: FaceTriangle,
+    /// Object → VDM space, A = S·M.
+    to_vdm: DMat3,
+    /// A⁻¹.
+    from_vdm: DMat3,
+    /// The curvature at each corner.
+    curvature: [VertexCurvature; 3],
+}
+
+/// Renders a shell's reference surface with a compressed VDM.
+pub struct VdmRenderer<'a> {
+    faces: Vec<TopFace>,
+    bvh: BoxBvh,
+    query: &'a VdmQuery,
+    relief: Relief<'a>,
+}
+
+/// The principal curvatures at the top corners of `shell`'s prisms, estimated on the top
+/// surface (corners welded as the shell welds them, normals along the extrusion).
+pub fn top_curvatures(shell: &Shell) -> Vec<[VertexCurvature; 3]> {
+    let vertices = shell
+        .prisms
+        .iter()
+        .flat_map(|p| p.welded)
+        .max()
+        .map_or(0, |m| m as usize + 1);
+    let mut positions = vec![DVec3::ZERO; vertices];
+    let mut normals = vec![DVec3::ZERO; vertices];
+    for p in &shell.prisms {
+        for (c, &id) in p.welded.iter().enumerate() {
+            positions[id as usize] = p.bottom[c] + p.extrusion[c];
+            normals[id as usize] += p.extrusion[c].normalize_or_zero();
+        }
+    }
+    let normals: Vec<DVec3> = normals.iter().map(|n| n.normalize_or_zero()).collect();
+    let triangles: Vec<[u32; 3]> = shell.prisms.iter().map(|p| p.welded).collect();
+    let curvature = vertex_curvatures(&positions, &normals, &triangles);
+    shell
+        .prisms
+        .iter()
+        .map(|p| p.welded.map(|id| curvature[id as usize]))
+        .collect()
+}
+
+impl<'a> VdmRenderer<'a> {
+    /// Prepares `shell`'s top triangles for `query`, the VDM of `relief`.
+    pub fn new(shell: &Shell, query: &'a VdmQuery, relief: Relief<'a>) -> Result<Self> {
+        if query.size() != relief.field.size() {
+            return Err(Error::InvalidParameter(format!(
+                "the VDM's {:?} texels are not its height field's {:?}",
+                query.size(),
+                relief.field.size()
+            )));
+        }
+        let scale = DMat3::from_diagonal(DVec3::new(1.0, 1.0, relief.depth));
+        let faces: Vec<TopFace> = shell
+            .prisms
+            .iter()
+            .zip(top_curvatures(shell))
+            .map(|(p, curvature)| {
+                let to_vdm = scale * p.to_texture;
+                TopFace {
+                    triangle: p.faces()[0],
+                    to_vdm,
+                    from_vdm: to_vdm.inverse(),
+                    curvature,
+                }
+            })
+            .collect();
+        let bvh = BoxBvh::new(
+            faces
+                .iter()
+                .map(|f| {
+                    let c = f.triangle.corners;
+                    (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]))
+                })
+                .collect(),
+        );
+        Ok(VdmRenderer {
+            faces,
+            bvh,
+            query,
+            relief,
+        })
+    }
+
+    /// The shaded radiance along the camera ray, or `None` where it shows the background.
+    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+        let eye = DVec3::from(scene.camera.eye);
+        let mut fragments = Vec::new();
+        self.bvh
+            .candidates(origin, dir, 0.0, f64::INFINITY, |f, _| {
+                let tri = &self.faces[f].triangle;
+                if tri.normal().dot(dir) < 0.0
+                    && let Some((t, bary)) = intersect(tri, origin, dir)
+                {
+                    fragments.push((t, f, bary));
+                }
+            });
+        fragments.sort_by(|a, b| a.0.total_cmp(&b.0));
+        fragments.into_iter().find_map(|(t, f, bary)| {
+            self.fragment(scene, eye, origin + dir * t, dir, &self.faces[f], bary)
+        })
+    }
+
+    /// Steps 1–6 for one fragment; `None` for a silhouette.
+    fn fragment(
+        &self,
+        scene: &Scene,
+        eye: DVec3,
+        p: DVec3,
+        dir: DVec3,
+        face: &TopFace,
+        bary: [f64; 3],
+    ) -> Option<DVec3> {
+        let tri = &face.triangle;
+        let t = DVec2::new(
+            (0..3).map(|i| bary[i] * tri.texture[i].x).sum(),
+            (0..3).map(|i| bary[i] * tri.texture[i].y).sum(),
+        );
+        let corner_curvature = |towards: &dyn Fn(DVec3) -> DVec3| -> f64 {
+            (0..3)
+                .map(|i| bary[i] * face.curvature[i].along(towards(tri.corners[i])))
+                .sum()
+        };
+        let view = Direction::new(face, dir)?;
+        if view.inward_z <= 0.0 {
+            return None;
+        }
+        let c_v = corner_curvature(&|corner| eye - corner) * view.tile_length;
+        let d = f64::from(self.query.sample(t.x, t.y, view.theta, view.phi, c_v)?);
+        let offset = view.azimuth * (d * view.theta.sin());
+        let t_hit = t + offset;
+        let depth = self.relief.surface_depth(t_hit.x, t_hit.y);
+        let hit = p + face.from_vdm * offset.extend(-depth);
+        let normal = (face.to_vdm.transpose() * self.relief_normal(t_hit))
+            .try_normalize()
+            .unwrap_or(-dir);
+        let shadows = scene.wants(Effect::Shadows);
+        Some(shade(
+            &scene.lights,
+            &scene.material,
+            hit,
+            normal,
+            DVec3::from(scene.material.albedo),
+            -dir,
+            |inc| {
+                !shadows || {
+                    let c_l = corner_curvature(&|_| inc.direction);
+                    self.lit(face, t_hit, depth, inc.direction, c_l)
+                }
+            },
+        ))
+    }
+
+    /// The height field's normal at T' in VDM space (see the module documentation).
+    fn relief_normal(&self, t: DVec2) -> DVec3 {
+        let (w, h) = self.relief.field.size();
+        let (dx, dy) = (1.0 / f64::from(w), 1.0 / f64::from(h));
+        let field = self.relief.field;
+        let gx = (field.sample(t.x + dx, t.y) - field.sample(t.x - dx, t.y)) / (2.0 * dx);
+        let gy = (field.sample(t.x, t.y + dy) - field.sample(t.x, t.y - dy)) / (2.0 * dy);
+        DVec3::new(-self.relief.depth * gx, -self.relief.depth * gy, 1.0)
+    }
+
+    /// Step 6: whether light from object direction `l` reaches the hit at T' (`depth` below
+    /// the reference surface), the surface bent to `c_l` (1/object unit) along the light.
+    fn lit(&self, face: &TopFace, t_hit: DVec2, depth: f64, l: DVec3, c_l: f64) -> bool {
+        // The light as a view from above: its direction reversed is a ray into the surface.
+        let Some(light) = Direction::new(face, -l) else {
+            return true;
+        };
+        if light.inward_z <= 0.0 {
+            return false; // below the reference surface's horizon
+        }
+        let c = c_l * light.tile_length;
+        let Some(sigma) = exit_arc(depth, light.theta, c) else {
+            return false;
+        };
+        let theta = (light.theta - c * sigma).clamp(0.0, FRAC_PI_2);
+        let entry = t_hit - light.azimuth * sigma;
+        let tolerance = SHADOW_TOLERANCE / f64::from(self.relief.field.size().0);
+        match self.query.sample(entry.x, entry.y, theta, light.phi, c) {
+            Some(d) => f64::from(d) >= sigma / theta.sin().max(1e-9) - tolerance,
+            None => true,
+        }
+    }
+}
+
+/// A direction expressed in a top face's VDM space.
+struct Direction {
+    /// Polar angle from the inward normal.
+    theta: f64,
+    /// Azimuth of the texture-space motion.
+    phi: f64,
+    /// (cos φ, sin φ).
+    azimuth: DVec2,
+    /// The normalized direction's component into the surface (cos θ).
+    inward_z: f64,
+    /// Object length of one tile along the azimuth.
+    tile_length: f64,
+}
+
+impl Direction {
+    /// `dir` (object space, pointing into the surface) in `face`'s VDM space.
+    fn new(face: &TopFace, dir: DVec3) -> Option<Direction> {
+        let d = (face.to_vdm * dir).try_normalize()?;
+        let inward_z = -d.z;
+        let phi = d.y.atan2(d.x);
+        let azimuth = DVec2::new(phi.cos(), phi.sin());
+        Some(Direction {
+            theta: inward_z.clamp(-1.0, 1.0).acos(),
+            phi,
+            azimuth,
+            inward_z,
+            tile_length: (face.from_vdm * azimuth.extend(0.0)).length(),
+        })
+    }
+}
+
+/// The arc length σ ≥ 0 along the reference surface (curvature `c`, 1/tile, positive convex)
+/// from the point above a point `depth` below it to where the ray from that point, leaving
+/// at angle `theta` from the outward normal towards +σ, crosses the surface; `None` when it
+/// never does (a concave surface closing over it).
+pub fn exit_arc(depth: f64, theta: f64, c: f64) -> Option<f64> {
+    let (s, co) = theta.sin_cos();
+    if c.abs() < 1e-12 {
+        return Some(depth * s / co.max(1e-12));
+    }
+    // The ray from (0, −depth) along (sin θ, cos θ) meets the circle of radius R = 1/c about
+    // (0, −R): s² + 2s(R − depth)cos θ + depth² − 2R·depth = 0.
+    let r = 1.0 / c;
+    let half_b = (r - depth) * co;
+    let disc = half_b * half_b - (depth * depth - 2.0 * r * depth);
+    if disc < 0.0 {
+        return None;
+    }
+    let root = disc.sqrt();
+    // Convex: the one positive root; concave: the nearer crossing.
+    let s_ray = if r > 0.0 {
+        -half_b + root
+    } else {
+        -half_b - root
+    };
+    if s_ray < 0.0 {
+        return None;
+    }
+    let q = DVec2::new(s_ray * s, -depth + s_ray * co);
+    // Arc length of the crossing: R times its angle about the centre.
+    Some(r * (r.signum() * q.x).atan2(r.signum() * (q.y + r)))
+}
