@@ -88,7 +88,7 @@ fn obj_tile_through_the_cli() {
 }
 
 #[test]
-fn a_png_height_field_bakes_as_the_volume_under_it() {
+fn a_png_height_field_bakes_as_its_exact_surface() {
     let dir = tempfile::tempdir().unwrap();
     // 16×16, 8 bits: heights 0.75 for x < 8 and 0.25 beyond (6 and 2 voxels of 8).
     let png_path = dir.path().join("step.png");
@@ -123,12 +123,13 @@ fn a_png_height_field_bakes_as_the_volume_under_it() {
     let solid = data.chunks(32).filter(|d| d[0] == 0.0).count();
     assert_eq!(solid, 16 * 8 * 6 + 16 * 8 * 2);
     // Above the surface, looking up escapes (+inf); on the low step, looking down from
-    // z = 4.5 meets the surface at z = 2.
+    // z = 4.5 meets the surface at z = 8·64/255 (the pixel's exact height, cast exactly).
     let idx =
         |x: usize, y: usize, z: usize, a: usize, b: usize| (((x * 16 + y) * 8 + z) * 4 + a) * 8 + b;
     assert!(data[idx(3, 3, 7, 0, 0)].is_infinite());
     let down = data[idx(12, 5, 4, 3, 0)];
-    let expected = 2.5 / (7.0 * std::f32::consts::PI / 8.0).cos().abs();
+    let surface = 8.0 * 64.0 / 255.0;
+    let expected = (4.5 - surface) / (7.0 * std::f32::consts::PI / 8.0).cos().abs();
     assert!((down - expected).abs() < 1e-3, "{down} vs {expected}");
 }
 

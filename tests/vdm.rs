@@ -532,6 +532,7 @@ fn the_cli_packages_a_vdm_and_unpack_reconstructs_it_as_measured() {
     let expected = [
         "vdm.eigen.0",
         "vdm.eigen.1",
+        "vdm.height",
         "vdm.mvm.0",
         "vdm.weights.0",
         "vdm.weights.1",

@@ -6,9 +6,14 @@
 //! - [`gpu`]: adapter choice and device;
 //! - [`variant`]: the shader variants, chosen from the scene's effects;
 //! - [`resources`]: package, material and shell uploads, with the GPU memory they take;
-//! - [`pipeline`]: the render pipeline, frames, read-back and timing.
+//! - [`pipeline`]: the render pipeline, frames, read-back and timing;
+//! - [`target`]: the colour and depth target every pipeline draws into, and its read-back;
+//! - [`vdm_pipeline`]: the VDM pipeline (height fields), whose specification is
+//!   [`crate::render::vdm_renderer`].
 
 pub mod gpu;
 pub mod pipeline;
 pub mod resources;
+pub mod target;
 pub mod variant;
+pub mod vdm_pipeline;

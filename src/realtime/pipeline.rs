@@ -8,6 +8,7 @@ use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
     upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
+use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, Target};
 use super::variant::ShaderVariant;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -16,22 +17,17 @@ use crate::package::manifest::GdmCodec;
 use crate::render::gdm_renderer::prepare_prisms;
 use crate::render::image::Image;
 use crate::render::quality::ShadowMethod;
-use crate::scene::{Camera, Light, LoadedScene};
+use crate::scene::{Camera, Light, LoadedScene, Scene};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
 use glam::{DMat4, DVec3};
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 
-const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Bytes per texel of the colour target.
-const COLOUR_TEXEL: u32 = 16;
-
 /// The shader's `View`.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct ViewUniform {
+pub(super) struct ViewUniform {
     view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
     specular: [f32; 4],
@@ -43,7 +39,7 @@ struct ViewUniform {
 /// The shader's `Light`.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct LightRecord {
+pub(super) struct LightRecord {
     kind: u32,
     _pad: [u32; 3],
     vector: [f32; 4],
@@ -69,6 +65,39 @@ fn light_record(light: &Light) -> LightRecord {
         vector: v(vector),
         colour: v(colour),
     }
+}
+
+/// The shader's `View` for `scene`, its depth range around the points `bounds`.
+pub(super) fn view_uniform(scene: &Scene, bounds: impl Iterator<Item = DVec3>) -> ViewUniform {
+    let m = &scene.material;
+    ViewUniform {
+        view_proj: view_projection(&scene.camera, bounds)
+            .as_mat4()
+            .to_cols_array_2d(),
+        eye: DVec3::from(scene.camera.eye)
+            .extend(0.0)
+            .as_vec4()
+            .to_array(),
+        specular: [
+            m.specular[0] as f32,
+            m.specular[1] as f32,
+            m.specular[2] as f32,
+            m.shininess as f32,
+        ],
+        light_count: scene.lights.len() as u32,
+        width: scene.camera.width,
+        _pad: [0; 2],
+    }
+}
+
+/// The shader's lights for `scene` (one zeroed record when it has none: a storage buffer
+/// may not be empty).
+pub(super) fn light_records(scene: &Scene) -> Vec<LightRecord> {
+    let mut lights: Vec<LightRecord> = scene.lights.iter().map(light_record).collect();
+    if lights.is_empty() {
+        lights.push(LightRecord::zeroed());
+    }
+    lights
 }
 
 /// The camera's view-projection matrix (wgpu clip space, depth 0..1) with near and far
@@ -100,19 +129,14 @@ pub struct Preview<'g> {
     material: GpuMaterial,
     shell: GpuShell,
     environment: Option<GpuEnvironment>,
-    colour: wgpu::Texture,
-    depth: wgpu::TextureView,
+    target: Target,
     /// Per pixel, the nearest hit so far this frame (`nearest_hit` of the shader), cleared
     /// before each frame.
     nearest_hit: wgpu::Buffer,
-    readback: wgpu::Buffer,
-    padded_row: u32,
-    width: u32,
-    height: u32,
     memory: GpuMemory,
 }
 
-fn layout_entry(
+pub(super) fn layout_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,
     ty: wgpu::BindingType,
@@ -125,7 +149,7 @@ fn layout_entry(
     }
 }
 
-fn storage() -> wgpu::BindingType {
+pub(super) fn storage() -> wgpu::BindingType {
     wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only: true },
         has_dynamic_offset: false,
@@ -141,7 +165,7 @@ fn storage_read_write() -> wgpu::BindingType {
     }
 }
 
-fn uniform() -> wgpu::BindingType {
+pub(super) fn uniform() -> wgpu::BindingType {
     wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Uniform,
         has_dynamic_offset: false,
@@ -186,12 +210,7 @@ impl<'g> Preview<'g> {
         let codec = package.manifest().codec;
         let variant = ShaderVariant::for_scene(scene, codec, early_depth_test);
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let max_side = gpu.device.limits().max_texture_dimension_2d;
-        if width > max_side || height > max_side {
-            return Err(Error::Gpu(format!(
-                "a {width}×{height} image exceeds this adapter's limit of {max_side} pixels per side"
-            )));
-        }
+        let target = Target::new(gpu, width, height)?;
         let frag = wgpu::ShaderStages::FRAGMENT;
         let d = &gpu.device;
         // The shell-shadow variant also reads the prisms' BVH (bindings 3 and 4); binding 5
@@ -281,154 +300,94 @@ impl<'g> Preview<'g> {
                 .into_iter()
                 .chain(p.faces[1].triangle.corners)
         });
-        let view_proj = view_projection(&scene.camera, corners).as_mat4();
-        let m = &scene.material;
-        let view = ViewUniform {
-            view_proj: view_proj.to_cols_array_2d(),
-            eye: DVec3::from(scene.camera.eye)
-                .extend(0.0)
-                .as_vec4()
-                .to_array(),
-            specular: [
-                m.specular[0] as f32,
-                m.specular[1] as f32,
-                m.specular[2] as f32,
-                m.shininess as f32,
-            ],
-            light_count: scene.lights.len() as u32,
-            width,
-            _pad: [0; 2],
-        };
-        let mut lights: Vec<LightRecord> = scene.lights.iter().map(light_record).collect();
-        if lights.is_empty() {
-            lights.push(LightRecord::zeroed());
-        }
-        let (pipeline, scene_group, colour, depth, nearest_hit, readback, padded_row) = gpu
-            .checked("building the pipeline", || {
-                let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("view"),
-                    contents: bytemuck::bytes_of(&view),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
-                let lights = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("lights"),
-                    contents: bytemuck::cast_slice(&lights),
-                    usage: wgpu::BufferUsages::STORAGE,
-                });
-                let nearest_hit = d.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("nearest hit"),
-                    size: width as u64 * height as u64 * 4,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
-                let mut buffers = vec![(0, &view), (1, &lights), (2, &shell.prisms)];
-                buffers.push((5, &nearest_hit));
-                if let Some(bvh) = &bvh {
-                    buffers.extend([(3, &bvh.nodes), (4, &bvh.prisms)]);
-                }
-                let entries: Vec<wgpu::BindGroupEntry> = buffers
-                    .into_iter()
-                    .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                        binding,
-                        resource: buffer.as_entire_binding(),
-                    })
-                    .collect();
-                let scene_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("scene"),
-                    layout: &scene_layout,
-                    entries: &entries,
-                });
-                let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("gdm preview"),
-                    source: wgpu::ShaderSource::Wgsl(variant.source().into()),
-                });
-                let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("gdm preview"),
-                    bind_group_layouts: &[
-                        Some(&scene_layout),
-                        Some(&package_layout),
-                        Some(&material_layout),
-                        variant.environment.then_some(&environment_layout),
-                    ],
-                    immediate_size: 0,
-                });
-                let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                    label: Some("gdm preview"),
-                    layout: Some(&layout),
-                    vertex: wgpu::VertexState {
-                        module: &module,
-                        entry_point: Some("vs_main"),
-                        compilation_options: Default::default(),
-                        buffers: &[Some(Vertex::LAYOUT)],
-                    },
-                    primitive: wgpu::PrimitiveState {
-                        topology: wgpu::PrimitiveTopology::TriangleList,
-                        front_face: wgpu::FrontFace::Ccw,
-                        cull_mode: Some(wgpu::Face::Back),
-                        ..Default::default()
-                    },
-                    depth_stencil: Some(wgpu::DepthStencilState {
-                        format: DEPTH_FORMAT,
-                        depth_write_enabled: Some(true),
-                        depth_compare: Some(wgpu::CompareFunction::Less),
-                        stencil: Default::default(),
-                        bias: Default::default(),
-                    }),
-                    multisample: Default::default(),
-                    fragment: Some(wgpu::FragmentState {
-                        module: &module,
-                        entry_point: Some("fs_main"),
-                        compilation_options: Default::default(),
-                        targets: &[Some(wgpu::ColorTargetState {
-                            format: COLOUR_FORMAT,
-                            blend: None,
-                            write_mask: wgpu::ColorWrites::ALL,
-                        })],
-                    }),
-                    multiview_mask: None,
-                    cache: None,
-                });
-                let target = |format, usage| {
-                    d.create_texture(&wgpu::TextureDescriptor {
-                        label: Some("target"),
-                        size: wgpu::Extent3d {
-                            width,
-                            height,
-                            depth_or_array_layers: 1,
-                        },
-                        mip_level_count: 1,
-                        sample_count: 1,
-                        dimension: wgpu::TextureDimension::D2,
-                        format,
-                        usage,
-                        view_formats: &[],
-                    })
-                };
-                let colour = target(
-                    COLOUR_FORMAT,
-                    wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-                );
-                let depth = target(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT)
-                    .create_view(&Default::default());
-                let padded_row =
-                    (width * COLOUR_TEXEL).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-                let readback = d.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("read-back"),
-                    size: padded_row as u64 * height as u64,
-                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                    mapped_at_creation: false,
-                });
-                (
-                    pipeline,
-                    scene_group,
-                    colour,
-                    depth,
-                    nearest_hit,
-                    readback,
-                    padded_row,
-                )
-            })?;
-        let pixels = width as u64 * height as u64;
+        let view = view_uniform(scene, corners);
+        let lights = light_records(scene);
+        let (pipeline, scene_group, nearest_hit) = gpu.checked("building the pipeline", || {
+            let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("view"),
+                contents: bytemuck::bytes_of(&view),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let lights = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("lights"),
+                contents: bytemuck::cast_slice(&lights),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            let nearest_hit = d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("nearest hit"),
+                size: width as u64 * height as u64 * 4,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut buffers = vec![(0, &view), (1, &lights), (2, &shell.prisms)];
+            buffers.push((5, &nearest_hit));
+            if let Some(bvh) = &bvh {
+                buffers.extend([(3, &bvh.nodes), (4, &bvh.prisms)]);
+            }
+            let entries: Vec<wgpu::BindGroupEntry> = buffers
+                .into_iter()
+                .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                    binding,
+                    resource: buffer.as_entire_binding(),
+                })
+                .collect();
+            let scene_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("scene"),
+                layout: &scene_layout,
+                entries: &entries,
+            });
+            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("gdm preview"),
+                source: wgpu::ShaderSource::Wgsl(variant.source().into()),
+            });
+            let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("gdm preview"),
+                bind_group_layouts: &[
+                    Some(&scene_layout),
+                    Some(&package_layout),
+                    Some(&material_layout),
+                    variant.environment.then_some(&environment_layout),
+                ],
+                immediate_size: 0,
+            });
+            let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("gdm preview"),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(Vertex::LAYOUT)],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode: Some(wgpu::Face::Back),
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: COLOUR_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            (pipeline, scene_group, nearest_hit)
+        })?;
         let memory = GpuMemory {
             package: gpu_package.bytes,
             material: material.bytes,
@@ -437,7 +396,7 @@ impl<'g> Preview<'g> {
                 + (lights.len() * std::mem::size_of::<LightRecord>()
                     + std::mem::size_of::<ViewUniform>()) as u64,
             environment: environment.as_ref().map_or(0, |e| e.bytes),
-            targets: pixels * (COLOUR_TEXEL as u64 + 4) + nearest_hit.size() + readback.size(),
+            targets: target.bytes() + nearest_hit.size(),
         };
         Ok(Preview {
             gpu,
@@ -448,13 +407,8 @@ impl<'g> Preview<'g> {
             material,
             shell,
             environment,
-            colour,
-            depth,
+            target,
             nearest_hit,
-            readback,
-            padded_row,
-            width,
-            height,
             memory,
         })
     }
@@ -480,28 +434,7 @@ impl<'g> Preview<'g> {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.nearest_hit, 0, None);
         {
-            let colour = self.colour.create_view(&Default::default());
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("gdm preview"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &colour,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                ..Default::default()
-            });
+            let mut pass = self.target.pass(&mut encoder, "gdm preview");
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.scene_group, &[]);
             pass.set_bind_group(1, &self.package.bind_group, &[]);
@@ -513,22 +446,7 @@ impl<'g> Preview<'g> {
             pass.draw(0..self.shell.vertex_count, 0..1);
         }
         if read_back {
-            encoder.copy_texture_to_buffer(
-                self.colour.as_image_copy(),
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &self.readback,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 0,
-                        bytes_per_row: Some(self.padded_row),
-                        rows_per_image: Some(self.height),
-                    },
-                },
-                wgpu::Extent3d {
-                    width: self.width,
-                    height: self.height,
-                    depth_or_array_layers: 1,
-                },
-            );
+            self.target.copy_out(&mut encoder);
         }
         self.gpu.queue.submit([encoder.finish()]);
     }
@@ -536,32 +454,7 @@ impl<'g> Preview<'g> {
     /// Renders one frame and reads it back.
     pub fn render(&self) -> Result<Image> {
         self.gpu.checked("rendering", || self.submit_frame(true))?;
-        let slice = self.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.gpu.wait()?;
-        rx.recv()
-            .map_err(|_| Error::Gpu("read-back was never mapped".into()))?
-            .map_err(|e| Error::Gpu(format!("reading the image back: {e}")))?;
-        let mut image = Image::new(self.width, self.height);
-        {
-            let data = slice
-                .get_mapped_range()
-                .map_err(|e| Error::Gpu(format!("reading the image back: {e}")))?;
-            for (y, row) in data.chunks_exact(self.padded_row as usize).enumerate() {
-                let texels: &[[f32; 4]] =
-                    bytemuck::cast_slice(&row[..(self.width * COLOUR_TEXEL) as usize]);
-                for (x, t) in texels.iter().enumerate() {
-                    let i = y * self.width as usize + x;
-                    image.mask[i] = t[3] > 0.5;
-                    image.rgb[i] = [t[0], t[1], t[2]];
-                }
-            }
-        }
-        self.readback.unmap();
-        Ok(image)
+        self.target.read(self.gpu)
     }
 
     /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted

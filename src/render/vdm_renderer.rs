@@ -46,20 +46,44 @@ use glam::{DMat3, DVec2, DVec3};
 use mesobake_package::vdm::VdmQuery;
 use std::f64::consts::FRAC_PI_2;
 
+/// Curvatures (1/tile) below this are flat for the shadow geometry (the bent formulas would
+/// divide by them).
+pub const FLAT_CURVATURE: f64 = 1e-6;
+
 /// How far short of the light's entry point the VDM may answer, in texels, and still let the
 /// light through: the interpolated VDM's error near the surface it reaches.
 pub const SHADOW_TOLERANCE: f64 = 1.0;
 
 /// One top triangle prepared for the per-pixel algorithm (what the shaders receive).
 #[derive(Clone, Debug)]
-struct TopFace {
-    triangle: FaceTriangle,
+pub struct TopFace {
+    /// Corners (counter-clockwise from outside) and texture coordinates (tiles; w = 1).
+    pub triangle: FaceTriangle,
     /// Object → VDM space, A = S·M.
-    to_vdm: DMat3,
+    pub to_vdm: DMat3,
     /// A⁻¹.
-    from_vdm: DMat3,
+    pub from_vdm: DMat3,
     /// The curvature at each corner.
-    curvature: [VertexCurvature; 3],
+    pub curvature: [VertexCurvature; 3],
+}
+
+/// The top triangles of `shell` prepared for a VDM of a relief `depth` tiles deep.
+pub fn prepare_top_faces(shell: &Shell, depth: f64) -> Vec<TopFace> {
+    let scale = DMat3::from_diagonal(DVec3::new(1.0, 1.0, depth));
+    shell
+        .prisms
+        .iter()
+        .zip(top_curvatures(shell))
+        .map(|(p, curvature)| {
+            let to_vdm = scale * p.to_texture;
+            TopFace {
+                triangle: p.faces()[0],
+                to_vdm,
+                from_vdm: to_vdm.inverse(),
+                curvature,
+            }
+        })
+        .collect()
 }
 
 /// Renders a shell's reference surface with a compressed VDM.
@@ -107,21 +131,7 @@ impl<'a> VdmRenderer<'a> {
                 relief.field.size()
             )));
         }
-        let scale = DMat3::from_diagonal(DVec3::new(1.0, 1.0, relief.depth));
-        let faces: Vec<TopFace> = shell
-            .prisms
-            .iter()
-            .zip(top_curvatures(shell))
-            .map(|(p, curvature)| {
-                let to_vdm = scale * p.to_texture;
-                TopFace {
-                    triangle: p.faces()[0],
-                    to_vdm,
-                    from_vdm: to_vdm.inverse(),
-                    curvature,
-                }
-            })
-            .collect();
+        let faces = prepare_top_faces(shell, relief.depth);
         let bvh = BoxBvh::new(
             faces
                 .iter()
@@ -279,23 +289,25 @@ impl Direction {
 /// never does (a concave surface closing over it).
 pub fn exit_arc(depth: f64, theta: f64, c: f64) -> Option<f64> {
     let (s, co) = theta.sin_cos();
-    if c.abs() < 1e-12 {
+    if c.abs() < FLAT_CURVATURE {
         return Some(depth * s / co.max(1e-12));
     }
     // The ray from (0, −depth) along (sin θ, cos θ) meets the circle of radius R = 1/c about
-    // (0, −R): s² + 2s(R − depth)cos θ + depth² − 2R·depth = 0.
+    // (0, −R) where s² + 2s·(R − depth)·cos θ + depth² − 2R·depth = 0; the roots in the
+    // forms that do not cancel.
     let r = 1.0 / c;
     let half_b = (r - depth) * co;
-    let disc = half_b * half_b - (depth * depth - 2.0 * r * depth);
+    let q0 = depth * depth - 2.0 * r * depth;
+    let disc = half_b * half_b - q0;
     if disc < 0.0 {
         return None;
     }
     let root = disc.sqrt();
     // Convex: the one positive root; concave: the nearer crossing.
     let s_ray = if r > 0.0 {
-        -half_b + root
+        -q0 / (half_b + root)
     } else {
-        -half_b - root
+        q0 / (root - half_b)
     };
     if s_ray < 0.0 {
         return None;

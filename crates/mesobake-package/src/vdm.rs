@@ -621,6 +621,22 @@ impl VdmQuery {
         self.size
     }
 
+    /// The view and curvature grid.
+    pub fn grid(&self) -> VdmGrid {
+        self.grid
+    }
+
+    /// Components of the VDM's and of the MVM's reconstruction.
+    pub fn ranks(&self) -> (usize, usize) {
+        (self.vdm_rank, self.mvm_rank)
+    }
+
+    /// The dequantized factors, for upload: W (rows (b·H + j)·W + i), E (rows k·Nθ + a),
+    /// each row `vdm_rank` values, and E_MVM (rows k, `mvm_rank` values).
+    pub fn factors(&self) -> [&[f32]; 3] {
+        [&self.weights, &self.eigen, &self.mvm]
+    }
+
     fn weights(&self, i: u32, j: u32, b: u32) -> &[f32] {
         let (w, h) = self.size;
         let row = ((b * h + j) * w + i) as usize;

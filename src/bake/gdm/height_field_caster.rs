@@ -129,7 +129,7 @@ impl Caster for HeightFieldCaster {
             (f64::INFINITY, f64::INFINITY)
         };
         // A chord that ends on the floor (the shell's base, up to rounding) meets it.
-        let floor_reached = t_floor <= max_t + 1e-9 * (1.0 + max_t);
+        let floor_reached = t_floor.is_finite() && t_floor <= max_t + 1e-9 * (1.0 + max_t);
         let end = if floor_reached {
             t_floor
         } else {

@@ -1,0 +1,399 @@
+// The VDM real-time pipeline: the per-pixel algorithm of `src/render/vdm_renderer.rs`, step
+// for step (that file's module documentation is the specification; the tests hold the two
+// to PSNR ≥ 35 dB). The shell's top triangles are rasterized with back faces culled; a
+// silhouette discards its fragment, so the depth test keeps the nearest fragment that is
+// not one. The VDM's factors and the height field come as storage buffers, filtered here
+// exactly as `VdmQuery::sample` and `HeightField::sample` filter them.
+
+const PI: f32 = 3.141592653589793;
+const TAU: f32 = 6.283185307179586;
+const HALF_PI: f32 = 1.5707963267948966;
+
+// ---- Bindings -------------------------------------------------------------------------
+
+struct View {
+    view_proj: mat4x4<f32>,
+    // xyz: eye position.
+    eye: vec4<f32>,
+    // rgb: Blinn–Phong specular colour, a: shininess.
+    specular: vec4<f32>,
+    light_count: u32,
+    width: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+struct Light {
+    // 0 point, 1 directional, 2 ambient.
+    kind: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    // Point: position; directional: the direction the light travels.
+    vector: vec4<f32>,
+    // Point: intensity; directional: irradiance; ambient: radiance.
+    colour: vec4<f32>,
+}
+
+// Principal curvatures (x: k_max, y: k_min) and directions at one corner.
+struct Curvature {
+    k: vec4<f32>,
+    dir_max: vec4<f32>,
+    dir_min: vec4<f32>,
+}
+
+// One top triangle: corners, texture coordinates (tiles), the rows of A = S·M (object →
+// VDM space) and of A⁻¹, and the curvature at each corner.
+struct Face {
+    corners: array<vec4<f32>, 3>,
+    uv: array<vec4<f32>, 3>,
+    to_vdm: array<vec4<f32>, 3>,
+    from_vdm: array<vec4<f32>, 3>,
+    curvature: array<Curvature, 3>,
+}
+
+struct Vdm {
+    // W, H.
+    size: vec2<u32>,
+    n_theta: u32,
+    n_phi: u32,
+    n_curvature: u32,
+    rank: u32,
+    mvm_rank: u32,
+    // 1 when the scene calls for shadows.
+    shadows: u32,
+    c_min: f32,
+    c_max: f32,
+    depth: f32,
+    // SHADOW_TOLERANCE in tiles.
+    shadow_tolerance: f32,
+    albedo: vec4<f32>,
+}
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> lights: array<Light>;
+@group(0) @binding(2) var<storage, read> faces: array<Face>;
+@group(0) @binding(3) var<uniform> vdm: Vdm;
+// W, rows (b·H + j)·W + i, `rank` values each.
+@group(0) @binding(4) var<storage, read> weights: array<f32>;
+// E, rows k·Nθ + a, `rank` values each.
+@group(0) @binding(5) var<storage, read> eigen: array<f32>;
+// E_MVM, rows k, `mvm_rank` values each.
+@group(0) @binding(6) var<storage, read> mvm: array<f32>;
+// h(i, j), x fastest.
+@group(0) @binding(7) var<storage, read> heights: array<f32>;
+
+// ---- Filtering ------------------------------------------------------------------------
+
+struct Taps {
+    i0: u32,
+    i1: u32,
+    w: f32,
+}
+
+fn wrap(i: i32, n: u32) -> u32 {
+    let m = i32(n);
+    return u32(((i % m) + m) % m);
+}
+
+// Linear taps between sample centres (i + ½)/n of the periodic coordinate t.
+fn periodic(t: f32, n: u32) -> Taps {
+    let f = t * f32(n) - 0.5;
+    let fl = floor(f);
+    let i = wrap(i32(fl), n);
+    return Taps(i, (i + 1u) % n, f - fl);
+}
+
+// Linear taps at sample coordinate f, clamped to the first and last samples.
+fn clamped(f: f32, n: u32) -> Taps {
+    let c = clamp(f, 0.0, f32(n - 1u));
+    let i = min(u32(floor(c)), n - 1u);
+    return Taps(i, min(i + 1u, n - 1u), c - f32(i));
+}
+
+fn height_at(i: u32, j: u32) -> f32 {
+    return heights[j * vdm.size.x + i];
+}
+
+// The height field, bilinear and periodic.
+fn height(t: vec2<f32>) -> f32 {
+    let x = periodic(t.x, vdm.size.x);
+    let y = periodic(t.y, vdm.size.y);
+    let top = height_at(x.i0, y.i0) * (1.0 - x.w) + height_at(x.i1, y.i0) * x.w;
+    let bottom = height_at(x.i0, y.i1) * (1.0 - x.w) + height_at(x.i1, y.i1) * x.w;
+    return top * (1.0 - y.w) + bottom * y.w;
+}
+
+fn weight_row(i: u32, j: u32, b: u32) -> u32 {
+    return ((b * vdm.size.y + j) * vdm.size.x + i) * vdm.rank;
+}
+
+struct Sample {
+    hit: bool,
+    d: f32,
+}
+
+// VdmQuery::sample: the displacement at (x, y) for view (θ, φ) and curvature c, or a
+// silhouette.
+fn sample_vdm(x: f32, y: f32, theta: f32, phi: f32, c: f32) -> Sample {
+    var k_f = 0.0;
+    if vdm.n_curvature > 1u && vdm.c_max > vdm.c_min {
+        k_f = (c - vdm.c_min) / (vdm.c_max - vdm.c_min) * f32(vdm.n_curvature - 1u);
+    }
+    let k = clamped(k_f, vdm.n_curvature);
+    let b = periodic(phi / TAU, vdm.n_phi);
+    // The silhouette: W at the texel holding (x, y), linear in φ.
+    let i = wrap(i32(floor(x * f32(vdm.size.x))), vdm.size.x);
+    let j = wrap(i32(floor(y * f32(vdm.size.y))), vdm.size.y);
+    let r0 = weight_row(i, j, b.i0);
+    let r1 = weight_row(i, j, b.i1);
+    var max_theta = 0.0;
+    for (var l = 0u; l < vdm.mvm_rank; l++) {
+        let w = weights[r0 + l] * (1.0 - b.w) + weights[r1 + l] * b.w;
+        let e = mvm[k.i0 * vdm.mvm_rank + l] * (1.0 - k.w) + mvm[k.i1 * vdm.mvm_rank + l] * k.w;
+        max_theta += w * e;
+    }
+    if theta > max_theta {
+        return Sample(false, 0.0);
+    }
+    let xi = periodic(x, vdm.size.x);
+    let yj = periodic(y, vdm.size.y);
+    let a = clamped(theta / HALF_PI * f32(vdm.n_theta) - 0.5, vdm.n_theta);
+    let e00 = (k.i0 * vdm.n_theta + a.i0) * vdm.rank;
+    let e01 = (k.i0 * vdm.n_theta + a.i1) * vdm.rank;
+    let e10 = (k.i1 * vdm.n_theta + a.i0) * vdm.rank;
+    let e11 = (k.i1 * vdm.n_theta + a.i1) * vdm.rank;
+    var d = 0.0;
+    for (var l = 0u; l < vdm.rank; l++) {
+        var w = 0.0;
+        for (var c8 = 0u; c8 < 8u; c8++) {
+            let bb = select(b.i0, b.i1, (c8 & 4u) != 0u);
+            let jj = select(yj.i0, yj.i1, (c8 & 2u) != 0u);
+            let ii = select(xi.i0, xi.i1, (c8 & 1u) != 0u);
+            let wb = select(1.0 - b.w, b.w, (c8 & 4u) != 0u);
+            let wj = select(1.0 - yj.w, yj.w, (c8 & 2u) != 0u);
+            let wi = select(1.0 - xi.w, xi.w, (c8 & 1u) != 0u);
+            w += wi * wj * wb * weights[weight_row(ii, jj, bb) + l];
+        }
+        let low = eigen[e00 + l] * (1.0 - a.w) + eigen[e01 + l] * a.w;
+        let high = eigen[e10 + l] * (1.0 - a.w) + eigen[e11 + l] * a.w;
+        d += w * (low * (1.0 - k.w) + high * k.w);
+    }
+    return Sample(true, d);
+}
+
+// ---- Geometry -------------------------------------------------------------------------
+
+fn apply(rows: array<vec4<f32>, 3>, v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot(rows[0].xyz, v), dot(rows[1].xyz, v), dot(rows[2].xyz, v));
+}
+
+fn apply_transposed(rows: array<vec4<f32>, 3>, v: vec3<f32>) -> vec3<f32> {
+    return rows[0].xyz * v.x + rows[1].xyz * v.y + rows[2].xyz * v.z;
+}
+
+fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let len2 = dot(v, v);
+    if len2 > 0.0 && len2 < 3.0e38 {
+        return v * inverseSqrt(len2);
+    }
+    return fallback;
+}
+
+// VertexCurvature::along.
+fn along(c: Curvature, d: vec3<f32>) -> f32 {
+    let a = dot(d, c.dir_max.xyz);
+    let b = dot(d, c.dir_min.xyz);
+    let len2 = a * a + b * b;
+    if len2 > 0.0 {
+        return (c.k.x * a * a + c.k.y * b * b) / len2;
+    }
+    return 0.0;
+}
+
+// The curvature along d (or, per corner, towards the eye) interpolated over face fi.
+fn corner_curvature(fi: u32, bary: vec3<f32>, d: vec3<f32>, per_corner: bool) -> f32 {
+    var c = 0.0;
+    for (var i = 0u; i < 3u; i++) {
+        var towards = d;
+        if per_corner {
+            towards = view.eye.xyz - faces[fi].corners[i].xyz;
+        }
+        c += bary[i] * along(faces[fi].curvature[i], towards);
+    }
+    return c;
+}
+
+// A direction (object space, into the surface) in a face's VDM space.
+struct Direction {
+    ok: bool,
+    theta: f32,
+    phi: f32,
+    azimuth: vec2<f32>,
+    inward: f32,
+    tile_length: f32,
+}
+
+fn direction(fi: u32, dir: vec3<f32>) -> Direction {
+    let v = apply(faces[fi].to_vdm, dir);
+    let len2 = dot(v, v);
+    if !(len2 > 0.0) {
+        return Direction(false, 0.0, 0.0, vec2<f32>(0.0), 0.0, 0.0);
+    }
+    let d = v * inverseSqrt(len2);
+    let inward = -d.z;
+    let phi = atan2(d.y, d.x);
+    let azimuth = vec2<f32>(cos(phi), sin(phi));
+    let tile_length = length(apply(faces[fi].from_vdm, vec3<f32>(azimuth, 0.0)));
+    return Direction(true, acos(clamp(inward, -1.0, 1.0)), phi, azimuth, inward, tile_length);
+}
+
+// exit_arc (FLAT_CURVATURE = 1e-6): the arc length to where the ray from `depth` below, at θ from the outward
+// normal, leaves the surface of curvature c; −1 when it never does.
+fn exit_arc(depth: f32, theta: f32, c: f32) -> f32 {
+    let s = sin(theta);
+    let co = cos(theta);
+    if abs(c) < 1e-6 {
+        return depth * s / max(co, 1e-12);
+    }
+    let r = 1.0 / c;
+    let half_b = (r - depth) * co;
+    let q0 = depth * depth - 2.0 * r * depth;
+    let disc = half_b * half_b - q0;
+    if disc < 0.0 {
+        return -1.0;
+    }
+    let root = sqrt(disc);
+    var s_ray: f32;
+    if r > 0.0 {
+        s_ray = -q0 / (half_b + root);
+    } else {
+        s_ray = q0 / (root - half_b);
+    }
+    if s_ray < 0.0 {
+        return -1.0;
+    }
+    let q = vec2<f32>(s_ray * s, -depth + s_ray * co);
+    return r * atan2(sign(r) * q.x, sign(r) * (q.y + r));
+}
+
+// Step 6: whether the light from object direction l reaches the hit at T', `depth` below
+// the reference surface.
+fn lit(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, l: vec3<f32>) -> bool {
+    let light = direction(fi, -l);
+    if !light.ok {
+        return true;
+    }
+    if light.inward <= 0.0 {
+        return false;
+    }
+    let c = corner_curvature(fi, bary, l, false) * light.tile_length;
+    let sigma = exit_arc(depth, light.theta, c);
+    if sigma < 0.0 {
+        return false;
+    }
+    let theta = clamp(light.theta - c * sigma, 0.0, HALF_PI);
+    let entry = t_hit - light.azimuth * sigma;
+    let d = sample_vdm(entry.x, entry.y, theta, light.phi, c);
+    if !d.hit {
+        return true;
+    }
+    return d.d >= sigma / max(sin(theta), 1e-9) - vdm.shadow_tolerance;
+}
+
+// The height field's normal at T' in VDM space.
+fn relief_normal(t: vec2<f32>) -> vec3<f32> {
+    let dx = 1.0 / f32(vdm.size.x);
+    let dy = 1.0 / f32(vdm.size.y);
+    let gx = (height(t + vec2<f32>(dx, 0.0)) - height(t - vec2<f32>(dx, 0.0))) / (2.0 * dx);
+    let gy = (height(t + vec2<f32>(0.0, dy)) - height(t - vec2<f32>(0.0, dy))) / (2.0 * dy);
+    return vec3<f32>(-vdm.depth * gx, -vdm.depth * gy, 1.0);
+}
+
+// Lambert + normalized Blinn–Phong from every light, with the VDM shadow test.
+fn shade(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, p: vec3<f32>, n: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
+    var out = vec3<f32>(0.0);
+    let base = vdm.albedo.rgb;
+    let s = view.specular.w;
+    for (var i = 0u; i < view.light_count; i++) {
+        let light = lights[i];
+        if light.kind == 2u {
+            out += base * light.colour.rgb;
+            continue;
+        }
+        var dir: vec3<f32>;
+        var irradiance: vec3<f32>;
+        if light.kind == 0u {
+            let to = light.vector.xyz - p;
+            let r2 = dot(to, to);
+            if r2 <= 0.0 {
+                continue;
+            }
+            dir = to * inverseSqrt(r2);
+            irradiance = light.colour.rgb / r2;
+        } else {
+            dir = -normalize(light.vector.xyz);
+            irradiance = light.colour.rgb;
+        }
+        let cos_l = dot(n, dir);
+        if cos_l <= 0.0 {
+            continue;
+        }
+        if vdm.shadows == 1u && !lit(fi, bary, t_hit, depth, dir) {
+            continue;
+        }
+        let h = normalize_or(dir + to_eye, vec3<f32>(0.0));
+        let lobe = view.specular.rgb * ((s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s));
+        out += (base / PI + lobe) * irradiance * cos_l;
+    }
+    return out;
+}
+
+// ---- The pipeline ---------------------------------------------------------------------
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) bary: vec3<f32>,
+    @location(2) face: u32,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) bary: vec3<f32>,
+    @location(2) @interpolate(flat) face: u32,
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = view.view_proj * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.bary = v.bary;
+    out.face = v.face;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    let fi = in.face;
+    let bary = in.bary;
+    let uv = faces[fi].uv;
+    let t = bary.x * uv[0].xy + bary.y * uv[1].xy + bary.z * uv[2].xy;
+    let dir = normalize(in.world - view.eye.xyz);
+    let v = direction(fi, dir);
+    if !v.ok || v.inward <= 0.0 {
+        discard;
+    }
+    let c_v = corner_curvature(fi, bary, dir, true) * v.tile_length;
+    let d = sample_vdm(t.x, t.y, v.theta, v.phi, c_v);
+    if !d.hit {
+        discard;
+    }
+    let offset = v.azimuth * (d.d * sin(v.theta));
+    let t_hit = t + offset;
+    let depth = vdm.depth * (1.0 - height(t_hit));
+    let hit = in.world + apply(faces[fi].from_vdm, vec3<f32>(offset, -depth));
+    let n = normalize_or(apply_transposed(faces[fi].to_vdm, relief_normal(t_hit)), -dir);
+    return vec4<f32>(shade(fi, bary, t_hit, depth, hit, n, -dir), 1.0);
+}

@@ -1,0 +1,161 @@
+//! The render target every real-time pipeline draws into: a linear `rgba32float` colour
+//! texture (alpha = hit mask) with a `depth32float` depth buffer, and the buffer it is read
+//! back through as an [`Image`].
+
+use super::gpu::Gpu;
+use crate::error::{Error, Result};
+use crate::render::image::Image;
+
+/// The colour target's format.
+pub const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// The depth buffer's format.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Bytes per texel of the colour target.
+const COLOUR_TEXEL: u32 = 16;
+
+/// A colour and depth target with its read-back buffer.
+pub struct Target {
+    colour: wgpu::Texture,
+    colour_view: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+    width: u32,
+    height: u32,
+}
+
+impl Target {
+    /// A `width` × `height` target, refused when the adapter cannot hold it.
+    pub fn new(gpu: &Gpu, width: u32, height: u32) -> Result<Target> {
+        let max_side = gpu.device.limits().max_texture_dimension_2d;
+        if width > max_side || height > max_side {
+            return Err(Error::Gpu(format!(
+                "a {width}×{height} image exceeds this adapter's limit of {max_side} pixels per side"
+            )));
+        }
+        let d = &gpu.device;
+        let texture = |format, usage| {
+            d.create_texture(&wgpu::TextureDescriptor {
+                label: Some("target"),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let colour = texture(
+            COLOUR_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth = texture(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT)
+            .create_view(&Default::default());
+        let padded_row =
+            (width * COLOUR_TEXEL).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("read-back"),
+            size: padded_row as u64 * height as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        Ok(Target {
+            colour_view: colour.create_view(&Default::default()),
+            colour,
+            depth,
+            readback,
+            padded_row,
+            width,
+            height,
+        })
+    }
+
+    /// GPU bytes of the target (colour, depth and read-back).
+    pub fn bytes(&self) -> u64 {
+        self.width as u64 * self.height as u64 * (COLOUR_TEXEL as u64 + 4) + self.readback.size()
+    }
+
+    /// A render pass that clears the target to transparent black and the depth to 1.
+    pub fn pass<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+    ) -> wgpu::RenderPass<'e> {
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.colour_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            ..Default::default()
+        })
+    }
+
+    /// Records the copy of the colour target into the read-back buffer.
+    pub fn copy_out(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.copy_texture_to_buffer(
+            self.colour.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.padded_row),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// Reads back what [`Target::copy_out`] copied, once the submission holding it is done.
+    pub fn read(&self, gpu: &Gpu) -> Result<Image> {
+        let slice = self.readback.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        gpu.wait()?;
+        rx.recv()
+            .map_err(|_| Error::Gpu("read-back was never mapped".into()))?
+            .map_err(|e| Error::Gpu(format!("reading the image back: {e}")))?;
+        let mut image = Image::new(self.width, self.height);
+        {
+            let data = slice
+                .get_mapped_range()
+                .map_err(|e| Error::Gpu(format!("reading the image back: {e}")))?;
+            for (y, row) in data.chunks_exact(self.padded_row as usize).enumerate() {
+                let texels: &[[f32; 4]] =
+                    bytemuck::cast_slice(&row[..(self.width * COLOUR_TEXEL) as usize]);
+                for (x, t) in texels.iter().enumerate() {
+                    let i = y * self.width as usize + x;
+                    image.mask[i] = t[3] > 0.5;
+                    image.rgb[i] = [t[0], t[1], t[2]];
+                }
+            }
+        }
+        self.readback.unmap();
+        Ok(image)
+    }
+}

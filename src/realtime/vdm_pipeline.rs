@@ -1,0 +1,291 @@
+//! The VDM real-time pipeline (`shaders/vdm_preview.wgsl`): the shell's top triangles
+//! rasterized with back faces culled, the VDM algorithm per fragment, silhouettes discarded so
+//! that the depth test keeps the nearest fragment that is not one. Its specification is
+//! [`crate::render::vdm_renderer`], which it is tested against.
+
+use super::gpu::Gpu;
+use super::pipeline::{
+    LightRecord, ViewUniform, layout_entry, light_records, storage, uniform, view_uniform,
+};
+use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, Target};
+use crate::bake::vdm::Relief;
+use crate::error::Result;
+use crate::render::image::Image;
+use crate::render::vdm_renderer::{SHADOW_TOLERANCE, TopFace, prepare_top_faces};
+use crate::scene::{Effect, LoadedScene};
+use crate::surface::curvature::VertexCurvature;
+use bytemuck::{Pod, Zeroable};
+use glam::DMat3;
+use mesobake_package::vdm::VdmQuery;
+use wgpu::util::DeviceExt;
+
+const SHADER: &str = include_str!("../../shaders/vdm_preview.wgsl");
+
+/// The shader's `Curvature`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct CurvatureRecord {
+    k: [f32; 4],
+    dir_max: [f32; 4],
+    dir_min: [f32; 4],
+}
+
+/// The shader's `Face`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FaceRecord {
+    corners: [[f32; 4]; 3],
+    uv: [[f32; 4]; 3],
+    to_vdm: [[f32; 4]; 3],
+    from_vdm: [[f32; 4]; 3],
+    curvature: [CurvatureRecord; 3],
+}
+
+/// The shader's `Vdm`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct VdmUniform {
+    size: [u32; 2],
+    n_theta: u32,
+    n_phi: u32,
+    n_curvature: u32,
+    rank: u32,
+    mvm_rank: u32,
+    shadows: u32,
+    c_min: f32,
+    c_max: f32,
+    depth: f32,
+    shadow_tolerance: f32,
+    albedo: [f32; 4],
+}
+
+/// One corner of a top triangle as the vertex stage reads it.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct VdmVertex {
+    position: [f32; 3],
+    bary: [f32; 3],
+    face: u32,
+}
+
+impl VdmVertex {
+    const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<VdmVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Uint32],
+    };
+}
+
+fn vec4(v: glam::DVec3) -> [f32; 4] {
+    v.extend(0.0).as_vec4().to_array()
+}
+
+fn rows(m: DMat3) -> [[f32; 4]; 3] {
+    [0, 1, 2].map(|r| vec4(m.row(r)))
+}
+
+fn curvature_record(c: &VertexCurvature) -> CurvatureRecord {
+    CurvatureRecord {
+        k: [c.k_max as f32, c.k_min as f32, 0.0, 0.0],
+        dir_max: vec4(c.dir_max),
+        dir_min: vec4(c.dir_min),
+    }
+}
+
+fn face_record(f: &TopFace) -> FaceRecord {
+    FaceRecord {
+        corners: f.triangle.corners.map(vec4),
+        uv: f.triangle.texture.map(vec4),
+        to_vdm: rows(f.to_vdm),
+        from_vdm: rows(f.from_vdm),
+        curvature: f.curvature.each_ref().map(curvature_record),
+    }
+}
+
+/// A height-field scene ready to render with the VDM real-time pipeline.
+pub struct VdmPreview<'g> {
+    gpu: &'g Gpu,
+    pipeline: wgpu::RenderPipeline,
+    group: wgpu::BindGroup,
+    vertices: wgpu::Buffer,
+    vertex_count: u32,
+    target: Target,
+}
+
+impl<'g> VdmPreview<'g> {
+    /// Uploads `loaded`'s top surface, `query`'s factors and `relief`'s heights (the relief
+    /// the VDM was baked from) and builds the pipeline.
+    pub fn new(
+        gpu: &'g Gpu,
+        loaded: &LoadedScene,
+        query: &VdmQuery,
+        relief: Relief,
+    ) -> Result<VdmPreview<'g>> {
+        let scene = &loaded.scene;
+        let target = Target::new(gpu, scene.camera.width, scene.camera.height)?;
+        let faces = prepare_top_faces(&loaded.shell, relief.depth);
+        let records: Vec<FaceRecord> = faces.iter().map(face_record).collect();
+        let vertices: Vec<VdmVertex> = faces
+            .iter()
+            .enumerate()
+            .flat_map(|(fi, f)| {
+                (0..3).map(move |c| VdmVertex {
+                    position: f.triangle.corners[c].as_vec3().to_array(),
+                    bary: glam::Vec3::AXES[c].to_array(),
+                    face: fi as u32,
+                })
+            })
+            .collect();
+        let view: ViewUniform = view_uniform(scene, faces.iter().flat_map(|f| f.triangle.corners));
+        let lights: Vec<LightRecord> = light_records(scene);
+        let g = query.grid();
+        let (w, h) = query.size();
+        let (rank, mvm_rank) = query.ranks();
+        let albedo = scene.material.albedo.map(|c| c as f32);
+        let params = VdmUniform {
+            size: [w, h],
+            n_theta: g.n_theta,
+            n_phi: g.n_phi,
+            n_curvature: g.n_curvature,
+            rank: rank as u32,
+            mvm_rank: mvm_rank as u32,
+            shadows: u32::from(scene.wants(Effect::Shadows)),
+            c_min: g.c_min as f32,
+            c_max: g.c_max as f32,
+            depth: relief.depth as f32,
+            shadow_tolerance: (SHADOW_TOLERANCE / f64::from(w)) as f32,
+            albedo: [albedo[0], albedo[1], albedo[2], 0.0],
+        };
+        let [weights, eigen, mvm] = query.factors();
+        let d = &gpu.device;
+        let (pipeline, group, vertex_buffer) = gpu.checked("building the VDM pipeline", || {
+            let buffer = |label: &str, contents: &[u8], usage| {
+                d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                })
+            };
+            let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
+            let buffers = [
+                buffer("view", bytemuck::bytes_of(&view), u),
+                buffer("lights", bytemuck::cast_slice(&lights), s),
+                buffer("faces", bytemuck::cast_slice(&records), s),
+                buffer("vdm", bytemuck::bytes_of(&params), u),
+                buffer("weights", bytemuck::cast_slice(weights), s),
+                buffer("eigen", bytemuck::cast_slice(eigen), s),
+                buffer("mvm", bytemuck::cast_slice(mvm), s),
+                buffer("heights", bytemuck::cast_slice(relief.field.heights()), s),
+            ];
+            let frag = wgpu::ShaderStages::FRAGMENT;
+            let kinds = [
+                (wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
+                (frag, storage()),
+                (frag, storage()),
+                (frag, uniform()),
+                (frag, storage()),
+                (frag, storage()),
+                (frag, storage()),
+                (frag, storage()),
+            ];
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = kinds
+                .into_iter()
+                .enumerate()
+                .map(|(b, (stages, kind))| layout_entry(b as u32, stages, kind))
+                .collect();
+            let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("vdm"),
+                entries: &entries,
+            });
+            let bindings: Vec<wgpu::BindGroupEntry> = buffers
+                .iter()
+                .enumerate()
+                .map(|(b, buffer)| wgpu::BindGroupEntry {
+                    binding: b as u32,
+                    resource: buffer.as_entire_binding(),
+                })
+                .collect();
+            let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vdm"),
+                layout: &layout,
+                entries: &bindings,
+            });
+            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("vdm preview"),
+                source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+            });
+            let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("vdm preview"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("vdm preview"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(VdmVertex::LAYOUT)],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode: Some(wgpu::Face::Back),
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: COLOUR_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            let vertex_buffer = buffer(
+                "top triangles",
+                bytemuck::cast_slice(&vertices),
+                wgpu::BufferUsages::VERTEX,
+            );
+            (pipeline, group, vertex_buffer)
+        })?;
+        Ok(VdmPreview {
+            gpu,
+            pipeline,
+            group,
+            vertices: vertex_buffer,
+            vertex_count: vertices.len() as u32,
+            target,
+        })
+    }
+
+    /// Renders one frame and reads it back.
+    pub fn render(&self) -> Result<Image> {
+        self.gpu.checked("rendering", || {
+            let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = self.target.pass(&mut encoder, "vdm preview");
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &self.group, &[]);
+                pass.set_vertex_buffer(0, self.vertices.slice(..));
+                pass.draw(0..self.vertex_count, 0..1);
+            }
+            self.target.copy_out(&mut encoder);
+            self.gpu.queue.submit([encoder.finish()]);
+        })?;
+        self.target.read(self.gpu)
+    }
+}
