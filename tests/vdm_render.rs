@@ -240,11 +240,11 @@ fn the_wgsl_pipeline_renders_what_its_cpu_specification_renders() {
         let loaded = scene(base, shell, eye, &["silhouettes", "shadows"], "{}");
         let baked = loaded.bake_vdm(&limits, &()).unwrap();
         let query = baked.compressed.decode();
-        let cpu = VdmRenderer::new(&loaded.shell, &query, baked.relief).unwrap();
+        let cpu = VdmRenderer::new(&loaded.shell, &query, baked.relief()).unwrap();
         let cpu = render_image(&loaded.scene.camera, |o, d| {
             cpu.radiance(&loaded.scene, o, d)
         });
-        let gpu = VdmPreview::new(&gpu, &loaded, &query, baked.relief)
+        let gpu = VdmPreview::new(&gpu, &loaded, &query, baked.relief())
             .unwrap()
             .render()
             .unwrap();

@@ -1,8 +1,10 @@
 //! Benchmarks (`mesobake bench`): speed and memory against baselines measured in the same run.
 //! Bakes, SVD and packages ([`bakes`]), the server ([`server`]), the real-time preview
-//! ([`preview`]), and the heap counter they read ([`counting_alloc`]).
+//! ([`preview`]), VDM against GDM on a height-field scene ([`vdm`]), and the heap counter
+//! they read ([`counting_alloc`]).
 
 pub mod bakes;
 pub mod counting_alloc;
 pub mod preview;
 pub mod server;
+pub mod vdm;

@@ -4,7 +4,7 @@
 use super::output::Progress;
 use clap::Subcommand;
 use mesobake::bench::counting_alloc::CountingAlloc;
-use mesobake::bench::{bakes, preview, server};
+use mesobake::bench::{bakes, preview, server, vdm};
 use mesobake::render::quality::Preset;
 use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
@@ -45,6 +45,22 @@ pub enum BenchCommand {
         /// Volume depths Z (the scene's resolution otherwise).
         #[arg(long, value_delimiter = ',', default_value = "32")]
         depths: Vec<u32>,
+        /// Frames timed per configuration.
+        #[arg(long, default_value_t = 10)]
+        frames: u32,
+        /// Use the adapter whose name contains this.
+        #[arg(long)]
+        adapter: Option<String>,
+    },
+    /// VDM against GDM on a height-field scene: bake, CPU image and real-time frame times,
+    /// and each image's error against the truth (Markdown table on stdout).
+    Vdm {
+        /// Scene file (a height-field mesostructure).
+        #[arg(long, default_value = "scenes/torus-bumps.json")]
+        scene: PathBuf,
+        /// Square image sizes.
+        #[arg(long, value_delimiter = ',', default_value = "512")]
+        sizes: Vec<u32>,
         /// Frames timed per configuration.
         #[arg(long, default_value_t = 10)]
         frames: u32,
@@ -97,6 +113,15 @@ pub fn bench(which: BenchCommand, allocator: &CountingAlloc, limits: &Limits) ->
             )?;
             progress.finish();
             print!("{}", preview::markdown(&adapter, &rows));
+        }
+        BenchCommand::Vdm {
+            scene,
+            sizes,
+            frames,
+            adapter,
+        } => {
+            let (adapter, rows) = vdm::run(&scene, &sizes, frames, adapter.as_deref(), limits)?;
+            print!("{}", vdm::markdown(&adapter, &rows));
         }
         BenchCommand::Server { database_url } => {
             print!("{}", server::run(database_url.as_deref(), limits)?);

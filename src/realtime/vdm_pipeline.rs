@@ -17,6 +17,7 @@ use crate::surface::curvature::VertexCurvature;
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
 use mesobake_package::vdm::VdmQuery;
+use std::time::Instant;
 use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("../../shaders/vdm_preview.wgsl");
@@ -272,20 +273,39 @@ impl<'g> VdmPreview<'g> {
         })
     }
 
+    /// Records one frame (and, with `read_back`, the copy of the target into the read-back
+    /// buffer) and submits it.
+    fn submit_frame(&self, read_back: bool) {
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = self.target.pass(&mut encoder, "vdm preview");
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            pass.draw(0..self.vertex_count, 0..1);
+        }
+        if read_back {
+            self.target.copy_out(&mut encoder);
+        }
+        self.gpu.queue.submit([encoder.finish()]);
+    }
+
     /// Renders one frame and reads it back.
     pub fn render(&self) -> Result<Image> {
-        self.gpu.checked("rendering", || {
-            let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = self.target.pass(&mut encoder, "vdm preview");
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &self.group, &[]);
-                pass.set_vertex_buffer(0, self.vertices.slice(..));
-                pass.draw(0..self.vertex_count, 0..1);
-            }
-            self.target.copy_out(&mut encoder);
-            self.gpu.queue.submit([encoder.finish()]);
-        })?;
+        self.gpu.checked("rendering", || self.submit_frame(true))?;
         self.target.read(self.gpu)
+    }
+
+    /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
+    /// and waited for.
+    pub fn time_frames(&self, frames: u32) -> Result<f64> {
+        self.submit_frame(false);
+        self.gpu.wait()?;
+        let start = Instant::now();
+        for _ in 0..frames {
+            self.submit_frame(false);
+            self.gpu.wait()?;
+        }
+        Ok(start.elapsed().as_secs_f64() / frames.max(1) as f64)
     }
 }

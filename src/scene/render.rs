@@ -163,7 +163,7 @@ pub fn render_substituted(
             let (query, relief) = match source {
                 MapSource::Bake => {
                     baked = loaded.bake_vdm(limits, observer)?;
-                    (baked.compressed.decode(), baked.relief)
+                    (baked.compressed.decode(), baked.relief())
                 }
                 MapSource::VdmPackage(pkg) => {
                     let [w, h] = pkg.manifest().relief.size;

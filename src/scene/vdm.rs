@@ -122,13 +122,25 @@ pub fn relief_depth(shell: &Shell) -> Result<f64> {
 }
 
 /// A scene's VDM as renderers use it: the compressed map, its height field and depth.
-pub struct SceneVdm<'a> {
-    /// The relief it was baked from.
-    pub relief: Relief<'a>,
+pub struct SceneVdm {
+    /// The height field it was baked from.
+    pub field: HeightField,
+    /// The relief's depth (tiles).
+    pub depth: f64,
     /// The baked map.
     pub vdm: Vdm,
     /// The compressed map.
     pub compressed: CompressedVdm,
+}
+
+impl SceneVdm {
+    /// The relief it was baked from.
+    pub fn relief(&self) -> Relief<'_> {
+        Relief {
+            field: &self.field,
+            depth: self.depth,
+        }
+    }
 }
 
 impl LoadedScene {
@@ -143,12 +155,11 @@ impl LoadedScene {
     }
 
     /// Bakes and compresses the VDM of the scene's height field as its [`VdmSettings`] say.
-    pub fn bake_vdm(&self, limits: &Limits, observer: &dyn BakeObserver) -> Result<SceneVdm<'_>> {
+    pub fn bake_vdm(&self, limits: &Limits, observer: &dyn BakeObserver) -> Result<SceneVdm> {
         let settings = &self.scene.vdm;
-        let relief = Relief {
-            field: self.relief_field()?,
-            depth: relief_depth(&self.shell)?,
-        };
+        let field = self.relief_field()?;
+        let depth = relief_depth(&self.shell)?;
+        let relief = Relief { field, depth };
         let vdm = vdm::bake(relief, settings.grid(), settings.params(), limits, observer)?;
         let compressed = compress(
             &vdm,
@@ -158,7 +169,8 @@ impl LoadedScene {
             limits,
         )?;
         Ok(SceneVdm {
-            relief,
+            field: field.clone(),
+            depth,
             vdm,
             compressed,
         })
