@@ -5,10 +5,8 @@
 // shadow file (`shadows_off.wgsl`, `shadows_local.wgsl` or `shadows_shell.wgsl`:
 // `light_visible`), one environment file (`gi_on.wgsl` or `gi_off.wgsl`) and by the
 // constants REFINEMENTS, CHORDS and JACOBIAN_FRAME, chosen from the package and the scene's
-// effects and quality (`src/realtime/variant.rs`).
+// effects and quality (`src/realtime/variant.rs`); `common.wgsl` precedes it.
 
-const PI: f32 = 3.141592653589793;
-const TAU: f32 = 6.283185307179586;
 // Where the shadow query starts, in voxels from the hit along the texture normal (every
 // renderer's convention: SHADOW_OFFSET in src/render/lighting.rs).
 const SHADOW_OFFSET: f32 = 1.0;
@@ -19,30 +17,6 @@ const NO_FACE: u32 = 8u;
 
 // ---- Bindings -------------------------------------------------------------------------
 
-struct View {
-    view_proj: mat4x4<f32>,
-    // xyz: eye position.
-    eye: vec4<f32>,
-    // rgb: Blinn–Phong specular colour, a: shininess.
-    specular: vec4<f32>,
-    light_count: u32,
-    // Image width in pixels (the row stride of `nearest_hit`).
-    width: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
-
-struct Light {
-    // 0 point, 1 directional, 2 ambient.
-    kind: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-    // Point: position; directional: the direction the light travels.
-    vector: vec4<f32>,
-    // Point: intensity; directional: irradiance; ambient: radiance.
-    colour: vec4<f32>,
-}
 
 // One face triangle of a prism: object-space corners (counter-clockwise from outside),
 // texture coordinates in voxel units, and the outward unit plane (xyz normal, w = n·x).
@@ -137,13 +111,6 @@ fn albedo_at(t: vec3<f32>) -> vec3<f32> {
 }
 
 // Normalizes v, or returns `fallback` for a zero or non-finite vector.
-fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let len2 = dot(v, v);
-    if len2 > 0.0 && len2 < 3.0e38 {
-        return v * inverseSqrt(len2);
-    }
-    return fallback;
-}
 
 // Where a hit's shadow tests start: its prism, the point one voxel off the hit along the
 // texture normal in texture space and in object space, and the shading frame.

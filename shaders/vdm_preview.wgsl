@@ -3,37 +3,12 @@
 // to PSNR ≥ 35 dB). The shell's top triangles are rasterized with back faces culled; a
 // silhouette discards its fragment, so the depth test keeps the nearest fragment that is
 // not one. The VDM's factors and the height field come as storage buffers, filtered here
-// exactly as `VdmQuery::sample` and `HeightField::sample` filter them.
+// exactly as `VdmQuery::sample` and `HeightField::sample` filter them. Preceded by
+// `common.wgsl`.
 
-const PI: f32 = 3.141592653589793;
-const TAU: f32 = 6.283185307179586;
 const HALF_PI: f32 = 1.5707963267948966;
 
 // ---- Bindings -------------------------------------------------------------------------
-
-struct View {
-    view_proj: mat4x4<f32>,
-    // xyz: eye position.
-    eye: vec4<f32>,
-    // rgb: Blinn–Phong specular colour, a: shininess.
-    specular: vec4<f32>,
-    light_count: u32,
-    width: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
-
-struct Light {
-    // 0 point, 1 directional, 2 ambient.
-    kind: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-    // Point: position; directional: the direction the light travels.
-    vector: vec4<f32>,
-    // Point: intensity; directional: irradiance; ambient: radiance.
-    colour: vec4<f32>,
-}
 
 // Principal curvatures (x: k_max, y: k_min) and directions at one corner.
 struct Curvature {
@@ -192,13 +167,6 @@ fn apply_transposed(rows: array<vec4<f32>, 3>, v: vec3<f32>) -> vec3<f32> {
     return rows[0].xyz * v.x + rows[1].xyz * v.y + rows[2].xyz * v.z;
 }
 
-fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let len2 = dot(v, v);
-    if len2 > 0.0 && len2 < 3.0e38 {
-        return v * inverseSqrt(len2);
-    }
-    return fallback;
-}
 
 // VertexCurvature::along.
 fn along(c: Curvature, d: vec3<f32>) -> f32 {

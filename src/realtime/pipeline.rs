@@ -8,7 +8,7 @@ use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
     upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
-use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, Target};
+use super::target::{Target, triangle_pipeline};
 use super::variant::ShaderVariant;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -350,42 +350,7 @@ impl<'g> Preview<'g> {
                 ],
                 immediate_size: 0,
             });
-            let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("gdm preview"),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(Vertex::LAYOUT)],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: Some(wgpu::Face::Back),
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: COLOUR_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let pipeline = triangle_pipeline(d, "gdm preview", &layout, &module, Vertex::LAYOUT);
             (pipeline, scene_group, nearest_hit)
         })?;
         let memory = GpuMemory {

@@ -7,7 +7,8 @@ use super::gpu::Gpu;
 use super::pipeline::{
     LightRecord, ViewUniform, layout_entry, light_records, storage, uniform, view_uniform,
 };
-use super::target::{COLOUR_FORMAT, DEPTH_FORMAT, Target};
+use super::target::{Target, triangle_pipeline};
+use super::variant::COMMON;
 use crate::bake::vdm::Relief;
 use crate::error::Result;
 use crate::render::image::Image;
@@ -21,6 +22,11 @@ use std::time::Instant;
 use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("../../shaders/vdm_preview.wgsl");
+
+/// The complete WGSL source.
+fn source() -> String {
+    format!("{COMMON}\n{SHADER}")
+}
 
 /// The shader's `Curvature`.
 #[repr(C)]
@@ -213,49 +219,20 @@ impl<'g> VdmPreview<'g> {
             });
             let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("vdm preview"),
-                source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+                source: wgpu::ShaderSource::Wgsl(source().into()),
             });
             let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("vdm preview"),
                 bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
-            let pipeline = d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("vdm preview"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(VdmVertex::LAYOUT)],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: Some(wgpu::Face::Back),
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: COLOUR_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let pipeline = triangle_pipeline(
+                d,
+                "vdm preview",
+                &pipeline_layout,
+                &module,
+                VdmVertex::LAYOUT,
+            );
             let vertex_buffer = buffer(
                 "top triangles",
                 bytemuck::cast_slice(&vertices),

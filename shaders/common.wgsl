@@ -1,0 +1,39 @@
+// What both real-time pipelines share (prepended to `gdm_preview.wgsl`'s variants and to
+// `vdm_preview.wgsl`): constants, the view and light records of bind group 0, and
+// `normalize_or`.
+
+const PI: f32 = 3.141592653589793;
+const TAU: f32 = 6.283185307179586;
+
+struct View {
+    view_proj: mat4x4<f32>,
+    // xyz: eye position.
+    eye: vec4<f32>,
+    // rgb: Blinn–Phong specular colour, a: shininess.
+    specular: vec4<f32>,
+    light_count: u32,
+    // Image width in pixels (the row stride of `nearest_hit`).
+    width: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+struct Light {
+    // 0 point, 1 directional, 2 ambient.
+    kind: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    // Point: position; directional: the direction the light travels.
+    vector: vec4<f32>,
+    // Point: intensity; directional: irradiance; ambient: radiance.
+    colour: vec4<f32>,
+}
+
+fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let len2 = dot(v, v);
+    if len2 > 0.0 && len2 < 3.0e38 {
+        return v * inverseSqrt(len2);
+    }
+    return fallback;
+}
