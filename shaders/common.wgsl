@@ -1,6 +1,6 @@
 // What both real-time pipelines share (prepended to `gdm_preview.wgsl`'s variants and to
-// `vdm_preview.wgsl`): constants, the view and light records of bind group 0, and
-// `normalize_or`.
+// `vdm_preview.wgsl`): constants, the view and light records of bind group 0,
+// `normalize_or` and linear interpolation taps.
 
 const PI: f32 = 3.141592653589793;
 const TAU: f32 = 6.283185307179586;
@@ -36,4 +36,31 @@ fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
         return v * inverseSqrt(len2);
     }
     return fallback;
+}
+
+// ---- Interpolation taps ---------------------------------------------------------------
+
+// Linear interpolation taps along one axis: two indices and the weight of the second.
+struct Taps {
+    i0: u32,
+    i1: u32,
+    frac: f32,
+}
+
+fn wrap(i: i32, n: u32) -> u32 {
+    let m = i32(n);
+    return u32(((i % m) + m) % m);
+}
+
+fn periodic_taps(coord: f32, n: u32) -> Taps {
+    let f = floor(coord);
+    let i = i32(f);
+    return Taps(wrap(i, n), wrap(i + 1, n), coord - f);
+}
+
+fn clamped_taps(coord: f32, n: u32) -> Taps {
+    let c = clamp(coord, 0.0, f32(n - 1u));
+    let f = floor(c);
+    let i = u32(f);
+    return Taps(i, min(i + 1u, n - 1u), c - f);
 }

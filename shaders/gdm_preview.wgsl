@@ -52,33 +52,6 @@ struct Prism {
 // rgb: linear albedo per voxel (1×1×1 for a uniform albedo).
 @group(2) @binding(1) var albedo: texture_3d<f32>;
 
-// ---- Interpolation taps ---------------------------------------------------------------
-
-// Linear interpolation taps along one axis: two indices and the weight of the second.
-struct Taps {
-    i0: u32,
-    i1: u32,
-    frac: f32,
-}
-
-fn wrap(i: i32, n: u32) -> u32 {
-    let m = i32(n);
-    return u32(((i % m) + m) % m);
-}
-
-fn periodic_taps(coord: f32, n: u32) -> Taps {
-    let f = floor(coord);
-    let i = i32(f);
-    return Taps(wrap(i, n), wrap(i + 1, n), coord - f);
-}
-
-fn clamped_taps(coord: f32, n: u32) -> Taps {
-    let c = clamp(coord, 0.0, f32(n - 1u));
-    let f = floor(c);
-    let i = u32(f);
-    return Taps(i, min(i + 1u, n - 1u), c - f);
-}
-
 // ---- Material and lighting (src/render/material.rs, src/render/lighting.rs) ------------
 
 // Trilinear texture-space normal (unnormalized; zero where the gradient vanishes).

@@ -60,43 +60,17 @@ struct Vdm {
 
 // ---- Filtering ------------------------------------------------------------------------
 
-struct Taps {
-    i0: u32,
-    i1: u32,
-    w: f32,
-}
-
-fn wrap(i: i32, n: u32) -> u32 {
-    let m = i32(n);
-    return u32(((i % m) + m) % m);
-}
-
-// Linear taps between sample centres (i + ½)/n of the periodic coordinate t.
-fn periodic(t: f32, n: u32) -> Taps {
-    let f = t * f32(n) - 0.5;
-    let fl = floor(f);
-    let i = wrap(i32(fl), n);
-    return Taps(i, (i + 1u) % n, f - fl);
-}
-
-// Linear taps at sample coordinate f, clamped to the first and last samples.
-fn clamped(f: f32, n: u32) -> Taps {
-    let c = clamp(f, 0.0, f32(n - 1u));
-    let i = min(u32(floor(c)), n - 1u);
-    return Taps(i, min(i + 1u, n - 1u), c - f32(i));
-}
-
 fn height_at(i: u32, j: u32) -> f32 {
     return heights[j * vdm.size.x + i];
 }
 
 // The height field, bilinear and periodic.
 fn height(t: vec2<f32>) -> f32 {
-    let x = periodic(t.x, vdm.size.x);
-    let y = periodic(t.y, vdm.size.y);
-    let top = height_at(x.i0, y.i0) * (1.0 - x.w) + height_at(x.i1, y.i0) * x.w;
-    let bottom = height_at(x.i0, y.i1) * (1.0 - x.w) + height_at(x.i1, y.i1) * x.w;
-    return top * (1.0 - y.w) + bottom * y.w;
+    let x = periodic_taps(t.x * f32(vdm.size.x) - 0.5, vdm.size.x);
+    let y = periodic_taps(t.y * f32(vdm.size.y) - 0.5, vdm.size.y);
+    let top = height_at(x.i0, y.i0) * (1.0 - x.frac) + height_at(x.i1, y.i0) * x.frac;
+    let bottom = height_at(x.i0, y.i1) * (1.0 - x.frac) + height_at(x.i1, y.i1) * x.frac;
+    return top * (1.0 - y.frac) + bottom * y.frac;
 }
 
 fn weight_row(i: u32, j: u32, b: u32) -> u32 {
@@ -115,8 +89,8 @@ fn sample_vdm(x: f32, y: f32, theta: f32, phi: f32, c: f32) -> Sample {
     if vdm.n_curvature > 1u && vdm.c_max > vdm.c_min {
         k_f = (c - vdm.c_min) / (vdm.c_max - vdm.c_min) * f32(vdm.n_curvature - 1u);
     }
-    let k = clamped(k_f, vdm.n_curvature);
-    let b = periodic(phi / TAU, vdm.n_phi);
+    let k = clamped_taps(k_f, vdm.n_curvature);
+    let b = periodic_taps(phi / TAU * f32(vdm.n_phi) - 0.5, vdm.n_phi);
     // The silhouette: W at the texel holding (x, y), linear in φ.
     let i = wrap(i32(floor(x * f32(vdm.size.x))), vdm.size.x);
     let j = wrap(i32(floor(y * f32(vdm.size.y))), vdm.size.y);
@@ -124,16 +98,16 @@ fn sample_vdm(x: f32, y: f32, theta: f32, phi: f32, c: f32) -> Sample {
     let r1 = weight_row(i, j, b.i1);
     var max_theta = 0.0;
     for (var l = 0u; l < vdm.mvm_rank; l++) {
-        let w = weights[r0 + l] * (1.0 - b.w) + weights[r1 + l] * b.w;
-        let e = mvm[k.i0 * vdm.mvm_rank + l] * (1.0 - k.w) + mvm[k.i1 * vdm.mvm_rank + l] * k.w;
+        let w = weights[r0 + l] * (1.0 - b.frac) + weights[r1 + l] * b.frac;
+        let e = mvm[k.i0 * vdm.mvm_rank + l] * (1.0 - k.frac) + mvm[k.i1 * vdm.mvm_rank + l] * k.frac;
         max_theta += w * e;
     }
     if theta > max_theta {
         return Sample(false, 0.0);
     }
-    let xi = periodic(x, vdm.size.x);
-    let yj = periodic(y, vdm.size.y);
-    let a = clamped(theta / HALF_PI * f32(vdm.n_theta) - 0.5, vdm.n_theta);
+    let xi = periodic_taps(x * f32(vdm.size.x) - 0.5, vdm.size.x);
+    let yj = periodic_taps(y * f32(vdm.size.y) - 0.5, vdm.size.y);
+    let a = clamped_taps(theta / HALF_PI * f32(vdm.n_theta) - 0.5, vdm.n_theta);
     let e00 = (k.i0 * vdm.n_theta + a.i0) * vdm.rank;
     let e01 = (k.i0 * vdm.n_theta + a.i1) * vdm.rank;
     let e10 = (k.i1 * vdm.n_theta + a.i0) * vdm.rank;
@@ -145,14 +119,14 @@ fn sample_vdm(x: f32, y: f32, theta: f32, phi: f32, c: f32) -> Sample {
             let bb = select(b.i0, b.i1, (c8 & 4u) != 0u);
             let jj = select(yj.i0, yj.i1, (c8 & 2u) != 0u);
             let ii = select(xi.i0, xi.i1, (c8 & 1u) != 0u);
-            let wb = select(1.0 - b.w, b.w, (c8 & 4u) != 0u);
-            let wj = select(1.0 - yj.w, yj.w, (c8 & 2u) != 0u);
-            let wi = select(1.0 - xi.w, xi.w, (c8 & 1u) != 0u);
+            let wb = select(1.0 - b.frac, b.frac, (c8 & 4u) != 0u);
+            let wj = select(1.0 - yj.frac, yj.frac, (c8 & 2u) != 0u);
+            let wi = select(1.0 - xi.frac, xi.frac, (c8 & 1u) != 0u);
             w += wi * wj * wb * weights[weight_row(ii, jj, bb) + l];
         }
-        let low = eigen[e00 + l] * (1.0 - a.w) + eigen[e01 + l] * a.w;
-        let high = eigen[e10 + l] * (1.0 - a.w) + eigen[e11 + l] * a.w;
-        d += w * (low * (1.0 - k.w) + high * k.w);
+        let low = eigen[e00 + l] * (1.0 - a.frac) + eigen[e01 + l] * a.frac;
+        let high = eigen[e10 + l] * (1.0 - a.frac) + eigen[e11 + l] * a.frac;
+        d += w * (low * (1.0 - k.frac) + high * k.frac);
     }
     return Sample(true, d);
 }
