@@ -225,6 +225,26 @@ fn gpu() -> Option<Gpu> {
 }
 
 #[test]
+fn the_vdm_shader_passes_nagas_validation() {
+    // Without an adapter too: the WGSL the pipeline compiles is valid.
+    let source = mesobake::realtime::vdm_pipeline::source();
+    let module = naga::front::wgsl::parse_str(&source)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    let entry_points: Vec<&str> = module
+        .entry_points
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect();
+    assert_eq!(entry_points, ["vs_main", "fs_main"]);
+}
+
+#[test]
 fn the_wgsl_pipeline_renders_what_its_cpu_specification_renders() {
     let Some(gpu) = gpu() else { return };
     let limits = Limits::default();

@@ -23,8 +23,8 @@ use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("../../shaders/vdm_preview.wgsl");
 
-/// The complete WGSL source.
-fn source() -> String {
+/// The complete WGSL source of the VDM pipeline.
+pub fn source() -> String {
     format!("{COMMON}\n{SHADER}")
 }
 
