@@ -179,7 +179,38 @@ fn render_draws_a_vdm_package_of_the_scenes_relief() {
     ]);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(json["hit_pixels"].as_u64().unwrap() > 48 * 32 / 2, "{json}");
+    // A scene without a height field has nothing to bake a VDM from.
+    let chain = std::fs::read_to_string(path("scene.json"))
+        .unwrap()
+        .replace(r#"{ "relief": "bumps" }"#, r#"{ "sample": "chain" }"#);
+    std::fs::write(path("chain.json"), chain).unwrap();
     each_fails_with(&[
+        (
+            vec![
+                "render",
+                "--scene",
+                &path("chain.json"),
+                "--method",
+                "vdm",
+                "--out",
+                &path("x.png"),
+            ],
+            "height-field mesostructure",
+        ),
+        (
+            vec![
+                "render",
+                "--scene",
+                &path("scene.json"),
+                "--method",
+                "vdm",
+                "--package",
+                &path("missing.mbpkg"),
+                "--out",
+                &path("x.png"),
+            ],
+            "missing.mbpkg",
+        ),
         (
             vec![
                 "render",
