@@ -126,13 +126,7 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
         field: &field,
         depth: args.depth,
     };
-    let params_of = |method: VdmMethod| VdmParams {
-        method,
-        oversampling: match method {
-            VdmMethod::Exact => 1,
-            VdmMethod::Paper => args.oversampling,
-        },
-    };
+    let params_of = |method: VdmMethod| VdmParams::new(method, args.oversampling);
     let bake = |method: VdmMethod| -> Result<(Vdm, f64)> {
         let params = params_of(method);
         let progress = Progress::new(&format!("baking VDM ({})", method.name()));

@@ -89,15 +89,9 @@ impl VdmSettings {
         }
     }
 
-    /// The bake's parameters (oversampling 1 for the exact bake, which has none).
+    /// The bake's parameters.
     pub fn params(&self) -> VdmParams {
-        VdmParams {
-            method: self.method,
-            oversampling: match self.method {
-                VdmMethod::Exact => 1,
-                VdmMethod::Paper => self.oversampling,
-            },
-        }
+        VdmParams::new(self.method, self.oversampling)
     }
 }
 

@@ -50,6 +50,17 @@ pub struct VdmParams {
 }
 
 impl VdmParams {
+    /// `method` with `oversampling`, which only the paper's bake has (1 for the exact one).
+    pub fn new(method: VdmMethod, oversampling: u32) -> VdmParams {
+        VdmParams {
+            method,
+            oversampling: match method {
+                VdmMethod::Exact => 1,
+                VdmMethod::Paper => oversampling,
+            },
+        }
+    }
+
     /// The exact bake.
     pub const EXACT: VdmParams = VdmParams {
         method: VdmMethod::Exact,
