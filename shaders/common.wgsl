@@ -1,6 +1,6 @@
 // What both real-time pipelines share (prepended to `gdm_preview.wgsl`'s variants and to
 // `vdm_preview.wgsl`): constants, the view and light records of bind group 0,
-// `normalize_or` and linear interpolation taps.
+// `normalize_or`, linear interpolation taps, and the direct lighting of one light.
 
 const PI: f32 = 3.141592653589793;
 const TAU: f32 = 6.283185307179586;
@@ -63,4 +63,35 @@ fn clamped_taps(coord: f32, n: u32) -> Taps {
     let f = floor(c);
     let i = u32(f);
     return Taps(i, min(i + 1u, n - 1u), c - f);
+}
+
+// A point or directional light as seen from p (`incident` in src/render/lighting.rs): the
+// unit direction towards it, its distance (3e38 for directional lights) and the irradiance
+// on a surface facing it; `valid` is false for a point light at p itself.
+struct Incident {
+    valid: bool,
+    dir: vec3<f32>,
+    distance: f32,
+    irradiance: vec3<f32>,
+}
+
+fn light_incidence(light: Light, p: vec3<f32>) -> Incident {
+    if light.kind == 0u {
+        let to = light.vector.xyz - p;
+        let r2 = dot(to, to);
+        if r2 <= 0.0 {
+            return Incident(false, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
+        }
+        let distance = sqrt(r2);
+        return Incident(true, to / distance, distance, light.colour.rgb / r2);
+    }
+    return Incident(true, -normalize(light.vector.xyz), 3.0e38, light.colour.rgb);
+}
+
+// Lambert + normalized Blinn–Phong of one visible light arriving at cos_l = n·l > 0.
+fn direct(n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, inc: Incident, cos_l: f32) -> vec3<f32> {
+    let s = view.specular.w;
+    let h = normalize_or(inc.dir + to_eye, vec3<f32>(0.0));
+    let lobe = view.specular.rgb * ((s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s));
+    return (base / PI + lobe) * inc.irradiance * cos_l;
 }

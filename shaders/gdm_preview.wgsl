@@ -97,39 +97,21 @@ struct ShadowStart {
 // Lambert + normalized Blinn–Phong from every light, with the variant's shadow test.
 fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, start: ShadowStart) -> vec3<f32> {
     var out = vec3<f32>(0.0);
-    let s = view.specular.w;
     for (var l = 0u; l < view.light_count; l++) {
         let light = lights[l];
         if light.kind == 2u {
             out += base * light.colour.rgb;
             continue;
         }
-        var dir: vec3<f32>;
-        var irradiance: vec3<f32>;
-        var distance = 3.0e38;
-        if light.kind == 0u {
-            let to = light.vector.xyz - p;
-            let r2 = dot(to, to);
-            if r2 <= 0.0 {
-                continue;
-            }
-            distance = sqrt(r2);
-            dir = to / distance;
-            irradiance = light.colour.rgb / r2;
-        } else {
-            dir = -normalize(light.vector.xyz);
-            irradiance = light.colour.rgb;
-        }
-        let cos_l = dot(n, dir);
-        if cos_l <= 0.0 {
+        let inc = light_incidence(light, p);
+        if !inc.valid {
             continue;
         }
-        if !light_visible(start, dir, distance) {
+        let cos_l = dot(n, inc.dir);
+        if cos_l <= 0.0 || !light_visible(start, inc.dir, inc.distance) {
             continue;
         }
-        let h = normalize_or(dir + to_eye, vec3<f32>(0.0));
-        let lobe = view.specular.rgb * ((s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s));
-        out += (base / PI + lobe) * irradiance * cos_l;
+        out += direct(n, base, to_eye, inc, cos_l);
     }
     return out;
 }

@@ -256,37 +256,21 @@ fn relief_normal(t: vec2<f32>) -> vec3<f32> {
 fn shade(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, p: vec3<f32>, n: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     let base = vdm.albedo.rgb;
-    let s = view.specular.w;
     for (var i = 0u; i < view.light_count; i++) {
         let light = lights[i];
         if light.kind == 2u {
             out += base * light.colour.rgb;
             continue;
         }
-        var dir: vec3<f32>;
-        var irradiance: vec3<f32>;
-        if light.kind == 0u {
-            let to = light.vector.xyz - p;
-            let r2 = dot(to, to);
-            if r2 <= 0.0 {
-                continue;
-            }
-            dir = to * inverseSqrt(r2);
-            irradiance = light.colour.rgb / r2;
-        } else {
-            dir = -normalize(light.vector.xyz);
-            irradiance = light.colour.rgb;
-        }
-        let cos_l = dot(n, dir);
-        if cos_l <= 0.0 {
+        let inc = light_incidence(light, p);
+        if !inc.valid {
             continue;
         }
-        if vdm.shadows == 1u && !lit(fi, bary, t_hit, depth, dir) {
+        let cos_l = dot(n, inc.dir);
+        if cos_l <= 0.0 || !(vdm.shadows == 0u || lit(fi, bary, t_hit, depth, inc.dir)) {
             continue;
         }
-        let h = normalize_or(dir + to_eye, vec3<f32>(0.0));
-        let lobe = view.specular.rgb * ((s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s));
-        out += (base / PI + lobe) * irradiance * cos_l;
+        out += direct(n, base, to_eye, inc, cos_l);
     }
     return out;
 }

@@ -93,7 +93,8 @@ pub fn run(
         let vdm = VdmRenderer::new(&loaded.shell, &query, relief)?;
         let (image, cpu_seconds) =
             timed(|| Ok(render_image(camera, |o, d| vdm.radiance(scene, o, d))))?;
-        let gpu_seconds = VdmPreview::new(&gpu, &loaded, &query, relief)?.time_frames(frames)?;
+        let gpu_seconds =
+            VdmPreview::new(&gpu, &loaded, &query, relief)?.time_frames(frames, &())?;
         rows.push(VdmBenchRow {
             technique: "vdm",
             size,

@@ -8,7 +8,7 @@ use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
     upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
-use super::target::{Target, triangle_pipeline};
+use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::ShaderVariant;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -21,7 +21,6 @@ use crate::scene::{Camera, Light, LoadedScene, Scene};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
 use glam::{DMat4, DVec3};
-use std::time::Instant;
 use wgpu::util::DeviceExt;
 
 /// The shader's `View`.
@@ -425,14 +424,6 @@ impl<'g> Preview<'g> {
     /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
     /// and waited for, reported to `observer` as it finishes.
     pub fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
-        self.submit_frame(false);
-        self.gpu.wait()?;
-        let start = Instant::now();
-        for frame in 1..=frames {
-            self.submit_frame(false);
-            self.gpu.wait()?;
-            observer.progress(frame.into(), frames.into());
-        }
-        Ok(start.elapsed().as_secs_f64() / frames.max(1) as f64)
+        time_frames(self.gpu, frames, observer, || self.submit_frame(false))
     }
 }

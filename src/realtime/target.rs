@@ -3,8 +3,10 @@
 //! back through as an [`Image`].
 
 use super::gpu::Gpu;
+use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::render::image::Image;
+use std::time::Instant;
 
 /// The colour target's format.
 const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -59,6 +61,25 @@ pub fn triangle_pipeline(
         multiview_mask: None,
         cache: None,
     })
+}
+
+/// Mean seconds per frame over `frames` frames recorded and submitted by `submit` (after one
+/// warm-up frame), each waited for and reported to `observer` as it finishes.
+pub fn time_frames(
+    gpu: &Gpu,
+    frames: u32,
+    observer: &dyn BakeObserver,
+    submit: impl Fn(),
+) -> Result<f64> {
+    submit();
+    gpu.wait()?;
+    let start = Instant::now();
+    for frame in 1..=frames {
+        submit();
+        gpu.wait()?;
+        observer.progress(frame.into(), frames.into());
+    }
+    Ok(start.elapsed().as_secs_f64() / frames.max(1) as f64)
 }
 
 /// A colour and depth target with its read-back buffer.

@@ -7,8 +7,9 @@ use super::gpu::Gpu;
 use super::pipeline::{
     LightRecord, ViewUniform, layout_entry, light_records, storage, uniform, view_uniform,
 };
-use super::target::{Target, triangle_pipeline};
+use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::COMMON;
+use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::Result;
 use crate::render::image::Image;
@@ -18,7 +19,6 @@ use crate::surface::curvature::VertexCurvature;
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
 use mesobake_package::vdm::VdmQuery;
-use std::time::Instant;
 use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("../../shaders/vdm_preview.wgsl");
@@ -274,15 +274,8 @@ impl<'g> VdmPreview<'g> {
     }
 
     /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
-    /// and waited for.
-    pub fn time_frames(&self, frames: u32) -> Result<f64> {
-        self.submit_frame(false);
-        self.gpu.wait()?;
-        let start = Instant::now();
-        for _ in 0..frames {
-            self.submit_frame(false);
-            self.gpu.wait()?;
-        }
-        Ok(start.elapsed().as_secs_f64() / frames.max(1) as f64)
+    /// and waited for, reported to `observer` as it finishes.
+    pub fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
+        time_frames(self.gpu, frames, observer, || self.submit_frame(false))
     }
 }
