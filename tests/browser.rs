@@ -285,6 +285,62 @@ async fn upload_bake_and_preview_in_a_browser() {
         .unwrap();
     assert_eq!(quality, serde_json::json!(["high", true, true]));
 
+    // A height-field relief on the (closed) torus: the technique stays auto, the job's plan
+    // picks VDM and the job list says so, and the preview is drawn by the VDM pipeline.
+    let chosen = c
+        .execute(
+            "const m = document.getElementById('sample'); m.value = 'relief:bumps'; \
+             m.dispatchEvent(new Event('change')); \
+             const s = JSON.parse(document.getElementById('scene-json').value); \
+             return [s.mesostructure, s.resolution[0] === s.resolution[1], \
+             document.getElementById('technique').value];",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(
+        chosen,
+        serde_json::json!([{ "relief": "bumps" }, true, "auto"])
+    );
+    c.find(Locator::Id("bake-button"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    eventually(120, "a succeeded VDM job in the list", || async {
+        c.execute(
+            "return [...document.querySelectorAll('#jobs tbody tr')].some((tr) => \
+             tr.querySelector('.job-technique').textContent === 'vdm' && \
+             tr.querySelector('.job-state').textContent === 'succeeded');",
+            vec![],
+        )
+        .await
+        .ok()?
+        .as_bool()
+        .filter(|done| *done)
+    })
+    .await;
+    c.find(Locator::Id("preview-button"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    eventually(120, "a preview by the VDM pipeline", || async {
+        let v = c
+            .execute(
+                "const img = document.getElementById('preview'); \
+                 return img.dataset.technique === 'vdm' && img.naturalWidth > 0 && \
+                 document.getElementById('preview-status').textContent.includes('VDM pipeline');",
+                vec![],
+            )
+            .await
+            .ok()?;
+        v.as_bool().filter(|shown| *shown)
+    })
+    .await;
+
     // A job put back in the queue after a failed attempt says it is retrying, with the count,
     // and a long error wraps inside the table (the view as the server sends it).
     let retrying = c

@@ -96,6 +96,22 @@ fn every_sample_scene_previews() {
             p["mean_frame_seconds"].as_f64().unwrap() > 0.0,
             "{name}: {p}"
         );
+        // A height field on a closed surface renders by VDM (auto), every other scene by GDM.
+        let relief_on_torus = scene["mesostructure"].get("relief").is_some()
+            && scene["base_mesh"]["builtin"].get("torus").is_some();
+        let technique = if relief_on_torus { "vdm" } else { "gdm" };
+        assert_eq!(json["technique"], technique, "{name}: {json}");
+        assert_eq!(p["technique"], technique, "{name}: {p}");
+        if relief_on_torus {
+            // One pipeline, no variant; the package is the factors and the heights.
+            assert!(p["variant"].is_null(), "{name}: {p}");
+            assert!(
+                p["memory"]["package"].as_u64().unwrap() > 16 * 16 * 4,
+                "{name}: {p}"
+            );
+            assert!(std::fs::metadata(&out).unwrap().len() > 0);
+            continue;
+        }
         // The sample scenes keep the paper's quality: local shadows where they ask for any.
         let shadows = scene["effects"]
             .as_array()

@@ -10,8 +10,8 @@ use mesobake::package::Package;
 use mesobake::package::manifest::GdmCodec;
 use mesobake::realtime::gpu::Gpu;
 use mesobake::render::image::{Image, compare};
-use mesobake::scene::package::{ScenePackageParams, scene_package};
-use mesobake::scene::preview::{preview, render_on_cpu};
+use mesobake::scene::package::{ScenePackageParams, gdm_scene_package};
+use mesobake::scene::preview::{gdm_preview, gdm_render_on_cpu};
 use mesobake::scene::{Effect, LoadedScene, Scene};
 use mesobake::util::limits::Limits;
 use std::path::Path;
@@ -43,13 +43,13 @@ fn package(loaded: &LoadedScene, rank: usize, quantization: Quantization) -> Pac
         rank: RankChoice::Rank(rank),
         quantization,
     };
-    scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap()
+    gdm_scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap()
 }
 
 /// The default package of the scene (the `occupancy` codec).
 fn default_package(loaded: &LoadedScene) -> Package {
     let params = ScenePackageParams::default();
-    let p = scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap();
+    let p = gdm_scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap();
     assert_eq!(p.manifest().codec, GdmCodec::Occupancy);
     p
 }
@@ -57,12 +57,12 @@ fn default_package(loaded: &LoadedScene) -> Package {
 /// The CPU twin: the GDM software renderer on the package (with its RTV and PRT when the
 /// scene calls for environment lighting).
 fn cpu_image(loaded: &LoadedScene, package: &Package) -> Image {
-    render_on_cpu(loaded, package).unwrap()
+    gdm_render_on_cpu(loaded, package).unwrap()
 }
 
 /// Renders on both and checks the agreement; returns (PSNR, mask disagreement).
 fn agreement(loaded: &LoadedScene, package: &Package, label: &str) -> (f64, f64) {
-    let (gpu, report) = preview(&Gpu::open(None).unwrap(), loaded, package, 0, &()).unwrap();
+    let (gpu, report) = gdm_preview(&Gpu::open(None).unwrap(), loaded, package, 0, &()).unwrap();
     let cpu = cpu_image(loaded, package);
     let c = compare(&gpu, &cpu).unwrap();
     eprintln!(
@@ -72,7 +72,7 @@ fn agreement(loaded: &LoadedScene, package: &Package, label: &str) -> (f64, f64)
         c.mask_disagreement * 100.0,
         gpu.hits(),
         cpu.hits(),
-        report.variant.name()
+        report.variant.expect("a GDM variant").name()
     );
     assert!(
         cpu.hits() > cpu.mask.len() / 20,

@@ -149,7 +149,9 @@ async fn two_hundred_jobs_survive_a_worker_killed_mid_bake() {
     for sample in ["chain", "weave", "grid", "squama", "bark"] {
         for rank in 1..=8 {
             for d in dirs {
-                let (job, queued) = s.state.db.submit_job(&spec(sample, rank, d)).await.unwrap();
+                let spec = spec(sample, rank, d);
+                let plan = spec.plan(&s.state.blobs, &s.state.limits).unwrap();
+                let (job, queued) = s.state.db.submit_job(&spec, &plan).await.unwrap();
                 assert!(queued);
                 ids.push(job.id);
             }
@@ -260,12 +262,9 @@ async fn a_blob_store_that_refuses_writes_fails_the_job_cleanly() {
         let blobs = data.path().join("blobs");
         std::fs::remove_dir_all(&blobs).unwrap();
         std::fs::write(&blobs, b"not a directory").unwrap();
-        let (job, _) = s
-            .state
-            .db
-            .submit_job(&spec("grid", 2, [4, 8]))
-            .await
-            .unwrap();
+        let spec = spec("grid", 2, [4, 8]);
+        let plan = spec.plan(&s.state.blobs, &s.state.limits).unwrap();
+        let (job, _) = s.state.db.submit_job(&spec, &plan).await.unwrap();
         let stop = Arc::new(AtomicBool::new(false));
         spawn_workers(&s.state, 1, &stop);
         let start = Instant::now();

@@ -819,3 +819,136 @@ async fn an_s3_blob_store_is_shared_by_servers_on_other_machines() {
     );
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeline() {
+    use mesobake::package::AnyPackage;
+    use mesobake::render::image::{Image, compare};
+    use mesobake::scene::preview::render_on_cpu;
+    use mesobake::scene::{LoadedScene, Scene};
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
+        return;
+    }
+    let scene = json!({
+        "base_mesh": { "builtin": { "torus": { "segments": [24, 12] } } },
+        "mesostructure": { "relief": "bumps" },
+        "resolution": [16, 16, 8],
+        "shell": { "thickness": 0.04, "tiles_per_uv": [8, 4] },
+        "camera": { "eye": [0, 2, 2.5], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 48, "height": 48 },
+        "lights": [{ "point": { "position": [2, 4, 3], "intensity": [60, 60, 60] } }],
+        "effects": ["silhouettes", "shadows"],
+        "vdm": { "directions": [4, 8], "curvatures": 4 }
+    });
+    let dir = tempfile::tempdir().unwrap();
+    for url in database_urls(dir.path(), "vdm_jobs").await {
+        let data = tempfile::tempdir().unwrap();
+        let s = TestServer::start(&url, data.path(), 1 << 24).await;
+        // The GDM codec's options do not apply to a VDM package: refused by name.
+        let (status, refused) = submit(
+            &s,
+            &json!({ "scene": scene, "codec": "paper-svd", "rank": 4 }),
+        )
+        .await;
+        assert_eq!(status, 422, "{refused}");
+        assert!(
+            refused["error"]
+                .as_str()
+                .unwrap()
+                .contains("the scene's technique is vdm"),
+            "{refused}"
+        );
+        // auto chose VDM, and the plan runs only its stages.
+        let (status, queued) = submit(&s, &json!({ "scene": scene })).await;
+        assert_eq!(status, 202, "{queued}");
+        assert_eq!(queued["plan"]["technique"]["technique"], "vdm", "{queued}");
+        assert!(
+            queued["plan"]["technique"]["reason"]
+                .as_str()
+                .unwrap()
+                .starts_with("auto: a height field on a closed surface"),
+            "{queued}"
+        );
+        assert_eq!(
+            queued["plan"]["stages"],
+            json!(["load", "bake_vdm", "compress_vdm", "encode", "store"])
+        );
+        // What a VDM package depends on: not the camera, but the VDM settings and the shell.
+        let mut moved = scene.clone();
+        moved["camera"]["eye"] = json!([0, 3, 1]);
+        let (status, same) = submit(&s, &json!({ "scene": moved })).await;
+        assert_eq!((status, &same["id"]), (200, &queued["id"]));
+        for (key, value) in [
+            ("vdm", json!({ "directions": [4, 8], "curvatures": 5 })),
+            (
+                "shell",
+                json!({ "thickness": 0.05, "tiles_per_uv": [8, 4] }),
+            ),
+            ("technique", json!("gdm")),
+        ] {
+            let mut other = scene.clone();
+            other[key] = value;
+            let (status, job) = submit(&s, &json!({ "scene": other })).await;
+            assert_eq!(status, 202, "{key}: {job}");
+            assert_ne!(job["id"], queued["id"], "{key}");
+        }
+        let id = queued["id"].as_str().unwrap().to_owned();
+        let stop = Arc::new(AtomicBool::new(false));
+        spawn_workers(&s.state, 1, &stop);
+        let done = wait_for(&s, &id, |j| j["state"] == "succeeded").await;
+        assert!(
+            done["timings"]["bake_vdm"].as_f64().unwrap() >= 0.0,
+            "{done}"
+        );
+        assert!(done["timings"].get("bake_gdm").is_none(), "{done}");
+        let digest = done["package_digest"].as_str().unwrap();
+        let manifest: Value = reqwest::get(s.url(&format!("/api/v1/packages/{digest}/manifest")))
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        assert_eq!(manifest["format"], "mesobake-vdm-package", "{manifest}");
+        assert_eq!(manifest["bake"]["grid"]["n_curvature"], 4, "{manifest}");
+        let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        let package = AnyPackage::parse(bytes.to_vec()).unwrap();
+        assert!(matches!(package, AnyPackage::Vdm(_)));
+
+        // The preview draws it by the VDM pipeline, as its CPU specification does.
+        let r = reqwest::Client::new()
+            .post(s.url("/api/v1/preview"))
+            .json(&json!({ "scene": scene }))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 200);
+        assert_eq!(r.headers()["x-mesobake-technique"], "vdm");
+        let png = r.bytes().await.unwrap();
+        let shown = data.path().join("preview.png");
+        std::fs::write(&shown, &png).unwrap();
+        let loaded = LoadedScene::load(
+            Scene::from_json(&scene.to_string()).unwrap(),
+            dir.path(),
+            &Limits::default(),
+        )
+        .unwrap();
+        let expected = data.path().join("cpu.png");
+        render_on_cpu(&loaded, &package)
+            .unwrap()
+            .write(&expected)
+            .unwrap();
+        let c = compare(
+            &Image::read(&expected).unwrap(),
+            &Image::read(&shown).unwrap(),
+        )
+        .unwrap();
+        assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
+        assert!(Image::read(&shown).unwrap().hits() > 48 * 48 / 10);
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}

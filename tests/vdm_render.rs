@@ -8,7 +8,7 @@ use common::{each_fails_with, succeeds};
 use mesobake::bake::vdm::bend::Bend;
 use mesobake::realtime::gpu::Gpu;
 use mesobake::realtime::vdm_pipeline::VdmPreview;
-use mesobake::render::image::{Comparison, compare};
+use mesobake::render::image::{Comparison, Image, compare};
 use mesobake::render::render_image;
 use mesobake::render::vdm_renderer::{VdmRenderer, exit_arc};
 use mesobake::scene::LoadedScene;
@@ -242,6 +242,118 @@ fn render_draws_a_vdm_package_of_the_scenes_relief() {
     ]);
 }
 
+#[test]
+fn a_closed_height_field_scene_bakes_and_renders_by_vdm_and_an_open_one_by_gdm() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let scene_json = |base_mesh: &str, technique: &str| {
+        format!(
+            r#"{{ "base_mesh": {base_mesh}, "mesostructure": {{ "relief": "bumps" }},
+                 "resolution": [16, 16, 8], "shell": {{ "thickness": 0.04, "tiles_per_uv": [8, 4] }},
+                 "camera": {{ "eye": [0, 2, 2.5], "target": [0, 0, 0], "up": [0, 1, 0],
+                             "fov_y_degrees": 45, "width": 40, "height": 40 }},
+                 "lights": [{{ "point": {{ "position": [2, 4, 3], "intensity": [60, 60, 60] }} }}],
+                 "effects": ["shadows"], "vdm": {{ "directions": [4, 8], "curvatures": 4 }}
+                 {technique} }}"#
+        )
+    };
+    let torus = r#"{ "builtin": { "torus": { "segments": [24, 12] } } }"#;
+    std::fs::write(path("torus.json"), scene_json(torus, "")).unwrap();
+    std::fs::write(path("plane.json"), scene_json(PLANE, "")).unwrap();
+    let bake = |scene: &str, out: &str| -> serde_json::Value {
+        let o = succeeds(&[
+            "bake",
+            "--scene",
+            &path(scene),
+            "--out",
+            &path(out),
+            "--json",
+        ]);
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    // Closed: auto bakes only the VDM stages into a VDM package.
+    let torus_bake = bake("torus.json", "torus.mbpkg");
+    assert_eq!(torus_bake["technique"], "vdm", "{torus_bake}");
+    assert_eq!(
+        torus_bake["plan"]["stages"],
+        serde_json::json!(["load", "bake_vdm", "compress_vdm", "encode"])
+    );
+    assert!(torus_bake["vdm"]["accuracy"]["samples"].as_u64().unwrap() > 0);
+    assert!(torus_bake["seconds"].get("bake_gdm").is_none());
+    let package = mesobake::package::AnyPackage::read(
+        std::path::Path::new(&path("torus.mbpkg")),
+        &Limits::default(),
+    )
+    .unwrap();
+    assert!(matches!(package, mesobake::package::AnyPackage::Vdm(_)));
+    // Open: auto keeps GDM, and says why.
+    let plane_bake = bake("plane.json", "plane.mbpkg");
+    assert_eq!(plane_bake["technique"], "gdm", "{plane_bake}");
+    let skipped = &plane_bake["plan"]["skipped"][0];
+    assert_eq!(skipped["stage"], "bake_vdm");
+    assert!(
+        skipped["reason"]
+            .as_str()
+            .unwrap()
+            .contains("the base mesh is open"),
+        "{skipped}"
+    );
+    // `render` without --method follows the scene's technique, and baking in the render
+    // gives the image the package gives.
+    let render = |extra: &[String], out: &str| -> serde_json::Value {
+        let mut args = vec!["render".into(), "--scene".into(), path("torus.json")];
+        args.extend_from_slice(extra);
+        args.extend(["--out".into(), path(out), "--json".into()]);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        serde_json::from_slice(&succeeds(&args).stdout).unwrap()
+    };
+    assert_eq!(render(&[], "auto.png")["method"], "vdm");
+    let from_package = render(&["--package".into(), path("torus.mbpkg")], "package.png");
+    assert_eq!(from_package["method"], "vdm");
+    let image = |name: &str| Image::read(std::path::Path::new(&path(name))).unwrap();
+    let (a, b) = (image("auto.png"), image("package.png"));
+    let c = compare(&a, &b).unwrap();
+    assert!(
+        c.psnr_db.is_infinite() && c.mask_disagreement == 0.0,
+        "{c:?}"
+    );
+    assert!(a.hits() > 40 * 40 / 10);
+    // A VDM scene's package is made by its `vdm` settings: GDM codec options are refused.
+    std::fs::write(
+        path("vdm.json"),
+        scene_json(PLANE, r#", "technique": "vdm""#),
+    )
+    .unwrap();
+    each_fails_with(&[
+        (
+            vec![
+                "bake",
+                "--scene",
+                &path("torus.json"),
+                "--gdm-codec",
+                "paper-svd",
+                "--out",
+                &path("x.mbpkg"),
+            ],
+            "the scene's technique is vdm",
+        ),
+        (
+            vec![
+                "preview",
+                "--scene",
+                &path("vdm.json"),
+                "--rank",
+                "4",
+                "--gdm-codec",
+                "paper-svd",
+                "--out",
+                &path("x.png"),
+            ],
+            "the scene asks for vdm, although the base mesh is open",
+        ),
+    ]);
+}
+
 /// Whether GPU tests run here; panics with the reason when no adapter exists and skipping
 /// was not asked for (as in `tests/preview.rs`).
 fn gpu() -> Option<Gpu> {
@@ -309,4 +421,88 @@ fn the_wgsl_pipeline_renders_what_its_cpu_specification_renders() {
             "{base}: the surface fills the view"
         );
     }
+}
+
+#[test]
+fn report_vdm_turns_each_knob_and_measures_the_gdm_beside_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let scene = r#"{ "base_mesh": { "builtin": { "torus": { "segments": [24, 12] } } },
+        "mesostructure": { "relief": "bumps" }, "resolution": [16, 16, 8],
+        "shell": { "thickness": 0.04, "tiles_per_uv": [8, 4] },
+        "camera": { "eye": [0, 2, 2.5], "target": [0, 0, 0], "fov_y_degrees": 45,
+                    "width": 64, "height": 64 },
+        "lights": [{ "point": { "position": [2, 4, 3], "intensity": [60, 60, 60] } }],
+        "effects": ["shadows"], "vdm": { "directions": [4, 8], "curvatures": 4 } }"#;
+    std::fs::write(path("scene.json"), scene).unwrap();
+    let out = succeeds(&[
+        "report",
+        "vdm",
+        "--scene",
+        &path("scene.json"),
+        "--curvatures",
+        "3,4",
+        "--dirs",
+        "4x8,2x8",
+        "--methods",
+        "paper,exact",
+        "--ranks",
+        "2",
+        "--quants",
+        "u8",
+        "--side",
+        "32",
+        "--frames",
+        "0",
+        "--out",
+        &path("report"),
+    ]);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(table.contains("| setting |"), "{table}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path("report/vdm.json")).unwrap()).unwrap();
+    assert!(
+        std::fs::read_to_string(path("report/vdm.svg"))
+            .unwrap()
+            .contains("<svg")
+    );
+    let rows = report["rows"].as_array().unwrap();
+    let labels: Vec<&str> = rows
+        .iter()
+        .map(|r| r["setting"].as_str().unwrap())
+        .collect();
+    // The scene's own settings appear once: knobs equal to them add no row.
+    assert_eq!(
+        labels,
+        [
+            "scene",
+            "rank 2",
+            "u8",
+            "3 curvatures",
+            "2×8 views",
+            "exact bake",
+            "occupancy package"
+        ]
+    );
+    let row = |label: &str| rows.iter().find(|r| r["setting"] == label).unwrap();
+    let f = |label: &str, key: &str| row(label)[key].as_f64().unwrap();
+    // Fewer components never fit better; 8-bit factors take fewer bytes than 16-bit ones.
+    assert!(f("rank 2", "rmse") >= f("scene", "rmse") - 1e-9);
+    assert!(f("u8", "bytes") < f("scene", "bytes"));
+    assert!(f("3 curvatures", "bytes") < f("scene", "bytes"));
+    // Every VDM row and the GDM row rendered the scene against one truth.
+    for r in rows {
+        assert!(r["error"]["psnr_db"].as_f64().unwrap() > 10.0, "{r}");
+        assert!(
+            r["error"]["mask_disagreement"].as_f64().unwrap() < 0.1,
+            "{r}"
+        );
+    }
+    assert_eq!(row("occupancy package")["technique"], "gdm");
+    assert!(row("occupancy package")["rmse"].is_null());
+    // Both bake methods were swept: the paper's bake against the exact one on the same grid.
+    let paper = &report["paper_against_exact"];
+    assert_eq!(paper["samples"], 16 * 16 * 4 * 8 * 4, "{paper}");
+    assert!(paper["rmse"].as_f64().unwrap() > 0.0, "{paper}");
+    assert!(report["rows"][0]["frame_ms"].is_null());
 }

@@ -11,7 +11,7 @@ use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::quality::Preset;
 use crate::render::render_image;
-use crate::scene::package::{ScenePackageParams, scene_package};
+use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::scene::{LoadedScene, Scene};
 use crate::util::limits::Limits;
 use serde::Serialize;
@@ -62,7 +62,7 @@ pub fn run(
                 codec,
                 ..ScenePackageParams::default()
             };
-            let package = scene_package(&loaded, dir, params, limits, observer)?;
+            let package = gdm_scene_package(&loaded, dir, params, limits, observer)?;
             let lookup = package_lookup(&package)?;
             for (&preset, &size) in presets
                 .iter()

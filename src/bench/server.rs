@@ -260,7 +260,8 @@ async fn claim_latency(state: &AppState, out: &mut String) -> Result<()> {
             }
         }))
         .map_err(|e| err("spec", e))?;
-        state.db.submit_job(&spec).await?;
+        let plan = spec.plan(&state.blobs, &state.limits)?;
+        state.db.submit_job(&spec, &plan).await?;
     }
     let mut times = Vec::new();
     while let Some((t, claimed)) = {

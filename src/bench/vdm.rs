@@ -13,7 +13,7 @@ use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::LoadedScene;
-use crate::scene::package::{ScenePackageParams, scene_package};
+use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::scene::render::load_scene;
 use crate::util::limits::Limits;
 use serde::Serialize;
@@ -58,7 +58,7 @@ pub fn run(
     let mut loaded: LoadedScene = load_scene(scene_path, limits)?;
     let dir = scene_path.parent().unwrap_or(Path::new("."));
     let (package, gdm_bake) =
-        timed(|| scene_package(&loaded, dir, ScenePackageParams::default(), limits, &()))?;
+        timed(|| gdm_scene_package(&loaded, dir, ScenePackageParams::default(), limits, &()))?;
     let lookup = package_lookup(&package)?;
     let (baked, vdm_bake) = timed(|| loaded.bake_vdm(limits, &()))?;
     let query = baked.compressed.decode();

@@ -15,7 +15,7 @@ use mesobake::package::container;
 use mesobake::package::manifest::{Section, TextureDimension};
 use mesobake::package::vdm::VdmPackage;
 use mesobake::package::{GdmPayload, Package};
-use mesobake::scene::package::bake_scene_package;
+use mesobake::scene::package::{ScenePayload, bake_scene_package};
 use mesobake::scene::render::load_scene;
 use mesobake::util::fs::{read_bounded, write_atomic};
 use mesobake::util::limits::Limits;
@@ -30,9 +30,10 @@ use std::time::Instant;
 pub struct BakeArgs {
     #[command(flatten)]
     bake: BakeOptions,
-    /// Bake a scene's package instead of an input's: the GDM on the scene's grids and
-    /// exactly the stages its effects call for (PRT and RTV with environment lighting);
-    /// --json lists the stages run and skipped, with reasons.
+    /// Bake a scene's package instead of an input's, for the technique the scene chooses: a
+    /// VDM package (its `vdm` settings), or a GDM package on the scene's grids with exactly
+    /// the stages its effects call for (PRT and RTV with environment lighting); --json
+    /// lists the technique and the stages run and skipped, with reasons.
     #[arg(long, conflicts_with_all = ["input", "res", "max_rmse", "server", "method", "allow_open"])]
     scene: Option<PathBuf>,
     /// Output package (.mbpkg).
@@ -83,10 +84,13 @@ fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
     let start = Instant::now();
     write_atomic(out, &baked.bytes)?;
     let write_s = start.elapsed().as_secs_f64();
+    let technique = &baked.plan.technique;
     eprintln!(
-        "wrote {} ({} bytes): stages {}",
+        "wrote {} ({} bytes): {} package ({}); stages {}",
         out.display(),
         baked.bytes.len(),
+        technique.technique.name(),
+        technique.reason,
         baked.plan.stages.join(", ")
     );
     if args.json {
@@ -102,7 +106,20 @@ fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
             "bytes": baked.bytes.len(),
             "plan": baked.plan,
             "seconds": seconds,
-            "gdm": payload_summary(&baked.gdm),
+            "technique": baked.plan.technique.technique,
+            "gdm": match &baked.payload {
+                ScenePayload::Gdm(payload) => payload_summary(payload),
+                ScenePayload::Vdm { .. } => serde_json::Value::Null,
+            },
+            "vdm": match &baked.payload {
+                ScenePayload::Vdm { rank, mvm_rank, quantization, accuracy } => serde_json::json!({
+                    "rank": rank,
+                    "mvm_rank": mvm_rank,
+                    "quantization": quantization,
+                    "accuracy": accuracy,
+                }),
+                ScenePayload::Gdm(_) => serde_json::Value::Null,
+            },
             "gi": baked.gi,
         }));
     }

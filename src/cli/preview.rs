@@ -3,9 +3,9 @@
 use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
 use mesobake::Result;
-use mesobake::package::Package;
+use mesobake::package::AnyPackage;
 use mesobake::render::quality::Quality;
-use mesobake::scene::package::{check_package_input, scene_package};
+use mesobake::scene::package::{check_input, check_package_input, scene_package};
 use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake::scene::render::load_scene;
 use mesobake::util::limits::Limits;
@@ -21,8 +21,9 @@ pub struct PreviewArgs {
     /// Output image (.png or .exr).
     #[arg(long)]
     out: PathBuf,
-    /// Render from this package (its grid must be the scene's, and it must have been baked
-    /// from the scene's mesostructure unless --force) instead of baking one.
+    /// Render from this package (GDM or VDM; a GDM package's grid must be the scene's, and
+    /// it must have been baked from the scene's mesostructure unless --force) instead of
+    /// baking one. The package's kind picks the pipeline.
     #[arg(long)]
     package: Option<PathBuf>,
     /// Render --package even when it was baked from another mesostructure than the scene's.
@@ -39,8 +40,8 @@ pub struct PreviewArgs {
     #[arg(long)]
     adapter: Option<String>,
     /// Where no GPU adapter exists (and none was named): cpu renders with the real-time
-    /// pipeline's CPU twin (the GDM software renderer, which the WGSL follows), and the JSON
-    /// says "renderer": "cpu"; none fails.
+    /// pipeline's CPU twin (the GDM or VDM software renderer, which the WGSL follows), and
+    /// the JSON says "renderer": "cpu"; none fails.
     #[arg(long, default_value = "cpu")]
     fallback: PreviewFallback,
     /// The per-pixel algorithm's accuracy knobs instead of the scene's `quality` (a preset,
@@ -85,11 +86,14 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     let start = Instant::now();
     let package = match &package {
         Some(path) => {
-            let package = Package::read(path, limits)?;
+            let package = AnyPackage::read(path, limits)?;
             if !force {
                 let dir = scene.parent().unwrap_or(Path::new("."));
-                check_package_input(&package, &loaded.scene, dir)
-                    .map_err(|e| e.context(path.display()))?;
+                let checked = match &package {
+                    AnyPackage::Gdm(p) => check_package_input(p, &loaded.scene, dir),
+                    AnyPackage::Vdm(p) => check_input(&p.manifest().input, &loaded.scene, dir),
+                };
+                checked.map_err(|e| e.context(path.display()))?;
             }
             package
         }
@@ -109,7 +113,14 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     let (image, outcome) = rendered?;
     image.write(&out)?;
     let on = match (&outcome.gpu, &outcome.fallback_reason) {
-        (Some(report), _) => format!("{} ({})", report.adapter.name, report.variant.name()),
+        (Some(report), _) => format!(
+            "{} ({})",
+            report.adapter.name,
+            report
+                .variant
+                .as_ref()
+                .map_or("the VDM pipeline".to_owned(), |v| v.name())
+        ),
         (None, reason) => format!(
             "the CPU twin of the real-time pipeline, as no GPU adapter is usable ({})",
             reason.as_deref().unwrap_or("")
@@ -145,6 +156,10 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
             "height": image.height,
             "hit_pixels": image.hits(),
             "seconds": { "load": load_s, "package": package_s },
+            "technique": match &package {
+                AnyPackage::Gdm(_) => "gdm",
+                AnyPackage::Vdm(_) => "vdm",
+            },
             "renderer": outcome.renderer,
             "fallback_reason": outcome.fallback_reason,
             "cpu_mean_frame_seconds": outcome.cpu_mean_frame_seconds,

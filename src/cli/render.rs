@@ -2,12 +2,13 @@
 //! compare` (PSNR, error and mask disagreement of two images).
 
 use super::output::{Progress, print_json};
-use mesobake::package::Package;
+use mesobake::package::AnyPackage;
 use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render::quality::Quality;
 use mesobake::scene::package::{check_input, check_package_input};
 use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
+use mesobake::scene::technique::Technique;
 use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -22,9 +23,9 @@ pub struct RenderArgs {
     /// truth: exact mapping into the real mesostructure; gdm: the real-time algorithm;
     /// vdm (height fields): the VDM real-time algorithm; explicit (mesh tiles only): the
     /// tile's triangles mapped through the shell and ray cast as a plain mesh, the truth's
-    /// independent check.
-    #[arg(long, default_value = "gdm")]
-    method: RenderMethod,
+    /// independent check. Default: the kind of --package, else the scene's technique.
+    #[arg(long)]
+    method: Option<RenderMethod>,
     /// For --method gdm or vdm: render from this (GDM or VDM) package instead of baking. It
     /// must have been baked from the scene's mesostructure (unless --force).
     #[arg(long)]
@@ -68,34 +69,37 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     }
     let load_s = start.elapsed().as_secs_f64();
     let dir = scene.parent().unwrap_or(Path::new("."));
-    let (package, vdm_package) = match (&package, method) {
-        (Some(path), RenderMethod::Gdm) => {
-            let package = Package::read(path, limits)?;
+    let package = package
+        .map(|path| -> Result<AnyPackage> {
+            let package = AnyPackage::read(&path, limits)?;
             if !force {
-                check_package_input(&package, &loaded.scene, dir)
-                    .map_err(|e| e.context(path.display()))?;
+                let checked = match &package {
+                    AnyPackage::Gdm(p) => check_package_input(p, &loaded.scene, dir),
+                    AnyPackage::Vdm(p) => check_input(&p.manifest().input, &loaded.scene, dir),
+                };
+                checked.map_err(|e| e.context(path.display()))?;
             }
-            (Some(package), None)
-        }
-        (Some(path), RenderMethod::Vdm) => {
-            let package = mesobake::package::vdm::read(path, limits)?;
-            if !force {
-                check_input(&package.manifest().input, &loaded.scene, dir)
-                    .map_err(|e| e.context(path.display()))?;
-            }
-            (None, Some(package))
-        }
-        (None, _) => (None, None),
+            Ok(package)
+        })
+        .transpose()?;
+    let method = match (method, &package) {
+        (Some(method), _) => method,
+        (None, Some(AnyPackage::Gdm(_))) => RenderMethod::Gdm,
+        (None, Some(AnyPackage::Vdm(_))) => RenderMethod::Vdm,
+        (None, None) => match loaded.technique().technique {
+            Technique::Vdm => RenderMethod::Vdm,
+            Technique::Gdm | Technique::Auto => RenderMethod::Gdm,
+        },
+    };
+    let source = match (&package, method) {
         (Some(_), RenderMethod::Truth | RenderMethod::Explicit) => {
             return Err(Error::InvalidParameter(
                 "--package only applies to --method gdm and vdm".into(),
             ));
         }
-    };
-    let source = match (&package, &vdm_package) {
-        (Some(p), _) => MapSource::Package(p),
-        (_, Some(p)) => MapSource::VdmPackage(p),
-        _ => MapSource::Bake,
+        (Some(AnyPackage::Gdm(p)), _) => MapSource::Package(p),
+        (Some(AnyPackage::Vdm(p)), _) => MapSource::VdmPackage(p),
+        (None, _) => MapSource::Bake,
     };
     let progress = Progress::new(match (method, &source) {
         (RenderMethod::Gdm, MapSource::Bake) => "baking GDM (exact)",

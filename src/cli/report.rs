@@ -2,10 +2,12 @@
 //! transfer), as Markdown on stdout and files in `--out`.
 
 use super::output::Progress;
+use super::vdm::parse_pair;
 use clap::Subcommand;
+use mesobake::bake::vdm::VdmMethod;
 use mesobake::compress::quantize::Quantization;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::report::{accuracy, codecs, gi, quality, render};
+use mesobake::report::{accuracy, codecs, gi, quality, render, vdm};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::render::load_scene;
 use mesobake::util::fs::write_atomic;
@@ -158,9 +160,58 @@ pub enum ReportCommand {
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
     },
+    /// The VDM's knobs on a height-field scene, one at a time around its `vdm` settings
+    /// (curvature count, view directions, bake method, rank, quantization), next to the GDM
+    /// of the same detail: package bytes, bake seconds, the displacement error compression
+    /// adds, the CPU render's PSNR, FLIP and mask against the ground truth and its time, and
+    /// the real-time frame time and PSNR (where an adapter exists); with both bake methods,
+    /// the paper's bake against the exact one. Markdown on stdout; vdm.md, vdm.json and
+    /// vdm.svg (PSNR against bytes) in --out.
+    Vdm {
+        /// Scene file (a height-field mesostructure).
+        #[arg(long, default_value = "scenes/torus-bumps.json")]
+        scene: PathBuf,
+        /// Curvature counts, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "4,8")]
+        curvatures: Vec<u32>,
+        /// View direction grids Nθ×Nφ, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "4x16", value_parser = parse_pair)]
+        dirs: Vec<[u32; 2]>,
+        /// Bake methods, comma-separated (exact is slow at the paper's grid: see
+        /// docs/BENCHMARKS.md).
+        #[arg(long, value_delimiter = ',', default_value = "paper")]
+        methods: Vec<VdmMethod>,
+        /// VDM ranks, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "2,4,16")]
+        ranks: Vec<usize>,
+        /// Quantizations, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "f32,u8")]
+        quants: Vec<Quantization>,
+        /// Image side in pixels instead of the scene camera's (square images).
+        #[arg(long)]
+        side: Option<u32>,
+        /// Real-time frames to time per row (0: none).
+        #[arg(long, default_value_t = 3)]
+        frames: u32,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
 }
 
 /// Writes `files` (name, contents) into `out`, prints `table` and says what was written.
+/// Refuses an image side outside 1..=[`mesobake::scene::MAX_IMAGE_SIDE`].
+fn check_side(side: u32) -> Result<()> {
+    if (1..=mesobake::scene::MAX_IMAGE_SIDE).contains(&side) {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter(format!(
+            "--side must be between 1 and {}, got {side}",
+            mesobake::scene::MAX_IMAGE_SIDE
+        )))
+    }
+}
+
 fn publish(out: &Path, table: &str, files: &[(&str, &str)]) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     for (name, contents) in files {
@@ -305,12 +356,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
         } => {
             let mut loaded = load_named_scenes(&scenes, limits)?;
             if let Some(side) = side {
-                if !(1..=mesobake::scene::MAX_IMAGE_SIDE).contains(&side) {
-                    return Err(Error::InvalidParameter(format!(
-                        "--side must be between 1 and {}, got {side}",
-                        mesobake::scene::MAX_IMAGE_SIDE
-                    )));
-                }
+                check_side(side)?;
                 for (_, l, _) in &mut loaded {
                     l.scene.camera.width = side;
                     l.scene.camera.height = side;
@@ -381,6 +427,47 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             let report = render::render_accuracy(&loaded, &sweep, limits, &progress)?;
             progress.finish();
             publish_report(&out, "render-accuracy", &render::markdown(&report), &report)
+        }
+        ReportCommand::Vdm {
+            scene,
+            curvatures,
+            dirs,
+            methods,
+            ranks,
+            quants,
+            side,
+            frames,
+            out,
+        } => {
+            let mut loaded = load_scene(&scene, limits)?;
+            if let Some(side) = side {
+                check_side(side)?;
+                loaded.scene.camera.width = side;
+                loaded.scene.camera.height = side;
+            }
+            let sweep = vdm::VdmSweep {
+                curvatures,
+                directions: dirs,
+                methods,
+                ranks,
+                quantizations: quants,
+                frames,
+            };
+            let name = scene
+                .file_stem()
+                .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+            let dir = scene.parent().unwrap_or(Path::new("."));
+            let progress = Progress::new("VDM report");
+            let report = vdm::vdm_report(&name, &loaded, dir, &sweep, limits, &progress)?;
+            progress.finish();
+            let table = vdm::markdown(&report);
+            let json = to_json(&report);
+            let svg = vdm::svg_plot(&report)?;
+            publish(
+                &out,
+                &table,
+                &[("vdm.md", &table), ("vdm.json", &json), ("vdm.svg", &svg)],
+            )
         }
     }
 }

@@ -83,7 +83,8 @@ pub struct VdmArgs {
 /// Components kept when packaging without --rank: the paper's 8.
 const DEFAULT_RANK: usize = 8;
 
-fn parse_pair(text: &str) -> std::result::Result<[u32; 2], String> {
+/// Parses `AxB` (or `AXB`) as a pair of counts.
+pub fn parse_pair(text: &str) -> std::result::Result<[u32; 2], String> {
     let (a, b) = text
         .split_once(['x', 'X'])
         .ok_or("expected NθxNφ, e.g. 8x32")?;

@@ -38,6 +38,49 @@ impl std::ops::Deref for Package {
     }
 }
 
+/// A validated package of either kind, told apart by its manifest's `format`.
+#[derive(Debug)]
+pub enum AnyPackage {
+    /// A GDM package (`mesobake-package`).
+    Gdm(Package),
+    /// A VDM package (`mesobake-vdm-package`).
+    Vdm(vdm::VdmPackage),
+}
+
+impl AnyPackage {
+    /// Validates `bytes` as the kind of package its manifest names.
+    pub fn parse(bytes: Vec<u8>) -> Result<AnyPackage> {
+        if container::format(&bytes)? == mesobake_package::vdm::VDM_FORMAT_NAME {
+            Ok(AnyPackage::Vdm(vdm::VdmPackage::parse(bytes)?))
+        } else {
+            Ok(AnyPackage::Gdm(Package::parse(bytes)?))
+        }
+    }
+
+    /// Reads and validates the package at `path`, refusing files over the memory limit.
+    pub fn read(path: &Path, limits: &Limits) -> Result<AnyPackage> {
+        let bytes = crate::util::fs::read_bounded(path, "package", limits.memory_bytes)?;
+        AnyPackage::parse(bytes).map_err(|e| e.context(path.display()))
+    }
+
+    /// The manifest as JSON.
+    pub fn manifest_json(&self) -> serde_json::Value {
+        match self {
+            AnyPackage::Gdm(p) => serde_json::to_value(p.manifest()),
+            AnyPackage::Vdm(p) => serde_json::to_value(p.manifest()),
+        }
+        .expect("manifests serialize")
+    }
+
+    /// The manifest's record of the input the package was baked from.
+    pub fn input(&self) -> &InputInfo {
+        match self {
+            AnyPackage::Gdm(p) => &p.manifest().input,
+            AnyPackage::Vdm(p) => &p.manifest().input,
+        }
+    }
+}
+
 /// What a package holds to answer GDM queries, by codec.
 #[derive(Clone, Debug)]
 pub enum GdmPayload {

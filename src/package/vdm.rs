@@ -52,6 +52,12 @@ pub fn input_info(kind: &str, bytes: &[u8]) -> InputInfo {
     }
 }
 
+/// The height field a VDM package holds (what its renderers read the relief from).
+pub fn height_field(package: &VdmPackage) -> Result<HeightField> {
+    let [w, h] = package.manifest().relief.size;
+    HeightField::new(w, h, package.heights())
+}
+
 /// Reads and validates the VDM package at `path` within the memory limit.
 pub fn read(path: &Path, limits: &Limits) -> Result<VdmPackage> {
     let bytes = read_bounded(path, "package", limits.memory_bytes)?;

@@ -3,7 +3,7 @@
 //! mesostructure occludes across prisms, escapes discarded. Renders to a linear
 //! `rgba32float` target (alpha = hit mask) and reads it back as an [`Image`].
 
-use super::gpu::{AdapterDescription, Gpu};
+use super::gpu::Gpu;
 use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
     upload_material, upload_package, upload_prism_bvh, upload_shell,
@@ -385,11 +385,6 @@ impl<'g> Preview<'g> {
     /// GPU memory taken by this preview's resources.
     pub fn memory(&self) -> GpuMemory {
         self.memory
-    }
-
-    /// The adapter it runs on.
-    pub fn adapter(&self) -> &AdapterDescription {
-        &self.gpu.adapter
     }
 
     /// Records one frame (and, with `read_back`, the copy of the target into the read-back

@@ -7,6 +7,7 @@ use super::gpu::Gpu;
 use super::pipeline::{
     LightRecord, ViewUniform, layout_entry, light_records, storage, uniform, view_uniform,
 };
+use super::resources::GpuMemory;
 use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::COMMON;
 use crate::bake::gdm::BakeObserver;
@@ -117,6 +118,7 @@ pub struct VdmPreview<'g> {
     vertices: wgpu::Buffer,
     vertex_count: u32,
     target: Target,
+    memory: GpuMemory,
 }
 
 impl<'g> VdmPreview<'g> {
@@ -164,6 +166,15 @@ impl<'g> VdmPreview<'g> {
             albedo: [albedo[0], albedo[1], albedo[2], 0.0],
         };
         let [weights, eigen, mvm] = query.factors();
+        let size = |words: usize| (words * std::mem::size_of::<f32>()) as u64;
+        let memory = GpuMemory {
+            package: size(weights.len() + eigen.len() + mvm.len() + relief.field.heights().len()),
+            material: 0,
+            geometry: (std::mem::size_of_val(records.as_slice())
+                + std::mem::size_of_val(vertices.as_slice())) as u64,
+            environment: 0,
+            targets: target.bytes(),
+        };
         let d = &gpu.device;
         let (pipeline, group, vertex_buffer) = gpu.checked("building the VDM pipeline", || {
             let buffer = |label: &str, contents: &[u8], usage| {
@@ -247,6 +258,7 @@ impl<'g> VdmPreview<'g> {
             vertices: vertex_buffer,
             vertex_count: vertices.len() as u32,
             target,
+            memory,
         })
     }
 
@@ -265,6 +277,12 @@ impl<'g> VdmPreview<'g> {
             self.target.copy_out(&mut encoder);
         }
         self.gpu.queue.submit([encoder.finish()]);
+    }
+
+    /// GPU memory per kind of resource: the package (factors and heights), the geometry
+    /// (top faces and their vertices) and the targets.
+    pub fn memory(&self) -> GpuMemory {
+        self.memory
     }
 
     /// Renders one frame and reads it back.

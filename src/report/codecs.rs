@@ -29,7 +29,7 @@ use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::LoadedScene;
-use crate::scene::package::{ScenePackageParams, bake_scene_package};
+use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::util::limits::Limits;
 use std::path::Path;
 use std::time::Instant;
@@ -254,15 +254,19 @@ pub fn codec_report(
 
         for &(params, rank) in &settings {
             let start = Instant::now();
-            let baked = bake_scene_package(loaded, dir, params, limits, &())?;
+            let package = gdm_scene_package(loaded, dir, params, limits, &())?;
             let bake_s = start.elapsed().as_secs_f64();
-            let bytes = baked.bytes.len() as u64;
-            let package = crate::package::Package::parse(baked.bytes)?;
+            let bytes = package.bytes().len() as u64;
             let samples = sample_errors(&package.reconstruct(limits)?, &exact, cap);
             let realtime = match &gpu {
                 Some(gpu) => {
-                    let (image, preview) =
-                        crate::scene::preview::preview(gpu, loaded, &package, sweep.frames, &())?;
+                    let (image, preview) = crate::scene::preview::gdm_preview(
+                        gpu,
+                        loaded,
+                        &package,
+                        sweep.frames,
+                        &(),
+                    )?;
                     let c = compare(&truth, &image)?;
                     (preview.mean_frame_seconds.map(|s| s * 1e3), Some(c.psnr_db))
                 }

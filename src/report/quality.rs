@@ -16,7 +16,7 @@ use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
-use crate::scene::package::{ScenePackageParams, scene_package};
+use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::scene::{Effect, LoadedScene};
 use crate::util::limits::Limits;
 use serde::Serialize;
@@ -131,7 +131,7 @@ pub fn quality_report(
             .push((name.clone(), start.elapsed().as_secs_f64()));
         step()?;
         let package: Package =
-            scene_package(loaded, dir, ScenePackageParams::default(), limits, &())?;
+            gdm_scene_package(loaded, dir, ScenePackageParams::default(), limits, &())?;
         let lookup = package_lookup(&package)?;
         step()?;
         let scene_quality = loaded.scene.quality;
@@ -154,7 +154,8 @@ pub fn quality_report(
             let (frame_ms, realtime_psnr_db) = match &gpu {
                 Some(gpu) => {
                     loaded.scene.quality = quality;
-                    let result = crate::scene::preview::preview(gpu, loaded, &package, frames, &());
+                    let result =
+                        crate::scene::preview::gdm_preview(gpu, loaded, &package, frames, &());
                     loaded.scene.quality = scene_quality;
                     let (image, preview) = result?;
                     let c = compare(&truth, &image)?;

@@ -9,6 +9,7 @@ pub mod package;
 pub mod plan;
 pub mod preview;
 pub mod render;
+pub mod technique;
 pub mod vdm;
 
 use crate::bake::gdm::caster::Caster;
@@ -34,6 +35,7 @@ use crate::util::limits::Limits;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use technique::{Technique, TechniqueChoice};
 use vdm::VdmSettings;
 
 /// Largest accepted scene file.
@@ -53,6 +55,10 @@ pub struct Scene {
     pub mesh_scale: f64,
     /// The mesostructure sample.
     pub mesostructure: MesostructureSource,
+    /// The technique that renders it: `gdm`, `vdm` (height fields), or `auto` (the default:
+    /// [`technique::choose`]).
+    #[serde(default, skip_serializing_if = "Technique::is_auto")]
+    pub technique: Technique,
     /// Voxel grid X×Y×Z of the mesostructure (samples and tiles are sampled on it; a volume
     /// must have it).
     #[serde(default = "default_resolution")]
@@ -414,6 +420,7 @@ impl Scene {
         }
         self.quality.validate()?;
         self.vdm.validate()?;
+        technique::validate(self)?;
         self.shell.validate()?;
         self.camera.validate()?;
         for light in &self.lights {
@@ -501,6 +508,23 @@ impl Scene {
     }
 }
 
+/// The base mesh `scene` names, scaled by its `mesh_scale`, with what validating it found
+/// (relative paths resolved against `base_dir`).
+pub fn load_base_mesh(
+    scene: &Scene,
+    base_dir: &Path,
+    limits: &Limits,
+) -> Result<(BaseMesh, MeshReport)> {
+    let (mut base, report) = match &scene.base_mesh {
+        BaseMeshSource::Builtin(b) => b.build()?,
+        BaseMeshSource::Obj(p) => BaseMesh::read_obj(&base_dir.join(p), limits)?,
+    };
+    for p in &mut base.positions {
+        *p *= scene.mesh_scale;
+    }
+    Ok((base, report))
+}
+
 /// A scene with its inputs loaded: base mesh, shell, mesostructure and material volume.
 pub struct LoadedScene {
     /// The scene as written.
@@ -525,13 +549,7 @@ impl LoadedScene {
     /// Loads everything `scene` names; relative paths are resolved against `base_dir`.
     pub fn load(scene: Scene, base_dir: &Path, limits: &Limits) -> Result<LoadedScene> {
         let resolve = |p: &Path| base_dir.join(p);
-        let (mut base, base_report) = match &scene.base_mesh {
-            BaseMeshSource::Builtin(b) => b.build()?,
-            BaseMeshSource::Obj(p) => BaseMesh::read_obj(&resolve(p), limits)?,
-        };
-        for p in &mut base.positions {
-            *p *= scene.mesh_scale;
-        }
+        let (base, base_report) = load_base_mesh(&scene, base_dir, limits)?;
         let shell = Shell::new(&base, scene.shell)?;
         let dims = scene.dims()?;
         let default_albedo = DVec3::from(scene.material.albedo);
@@ -604,6 +622,11 @@ impl LoadedScene {
             height_field,
             environment,
         })
+    }
+
+    /// The technique that renders the scene, and why ([`technique::choose`]).
+    pub fn technique(&self) -> TechniqueChoice {
+        technique::choose(&self.scene, &self.base_report)
     }
 
     /// Bakes the exact GDM of the scene's mesostructure on its grids.

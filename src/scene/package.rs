@@ -1,8 +1,9 @@
-//! A scene's package: exactly the stages its effects call for ([`plan`]), run in order
-//! ([`bake_scene_package`]). Used by `mesobake bake --scene`, `mesobake preview` and the
-//! server's bake jobs.
+//! A scene's package: exactly the stages its technique and effects call for ([`plan`]), run
+//! in order ([`bake_scene_package`]). Used by `mesobake bake --scene`, `mesobake preview` and
+//! the server's bake jobs.
 //!
-//! Always what the codec needs: the occupancy field, or the exact GDM on the scene's grids and
+//! A VDM scene ([`crate::scene::technique`]): the VDM of its height field as its `vdm`
+//! settings say, compressed, in a VDM package. A GDM scene: always what the codec needs: the occupancy field, or the exact GDM on the scene's grids and
 //! its SVD compression (`paper-svd`). With `environment_lighting`: the macro-scale PRT of the
 //! base mesh (shadowed with `macro_shadows`), the exact GDM for the RTV's visibility, the RTV
 //! (glossy with `environment_gloss`) and its compression. The
@@ -21,11 +22,14 @@ use crate::package::bake::{PackageParams, StageSeconds, compress_gdm};
 use crate::package::gi::GiPayload;
 use crate::package::manifest::{BakeInfo, GdmCodec};
 use crate::package::manifest::{GiInfo, InputInfo};
-use crate::package::{GdmPayload, Package};
+use crate::package::vdm as vdm_package;
+use crate::package::{AnyPackage, GdmPayload, Package};
 use crate::scene::gi::{prt_matrices, rtv_params};
 use crate::scene::plan::{Plan, plan};
+use crate::scene::technique::{Technique, TechniqueChoice};
 use crate::scene::{Effect, LoadedScene, MesostructureSource, Scene};
 use crate::util::limits::Limits;
+use mesobake_package::vdm::VdmAccuracy;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::time::Instant;
@@ -63,12 +67,29 @@ pub struct GiBake {
     pub macro_shadows: bool,
 }
 
+/// What a scene's package holds for its technique.
+pub enum ScenePayload {
+    /// A GDM package's payload.
+    Gdm(GdmPayload),
+    /// A VDM package's compression.
+    Vdm {
+        /// Components of the VDM's reconstruction.
+        rank: usize,
+        /// Components of the MVM's reconstruction.
+        mvm_rank: usize,
+        /// Number format of the factors.
+        quantization: Quantization,
+        /// Measured against the bake.
+        accuracy: VdmAccuracy,
+    },
+}
+
 /// A scene's package and what making it took.
 pub struct ScenePackage {
-    /// The package's bytes.
+    /// The package's bytes (a GDM or a VDM package, as the plan's technique says).
     pub bytes: Vec<u8>,
-    /// Its GDM payload.
-    pub gdm: GdmPayload,
+    /// What it holds.
+    pub payload: ScenePayload,
     /// The stages run and skipped.
     pub plan: Plan,
     /// Seconds per stage run (`load` is the caller's), in `plan` order.
@@ -77,9 +98,24 @@ pub struct ScenePackage {
     pub gi: Option<GiBake>,
 }
 
-/// Bakes the package of `loaded` as [`plan`] says. The manifest's input identity is the hash
-/// of the mesostructure file the scene names, or of the scene's `mesostructure` and
-/// `resolution` entries for a built-in sample.
+/// Checks that `params` apply to a package for `technique`: a VDM package is made as the
+/// scene's `vdm` settings say, so GDM package parameters other than the defaults are an
+/// error.
+pub fn check_params(technique: &TechniqueChoice, params: ScenePackageParams) -> Result<()> {
+    if technique.technique == Technique::Vdm && params != ScenePackageParams::default() {
+        return Err(Error::InvalidParameter(format!(
+            "the scene's technique is vdm ({}): its package is made as the scene's `vdm` \
+             settings say, and the GDM codec, rank and quantization do not apply",
+            technique.reason
+        )));
+    }
+    Ok(())
+}
+
+/// Bakes the package of `loaded` as [`plan`] says, for the technique
+/// [`LoadedScene::technique`] chooses. The manifest's input identity is the hash of the
+/// mesostructure file the scene names, or of the scene's `mesostructure` and `resolution`
+/// entries for a built-in sample (of the relief's PNG for a built-in relief).
 pub fn bake_scene_package(
     loaded: &LoadedScene,
     scene_dir: &Path,
@@ -87,9 +123,26 @@ pub fn bake_scene_package(
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<ScenePackage> {
+    let technique = loaded.technique();
+    bake_technique_package(loaded, technique, scene_dir, params, limits, observer)
+}
+
+/// [`bake_scene_package`] for `technique` instead of the scene's choice.
+fn bake_technique_package(
+    loaded: &LoadedScene,
+    technique: TechniqueChoice,
+    scene_dir: &Path,
+    params: ScenePackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<ScenePackage> {
     let scene = &loaded.scene;
-    let plan = plan(scene, params.codec);
+    check_params(&technique, params)?;
+    let plan = plan(scene, params.codec, technique);
     let input = input_identity(scene, scene_dir)?;
+    if plan.technique.technique == Technique::Vdm {
+        return bake_vdm_package(loaded, input, plan, limits, observer);
+    }
     let mut seconds = Vec::new();
     let (dims, dirs) = (scene.dims()?, scene.dirs()?);
     let info = BakeInfo {
@@ -182,10 +235,48 @@ pub fn bake_scene_package(
     let gi = transfer.map(|t| t.3);
     Ok(ScenePackage {
         bytes,
-        gdm: payload,
+        payload: ScenePayload::Gdm(payload),
         plan,
         seconds,
         gi,
+    })
+}
+
+/// The VDM package of `loaded`'s height field, identified by `input`, as `plan` says.
+fn bake_vdm_package(
+    loaded: &LoadedScene,
+    input: InputInfo,
+    plan: Plan,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
+) -> Result<ScenePackage> {
+    let baked = loaded.bake_vdm(limits, observer)?;
+    let start = Instant::now();
+    observer.stage("encode");
+    let c = &baked.compressed;
+    let bytes = vdm_package::encode(
+        input,
+        &baked.field,
+        &baked.vdm,
+        loaded.scene.vdm.params(),
+        c,
+    );
+    let seconds = vec![
+        ("bake_vdm".to_owned(), baked.seconds[0]),
+        ("compress_vdm".to_owned(), baked.seconds[1]),
+        ("encode".to_owned(), start.elapsed().as_secs_f64()),
+    ];
+    Ok(ScenePackage {
+        bytes,
+        payload: ScenePayload::Vdm {
+            rank: c.vdm_rank,
+            mvm_rank: c.mvm_rank,
+            quantization: c.weights.format,
+            accuracy: c.accuracy,
+        },
+        plan,
+        seconds,
+        gi: None,
     })
 }
 
@@ -196,8 +287,25 @@ pub fn scene_package(
     params: ScenePackageParams,
     limits: &Limits,
     observer: &dyn BakeObserver,
+) -> Result<AnyPackage> {
+    AnyPackage::parse(bake_scene_package(loaded, scene_dir, params, limits, observer)?.bytes)
+}
+
+/// The scene's GDM package, whatever technique it chooses (for comparisons and the GDM
+/// pipeline's measurements), parsed.
+pub fn gdm_scene_package(
+    loaded: &LoadedScene,
+    scene_dir: &Path,
+    params: ScenePackageParams,
+    limits: &Limits,
+    observer: &dyn BakeObserver,
 ) -> Result<Package> {
-    Package::parse(bake_scene_package(loaded, scene_dir, params, limits, observer)?.bytes)
+    let technique = TechniqueChoice {
+        technique: Technique::Gdm,
+        reason: "a GDM package was asked for".into(),
+    };
+    let baked = bake_technique_package(loaded, technique, scene_dir, params, limits, observer)?;
+    Package::parse(baked.bytes)
 }
 
 /// Checks that `package` was baked from `scene`'s mesostructure: its grid is the scene's
@@ -230,7 +338,7 @@ pub fn check_input(found: &InputInfo, scene: &Scene, scene_dir: &Path) -> Result
 }
 
 /// The identity of `scene`'s mesostructure input, as a manifest records it.
-fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
+pub fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
     let identity = match &scene.mesostructure {
         MesostructureSource::Sample(_) | MesostructureSource::SampleTile(_) => {
             serde_json::to_vec(&(&scene.mesostructure, scene.resolution))

@@ -1,7 +1,9 @@
-//! The planner: the stages a scene's package needs, derived from the effects the scene calls
-//! for, and the stages it skips with the reason. Nothing else is baked.
+//! The planner: the stages a scene's package needs, derived from the technique chosen for it
+//! ([`super::technique`]) and the effects the scene calls for, and the stages it skips with
+//! the reason. Nothing else is baked.
 
 use crate::package::manifest::GdmCodec;
+use crate::scene::technique::{Technique, TechniqueChoice, is_height_field};
 use crate::scene::{Effect, Scene};
 use serde::{Deserialize, Serialize};
 
@@ -17,6 +19,9 @@ pub struct Skipped {
 /// The stages a bake runs, in order, and those it skips.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct Plan {
+    /// The technique the package is for, and why.
+    #[serde(default)]
+    pub technique: TechniqueChoice,
     /// Stages to run.
     pub stages: Vec<String>,
     /// Stages left out.
@@ -30,11 +35,13 @@ impl Plan {
     }
 }
 
-/// The stages of `scene`'s package with `codec`: `load`; `bake_gdm`, `compress` for
-/// `paper-svd`, `occupancy` for the occupancy codec; `bake_prt`, `bake_rtv` (after `bake_gdm`,
-/// which it needs), `compress_rtv` with environment lighting; `encode` last. Parts of stages
-/// the scene does not call for (`prt_visibility`, `rtv_gloss`) are listed as skipped too.
-pub fn plan(scene: &Scene, codec: GdmCodec) -> Plan {
+/// The stages of `scene`'s package for `technique`, with `codec` for a GDM: `load` first and
+/// `encode` last. A VDM package: `bake_vdm`, `compress_vdm`, and none of the GDM's stages. A
+/// GDM package: `bake_gdm`, `compress` for `paper-svd`, `occupancy` for the occupancy codec;
+/// `bake_prt`, `bake_rtv` (after `bake_gdm`, which it needs), `compress_rtv` with environment
+/// lighting; a height field's `bake_vdm` is listed as skipped. Parts of stages the scene does
+/// not call for (`prt_visibility`, `rtv_gloss`) are listed as skipped too.
+pub fn plan(scene: &Scene, codec: GdmCodec, technique: TechniqueChoice) -> Plan {
     let mut stages = vec!["load"];
     let mut skipped = Vec::new();
     let mut skip = |stage: &str, reason: &str| {
@@ -43,6 +50,29 @@ pub fn plan(scene: &Scene, codec: GdmCodec) -> Plan {
             reason: reason.into(),
         })
     };
+    if technique.technique == Technique::Vdm {
+        stages.extend(["bake_vdm", "compress_vdm"]);
+        let why = format!("the technique is vdm ({})", technique.reason);
+        for stage in ["bake_gdm", "occupancy", "compress"] {
+            skip(stage, &why);
+        }
+        // Scene validation refuses environment lighting with VDM, and auto never picks it.
+        for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
+            skip(stage, "the scene calls for no environment_lighting");
+        }
+        stages.push("encode");
+        return Plan {
+            technique,
+            stages: stages.into_iter().map(String::from).collect(),
+            skipped,
+        };
+    }
+    if is_height_field(scene) {
+        skip(
+            "bake_vdm",
+            &format!("the technique is gdm ({})", technique.reason),
+        );
+    }
     let environment = scene.wants(Effect::EnvironmentLighting);
     match codec {
         GdmCodec::PaperSvd => {
@@ -87,6 +117,7 @@ pub fn plan(scene: &Scene, codec: GdmCodec) -> Plan {
     }
     stages.push("encode");
     Plan {
+        technique,
         stages: stages.into_iter().map(String::from).collect(),
         skipped,
     }

@@ -1,21 +1,27 @@
 //! Scene → image with the real-time pipeline (`mesobake preview`, the server's previews):
 //! renders a scene with its package ([`crate::scene::package`]) on the GPU and optionally
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
+//! The package's kind picks the pipeline: the GDM's or the VDM's.
 
 use crate::bake::gdm::BakeObserver;
+use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
-use crate::package::Package;
+use crate::package::vdm::{VdmPackage, height_field};
+use crate::package::{AnyPackage, Package};
 use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
 use crate::realtime::resources::GpuMemory;
 use crate::realtime::variant::ShaderVariant;
+use crate::realtime::vdm_pipeline::VdmPreview;
 use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::Image;
 use crate::render::render_image;
+use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::Effect;
 use crate::scene::LoadedScene;
 use crate::scene::gi::GiShading;
+use crate::scene::technique::Technique;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -23,8 +29,8 @@ use std::time::Instant;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PreviewFallback {
-    /// Render with the CPU twin of the real-time pipeline: the GDM software renderer, its
-    /// specification, which the tests hold the WGSL to (≥ 35 dB).
+    /// Render with the CPU twin of the real-time pipeline: the GDM (or VDM) software
+    /// renderer, its specification, which the tests hold the WGSL to (≥ 35 dB).
     #[default]
     Cpu,
     /// Fail with the adapter error.
@@ -84,7 +90,7 @@ impl PreviewDevice {
     pub fn render(
         &self,
         loaded: &LoadedScene,
-        package: &Package,
+        package: &AnyPackage,
         frames: u32,
         observer: &dyn BakeObserver,
     ) -> Result<(Image, PreviewOutcome)> {
@@ -133,9 +139,29 @@ pub struct PreviewOutcome {
     pub cpu_mean_frame_seconds: Option<f64>,
 }
 
-/// The real-time pipeline's CPU twin: the GDM software renderer on `package` (with its RTV
-/// and PRT when the scene calls for environment lighting), the specification the WGSL follows.
-pub fn render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Image> {
+/// The real-time pipeline's CPU twin, the specification the WGSL follows: the GDM software
+/// renderer on a GDM package ([`gdm_render_on_cpu`]), the VDM software renderer on a VDM
+/// package.
+pub fn render_on_cpu(loaded: &LoadedScene, package: &AnyPackage) -> Result<Image> {
+    match package {
+        AnyPackage::Gdm(p) => gdm_render_on_cpu(loaded, p),
+        AnyPackage::Vdm(p) => {
+            let field = height_field(p)?;
+            let relief = Relief {
+                field: &field,
+                depth: p.manifest().relief.depth,
+            };
+            let query = p.query();
+            let r = VdmRenderer::new(&loaded.shell, &query, relief)?;
+            let scene = &loaded.scene;
+            Ok(render_image(&scene.camera, |o, d| r.radiance(scene, o, d)))
+        }
+    }
+}
+
+/// The GDM pipeline's CPU twin: the GDM software renderer on `package`, with its RTV and PRT
+/// when the scene calls for environment lighting.
+pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Image> {
     package.check_grid(loaded.material.dims())?;
     let scene = &loaded.scene;
     let lookup = package_lookup(package)?;
@@ -162,8 +188,11 @@ pub fn render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Image> {
 pub struct PreviewReport {
     /// The adapter.
     pub adapter: AdapterDescription,
-    /// The shader variant the scene's effects chose.
-    pub variant: ShaderVariant,
+    /// The pipeline: `gdm` or `vdm`, the package's technique.
+    pub technique: Technique,
+    /// The GDM shader variant the scene's effects chose (none for the VDM pipeline, which
+    /// has one).
+    pub variant: Option<ShaderVariant>,
     /// GPU memory per kind of resource.
     pub memory: GpuMemory,
     /// Seconds to upload the scene and build the pipeline.
@@ -176,8 +205,23 @@ pub struct PreviewReport {
     pub frames: u32,
 }
 
-/// Renders `loaded` with `package` on `gpu`; with `frames` > 0, also times that many frames.
+/// Renders `loaded` with `package` on `gpu` by the package's pipeline; with `frames` > 0,
+/// also times that many frames.
 pub fn preview(
+    gpu: &Gpu,
+    loaded: &LoadedScene,
+    package: &AnyPackage,
+    frames: u32,
+    observer: &dyn BakeObserver,
+) -> Result<(Image, PreviewReport)> {
+    match package {
+        AnyPackage::Gdm(package) => gdm_preview(gpu, loaded, package, frames, observer),
+        AnyPackage::Vdm(package) => vdm_preview(gpu, loaded, package, frames, observer),
+    }
+}
+
+/// [`preview`] by the GDM pipeline.
+pub fn gdm_preview(
     gpu: &Gpu,
     loaded: &LoadedScene,
     package: &Package,
@@ -187,25 +231,76 @@ pub fn preview(
     let start = Instant::now();
     let preview = Preview::new(gpu, loaded, package, true)?;
     let setup_seconds = start.elapsed().as_secs_f64();
+    let (image, first_frame_seconds, mean_frame_seconds) = run_frames(
+        || preview.render(),
+        |n| preview.time_frames(n, observer),
+        frames,
+        observer,
+    )?;
+    let report = PreviewReport {
+        adapter: gpu.adapter.clone(),
+        technique: Technique::Gdm,
+        variant: Some(preview.variant()),
+        memory: preview.memory(),
+        setup_seconds,
+        first_frame_seconds,
+        mean_frame_seconds,
+        frames,
+    };
+    Ok((image, report))
+}
+
+/// [`preview`] by the VDM pipeline.
+fn vdm_preview(
+    gpu: &Gpu,
+    loaded: &LoadedScene,
+    package: &VdmPackage,
+    frames: u32,
+    observer: &dyn BakeObserver,
+) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
-    let image = preview.render()?;
-    let first_frame_seconds = start.elapsed().as_secs_f64();
-    let mean_frame_seconds = if frames > 0 {
+    let field = height_field(package)?;
+    let relief = Relief {
+        field: &field,
+        depth: package.manifest().relief.depth,
+    };
+    let preview = VdmPreview::new(gpu, loaded, &package.query(), relief)?;
+    let setup_seconds = start.elapsed().as_secs_f64();
+    let (image, first_frame_seconds, mean_frame_seconds) = run_frames(
+        || preview.render(),
+        |n| preview.time_frames(n, observer),
+        frames,
+        observer,
+    )?;
+    let report = PreviewReport {
+        adapter: gpu.adapter.clone(),
+        technique: Technique::Vdm,
+        variant: None,
+        memory: preview.memory(),
+        setup_seconds,
+        first_frame_seconds,
+        mean_frame_seconds,
+        frames,
+    };
+    Ok((image, report))
+}
+
+/// Renders the first frame (timed, read-back included) and, with `frames` > 0, times that
+/// many more: the image, the first frame's seconds and the mean.
+fn run_frames(
+    render: impl Fn() -> Result<Image>,
+    time: impl Fn(u32) -> Result<f64>,
+    frames: u32,
+    observer: &dyn BakeObserver,
+) -> Result<(Image, f64, Option<f64>)> {
+    let start = Instant::now();
+    let image = render()?;
+    let first = start.elapsed().as_secs_f64();
+    let mean = if frames > 0 {
         observer.stage("timing frames");
-        Some(preview.time_frames(frames, observer)?)
+        Some(time(frames)?)
     } else {
         None
     };
-    Ok((
-        image,
-        PreviewReport {
-            adapter: preview.adapter().clone(),
-            variant: preview.variant(),
-            memory: preview.memory(),
-            setup_seconds,
-            first_frame_seconds,
-            mean_frame_seconds,
-            frames,
-        },
-    ))
+    Ok((image, first, mean))
 }

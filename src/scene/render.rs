@@ -4,7 +4,6 @@
 use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
-use crate::mesostructure::height_field::HeightField;
 use crate::package::Package;
 use crate::package::vdm::VdmPackage;
 use crate::render::explicit::ExplicitRenderer;
@@ -166,8 +165,7 @@ pub fn render_substituted(
                     (baked.compressed.decode(), baked.relief())
                 }
                 MapSource::VdmPackage(pkg) => {
-                    let [w, h] = pkg.manifest().relief.size;
-                    field = HeightField::new(w, h, pkg.heights())?;
+                    field = crate::package::vdm::height_field(pkg)?;
                     let depth = pkg.manifest().relief.depth;
                     (
                         pkg.query(),
@@ -179,7 +177,9 @@ pub fn render_substituted(
                 }
                 MapSource::Package(_) => {
                     return Err(Error::InvalidParameter(
-                        "method vdm renders a VDM package, not a GDM package".into(),
+                        "method vdm renders a VDM package (mesobake-vdm-package), and this is a \
+                         GDM package (mesobake-package)"
+                            .into(),
                     ));
                 }
             };
@@ -219,7 +219,9 @@ pub fn render_substituted(
                 }
                 MapSource::VdmPackage(_) => {
                     return Err(Error::InvalidParameter(
-                        "method gdm renders a GDM package, not a VDM package".into(),
+                        "method gdm renders a GDM package (mesobake-package), and this is a VDM \
+                         package (mesobake-vdm-package)"
+                            .into(),
                     ));
                 }
                 MapSource::Package(pkg) => {

@@ -11,6 +11,7 @@ use crate::mesostructure::height_field::HeightField;
 use crate::surface::shell::Shell;
 use crate::util::limits::Limits;
 use serde::{Deserialize, Serialize};
+use std::time::Instant;
 
 /// How a scene's VDM is baked and compressed: the paper's grid and compression by default,
 /// with the paper's resampling bake (the exact bake is the accurate, slower choice).
@@ -125,6 +126,8 @@ pub struct SceneVdm {
     pub vdm: Vdm,
     /// The compressed map.
     pub compressed: CompressedVdm,
+    /// Seconds baking (stage `bake_vdm`) and compressing (stage `compress_vdm`).
+    pub seconds: [f64; 2],
 }
 
 impl SceneVdm {
@@ -148,13 +151,19 @@ impl LoadedScene {
         })
     }
 
-    /// Bakes and compresses the VDM of the scene's height field as its [`VdmSettings`] say.
+    /// Bakes and compresses the VDM of the scene's height field as its [`VdmSettings`] say,
+    /// telling `observer` of the stages `bake_vdm` and `compress_vdm`.
     pub fn bake_vdm(&self, limits: &Limits, observer: &dyn BakeObserver) -> Result<SceneVdm> {
         let settings = &self.scene.vdm;
         let field = self.relief_field()?;
         let depth = relief_depth(&self.shell)?;
         let relief = Relief { field, depth };
+        let start = Instant::now();
+        observer.stage("bake_vdm");
         let vdm = vdm::bake(relief, settings.grid(), settings.params(), limits, observer)?;
+        let bake_s = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        observer.stage("compress_vdm");
         let compressed = compress(
             &vdm,
             settings.rank,
@@ -167,6 +176,7 @@ impl LoadedScene {
             depth,
             vdm,
             compressed,
+            seconds: [bake_s, start.elapsed().as_secs_f64()],
         })
     }
 }

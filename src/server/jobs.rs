@@ -10,17 +10,22 @@
 //! with exponential backoff; input errors fail at once.
 
 use super::api_error::ApiError;
+use super::blobs::BlobStore;
 use super::db::{Db, db_error, now_ms};
+use super::worker::resolve_assets;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
 use crate::package::manifest::GdmCodec;
-use crate::scene::package::ScenePackageParams;
+use crate::scene::package::{ScenePackageParams, check_params};
 use crate::scene::plan::Plan;
-use crate::scene::{Effect, Scene};
+use crate::scene::technique::{Technique, choose};
+use crate::scene::{Effect, Scene, load_base_mesh};
+use crate::util::limits::Limits;
 use serde::{Deserialize, Serialize};
 use sqlx::any::AnyRow;
 use sqlx::{AssertSqlSafe, Row};
+use std::path::Path;
 
 /// How many times a job is tried before it fails for good.
 pub const MAX_ATTEMPTS: i32 = 3;
@@ -56,12 +61,43 @@ impl JobSpec {
         }
     }
 
-    /// What the result depends on, hashed: the mesostructure, its grids and the package
-    /// parameters; with environment lighting also what the PRT and RTV depend on (the base
-    /// mesh, the material, the GI knobs and effects). Not the camera, lights or environment,
-    /// which a package does not hold.
-    pub fn dedup_key(&self) -> String {
+    /// The job's plan: the technique chosen for the scene on its base mesh (uploaded assets
+    /// in `blobs`) and the scene's stages ([`crate::scene::plan::plan`]), then `store`.
+    /// Package parameters that do not apply to the technique are an error.
+    pub fn plan(&self, blobs: &BlobStore, limits: &Limits) -> Result<Plan> {
+        let mut scene = self.scene.clone();
+        resolve_assets(&mut scene, blobs)?;
+        let (_, base) = load_base_mesh(&scene, Path::new("/"), limits)?;
+        let technique = choose(&scene, &base);
+        check_params(&technique, self.package_params())?;
+        let mut plan = crate::scene::plan::plan(&scene, self.codec, technique);
+        plan.stages.push("store".into());
+        Ok(plan)
+    }
+
+    /// What the result depends on, hashed, for a package of `technique`. A VDM package: the
+    /// height field, the VDM settings, and what the relief's depth depends on (the base
+    /// mesh, its scale and the shell). A GDM package: the mesostructure, its grids and the
+    /// package parameters; with environment lighting also what the PRT and RTV depend on
+    /// (the base mesh, the material, the GI knobs and effects). Never the camera, lights or
+    /// environment, which a package does not hold.
+    pub fn dedup_key(&self, technique: Technique) -> String {
         let s = &self.scene;
+        if technique == Technique::Vdm {
+            let key = serde_json::json!({
+                "version": crate::package::container::VERSION,
+                "technique": technique,
+                "mesostructure": s.mesostructure,
+                "resolution": s.resolution,
+                "vdm": s.vdm,
+                "base_mesh": s.base_mesh,
+                "mesh_scale": s.mesh_scale,
+                "shell": s.shell,
+            });
+            return blake3::hash(key.to_string().as_bytes())
+                .to_hex()
+                .to_string();
+        }
         let mut key = serde_json::json!({
             "version": crate::package::container::VERSION,
             "mesostructure": s.mesostructure,
@@ -91,14 +127,6 @@ impl JobSpec {
             .to_hex()
             .to_string()
     }
-}
-
-/// The stages of a bake job for `spec`: the scene's ([`crate::scene::plan::plan`]), then
-/// `store`.
-pub fn plan(spec: &JobSpec) -> Plan {
-    let mut plan = crate::scene::plan::plan(&spec.scene, spec.codec);
-    plan.stages.push("store".into());
-    plan
 }
 
 /// A job as the API shows it.
@@ -147,6 +175,8 @@ pub struct Claimed {
     pub id: String,
     /// What to bake.
     pub spec: JobSpec,
+    /// Its plan, as made at submission.
+    pub plan: Plan,
     /// This attempt's number (1 for the first).
     pub attempt: i32,
     /// When the job became runnable (its submission or its retry's backoff), Unix ms.
@@ -187,13 +217,14 @@ fn new_id() -> String {
 }
 
 impl Db {
-    /// Submits `spec`: a new queued job, or the existing job with the same inputs and
-    /// parameters (re-queued if it failed or was cancelled). Returns the job and whether a
-    /// bake was queued.
-    pub async fn submit_job(&self, spec: &JobSpec) -> Result<(JobView, bool)> {
-        let key = spec.dedup_key();
+    /// Submits `spec` with its `plan` ([`JobSpec::plan`]): a new queued job, or the existing
+    /// job with the same inputs and parameters (re-queued if it failed or was cancelled).
+    /// Returns the job and whether a bake was queued.
+    pub async fn submit_job(&self, spec: &JobSpec, plan: &Plan) -> Result<(JobView, bool)> {
+        let technique = plan.technique.technique;
+        let key = spec.dedup_key(technique);
         let now = now_ms();
-        let plan = serde_json::to_string(&plan(spec)).expect("plans serialize");
+        let plan = serde_json::to_string(plan).expect("plans serialize");
         let spec_text = serde_json::to_string(spec).expect("specs serialize");
         let inserted = sqlx::query(
             "INSERT INTO jobs (id, dedup_key, spec, plan, state, stage, progress, attempts, \
@@ -226,7 +257,7 @@ impl Db {
             .map_err(db_error)?
             .rows_affected()
                 == 1;
-        let job = self.job_for(spec).await?.ok_or_else(|| {
+        let job = self.job_for(spec, technique).await?.ok_or_else(|| {
             Error::Database(format!(
                 "the job of dedup key {key} vanished after its insert"
             ))
@@ -234,10 +265,12 @@ impl Db {
         Ok((job, inserted || requeued))
     }
 
-    /// The job of `spec` (same inputs and parameters), if one was ever submitted: a read, so
-    /// that callers that only need a finished result (the preview) write nothing.
-    pub async fn job_for(&self, spec: &JobSpec) -> Result<Option<JobView>> {
-        self.job_where("dedup_key", &spec.dedup_key()).await
+    /// The job of `spec` (same inputs and parameters) for a package of `technique`, if one was
+    /// ever submitted: a read, so that callers that only need a finished result (the
+    /// preview) write nothing.
+    pub async fn job_for(&self, spec: &JobSpec, technique: Technique) -> Result<Option<JobView>> {
+        self.job_where("dedup_key", &spec.dedup_key(technique))
+            .await
     }
 
     /// The job `id`.
@@ -282,7 +315,7 @@ impl Db {
             "UPDATE jobs SET state = 'running', lease_owner = $1, lease_expires_ms = $2, \
              attempts = attempts + 1, updated_ms = $3 \
              WHERE id = (SELECT id FROM jobs WHERE {runnable} ORDER BY created_ms, id LIMIT 1) \
-             AND {runnable} RETURNING id, spec, attempts, run_after_ms"
+             AND {runnable} RETURNING id, spec, plan, attempts, run_after_ms"
         )))
         .bind(worker)
         .bind(now + lease_ms)
@@ -296,6 +329,8 @@ impl Db {
             id: row.try_get("id").map_err(db_error)?,
             spec: serde_json::from_str(&spec)
                 .map_err(|e| Error::Database(format!("job spec: {e}")))?,
+            plan: serde_json::from_value(json(&row, "plan")?)
+                .map_err(|e| Error::Database(format!("job plan: {e}")))?,
             attempt: row.try_get("attempts").map_err(db_error)?,
             ready_ms: row.try_get("run_after_ms").map_err(db_error)?,
         }))

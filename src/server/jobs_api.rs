@@ -6,6 +6,7 @@ use super::jobs::{JobSpec, JobView, check_job_id};
 use super::json_body::JsonBody;
 use super::request_limits::check_scene_cost;
 use crate::package::bake::check_codec_options;
+use crate::scene::plan::Plan;
 use crate::scene::{BaseMeshSource, MesostructureSource, Scene};
 use axum::Json;
 use axum::extract::{Path, State};
@@ -63,25 +64,29 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
     Ok(())
 }
 
-/// Checks a job specification: the scene is valid and within the server's cost limits, the
-/// codec options as the CLI checks them ([`check_codec_options`]), and every asset it names
-/// uploaded as the right kind.
-pub async fn check_spec(state: &AppState, spec: &JobSpec) -> ApiResult<()> {
+/// Checks a job specification and returns its plan: the scene is valid and within the
+/// server's cost limits, the codec options as the CLI checks them
+/// ([`check_codec_options`]), every asset it names uploaded as the right kind, and the
+/// package parameters apply to the technique chosen ([`JobSpec::plan`]).
+pub async fn check_spec(state: &AppState, spec: &JobSpec) -> ApiResult<Plan> {
     // Deserializing does not validate a scene; parsing its text does.
     let text = serde_json::to_string(&spec.scene).expect("scenes serialize");
     Scene::from_json(&text)?;
     check_codec_options(spec.codec, spec.rank, spec.quantization)
         .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
     check_scene_cost(&spec.scene, &state.config, &state.limits)?;
-    check_assets(state, &spec.scene).await
+    check_assets(state, &spec.scene).await?;
+    let (spec, blobs, limits) = (spec.clone(), state.blobs.clone(), state.limits);
+    let plan = tokio::task::spawn_blocking(move || spec.plan(&blobs, &limits)).await??;
+    Ok(plan)
 }
 
-/// Submits `spec` (checked) to the queue, refusing with 429 a new job beyond
+/// Submits `spec` (checked) with its `plan` to the queue, refusing with 429 a new job beyond
 /// [`ServerConfig::max_queued_jobs`](super::config::ServerConfig::max_queued_jobs).
-pub async fn enqueue(state: &AppState, spec: &JobSpec) -> ApiResult<(JobView, bool)> {
+pub async fn enqueue(state: &AppState, spec: &JobSpec, plan: &Plan) -> ApiResult<(JobView, bool)> {
     let adds_a_job = state
         .db
-        .job_for(spec)
+        .job_for(spec, plan.technique.technique)
         .await?
         .is_none_or(|j| matches!(j.state.as_str(), "failed" | "cancelled"));
     if adds_a_job {
@@ -96,7 +101,7 @@ pub async fn enqueue(state: &AppState, spec: &JobSpec) -> ApiResult<(JobView, bo
             ));
         }
     }
-    let (job, queued) = state.db.submit_job(spec).await?;
+    let (job, queued) = state.db.submit_job(spec, plan).await?;
     if queued {
         tracing::info!("job {} queued", job.id);
     }
@@ -120,8 +125,8 @@ pub async fn submit(
     State(state): State<AppState>,
     JsonBody(spec): JsonBody<JobSpec>,
 ) -> ApiResult<(StatusCode, Json<JobView>)> {
-    check_spec(&state, &spec).await?;
-    let (job, queued) = enqueue(&state, &spec).await?;
+    let plan = check_spec(&state, &spec).await?;
+    let (job, queued) = enqueue(&state, &spec, &plan).await?;
     let status = if queued {
         StatusCode::ACCEPTED
     } else {

@@ -301,7 +301,8 @@ pub async fn seed_sample(state: &AppState) -> Result<()> {
     let scene = crate::scene::Scene::from_json(preview_api::SAMPLE_SCENE)?;
     let spec: jobs::JobSpec = serde_json::from_value(serde_json::json!({ "scene": scene }))
         .map_err(|e| Error::Scene(e.to_string()))?;
-    let (job, queued) = state.db.submit_job(&spec).await?;
+    let plan = spec.plan(&state.blobs, &state.limits)?;
+    let (job, queued) = state.db.submit_job(&spec, &plan).await?;
     eprintln!(
         "sample scene: job {} {}",
         job.id,

@@ -11,7 +11,7 @@ use super::json_body::JsonBody;
 use super::preview_cache;
 use super::worker::resolve_assets;
 use crate::error::{Error, Result};
-use crate::package::Package;
+use crate::package::AnyPackage;
 use crate::scene::preview::PreviewDevice;
 use crate::scene::{Effect, EnvironmentSource, LoadedScene, Scene};
 use axum::Json;
@@ -26,6 +26,10 @@ use tokio::sync::Semaphore;
 
 /// The built-in sample scene (`scenes/torus-chain.json`).
 pub const SAMPLE_SCENE: &str = include_str!("../../scenes/torus-chain.json");
+
+/// The header that says which technique's pipeline drew a preview: `gdm` or `vdm` (the
+/// plan's choice for the scene).
+pub const TECHNIQUE_HEADER: &str = "x-mesobake-technique";
 
 /// The header that says which renderer drew a preview: `gpu`, or `cpu` (the CPU twin, where
 /// no GPU adapter exists).
@@ -64,7 +68,7 @@ fn render_png(
     package: Vec<u8>,
     state: &AppState,
 ) -> Result<(Vec<u8>, &'static str)> {
-    let package = Package::parse(package)?;
+    let package = AnyPackage::parse(package)?;
     let mut scene = scene.clone();
     resolve_assets(&mut scene, &state.blobs)?;
     let loaded = LoadedScene::load(scene, Path::new("/"), &state.limits)?;
@@ -138,7 +142,7 @@ pub async fn render(
     JsonBody(spec): JsonBody<JobSpec>,
 ) -> ApiResult<Response> {
     let start = Instant::now();
-    check_spec(&state, &spec).await?;
+    let plan = check_spec(&state, &spec).await?;
     let lit_by_exr = matches!(spec.scene.environment, Some(EnvironmentSource::Exr(_)))
         && spec.scene.wants(Effect::EnvironmentLighting);
     if lit_by_exr {
@@ -149,9 +153,9 @@ pub async fn render(
                 .to_owned(),
         ));
     }
-    let job = match state.db.job_for(&spec).await? {
+    let job = match state.db.job_for(&spec, plan.technique.technique).await? {
         Some(job) if job.state == "succeeded" => job,
-        _ => enqueue(&state, &spec).await?.0,
+        _ => enqueue(&state, &spec, &plan).await?.0,
     };
     let Some(digest) = job
         .package_digest
@@ -212,6 +216,10 @@ pub async fn render(
             (header::CONTENT_TYPE, "image/png"),
             (header::CACHE_CONTROL, "no-cache"),
             (header::HeaderName::from_static(RENDERER_HEADER), renderer),
+            (
+                header::HeaderName::from_static(TECHNIQUE_HEADER),
+                plan.technique.technique.name(),
+            ),
         ],
         png,
     )

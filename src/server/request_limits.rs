@@ -5,6 +5,7 @@
 use super::api_error::{ApiError, ApiResult};
 use super::config::ServerConfig;
 use crate::error::Error;
+use crate::scene::technique::{Technique, is_height_field};
 use crate::scene::{BaseMeshSource, Scene};
 use crate::util::limits::Limits;
 use axum::http::StatusCode;
@@ -52,5 +53,20 @@ pub fn check_scene_cost(scene: &Scene, config: &ServerConfig, limits: &Limits) -
             4,
         )
         .map_err(|e: Error| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
+    if is_height_field(scene) && scene.technique != Technique::Gdm {
+        let g = scene.vdm.grid();
+        let samples = [g.n_theta, g.n_phi, g.n_curvature, scene.resolution[0]]
+            .into_iter()
+            .fold(u64::from(scene.resolution[1]), |n, m| {
+                n.saturating_mul(m.into())
+            });
+        limits
+            .check(
+                "the scene's VDM (texels × view directions × curvatures × 4 bytes)",
+                samples,
+                4,
+            )
+            .map_err(|e: Error| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
+    }
     Ok(())
 }

@@ -9,7 +9,7 @@ use super::db::{PackageRow, now_ms};
 use super::jobs::{Claimed, JobSpec, MAX_ATTEMPTS};
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
-use crate::package::Package;
+use crate::package::AnyPackage;
 use crate::scene::package::bake_scene_package;
 use crate::scene::{BaseMeshSource, LoadedScene, MesostructureSource, Scene};
 use crate::util::limits::Limits;
@@ -58,8 +58,8 @@ pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
 /// Relative cost of each stage, for the job's overall progress.
 fn stage_weight(stage: &str) -> f64 {
     match stage {
-        "bake_gdm" | "bake_rtv" => 10.0,
-        "compress" => 3.0,
+        "bake_gdm" | "bake_rtv" | "bake_vdm" => 10.0,
+        "compress" | "compress_vdm" => 3.0,
         "bake_prt" | "compress_rtv" => 2.0,
         _ => 1.0,
     }
@@ -193,7 +193,7 @@ async fn run(state: &AppState, worker: &str, job: Claimed, stop: &AtomicBool) ->
         job.id,
         job.attempt
     );
-    let shared = Arc::new(Shared::new(super::jobs::plan(&job.spec).stages));
+    let shared = Arc::new(Shared::new(job.plan.stages.clone()));
     let (spec, blobs, limits) = (job.spec.clone(), state.blobs.clone(), state.limits);
     let task = {
         let shared = shared.clone();
@@ -201,10 +201,10 @@ async fn run(state: &AppState, worker: &str, job: Claimed, stop: &AtomicBool) ->
             let (bytes, mut seconds) = bake(&spec, &blobs, &limits, &shared)?;
             shared.stage("store");
             let start = Instant::now();
-            let package = Package::parse(bytes.clone())?;
+            let package = AnyPackage::parse(bytes.clone())?;
             let digest = blobs.put(&bytes)?;
             seconds.push(("store".into(), start.elapsed().as_secs_f64()));
-            let manifest = serde_json::to_value(package.manifest()).expect("manifests serialize");
+            let manifest = package.manifest_json();
             Ok::<_, Error>((digest, bytes.len(), manifest, seconds))
         })
     };
