@@ -285,12 +285,16 @@ async fn upload_bake_and_preview_in_a_browser() {
         .unwrap();
     assert_eq!(quality, serde_json::json!(["high", true, true]));
 
-    // A height-field relief on the (closed) torus: the technique stays auto, the job's plan
-    // picks VDM and the job list says so, and the preview is drawn by the VDM pipeline.
+    // A height-field relief on the (closed) torus, in a shell thin enough for the VDM's
+    // curvature range: the technique stays auto, the job's plan picks VDM and the job list
+    // says so, and the preview is drawn by the VDM pipeline.
     let chosen = c
         .execute(
             "const m = document.getElementById('sample'); m.value = 'relief:bumps'; \
              m.dispatchEvent(new Event('change')); \
+             const t = document.getElementById('scene-json'); \
+             const thin = JSON.parse(t.value); thin.shell.thickness = 0.04; \
+             t.value = JSON.stringify(thin, null, 2); \
              const s = JSON.parse(document.getElementById('scene-json').value); \
              return [s.mesostructure, s.resolution[0] === s.resolution[1], \
              document.getElementById('technique').value];",

@@ -626,7 +626,12 @@ impl LoadedScene {
 
     /// The technique that renders the scene, and why ([`technique::choose`]).
     pub fn technique(&self) -> TechniqueChoice {
-        technique::choose(&self.scene, &self.base_report)
+        technique::choose(&self.scene, &self.surface())
+    }
+
+    /// What the technique's choice needs to know of the scene's surface.
+    pub fn surface(&self) -> technique::Surface {
+        technique::Surface::of(&self.base_report, &self.shell)
     }
 
     /// Bakes the exact GDM of the scene's mesostructure on its grids.

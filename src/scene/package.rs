@@ -26,7 +26,7 @@ use crate::package::vdm as vdm_package;
 use crate::package::{AnyPackage, GdmPayload, Package};
 use crate::scene::gi::{prt_matrices, rtv_params};
 use crate::scene::plan::{Plan, plan};
-use crate::scene::technique::{Technique, TechniqueChoice};
+use crate::scene::technique::{self, Technique, TechniqueChoice};
 use crate::scene::{Effect, LoadedScene, MesostructureSource, Scene};
 use crate::util::limits::Limits;
 use mesobake_package::vdm::VdmAccuracy;
@@ -137,6 +137,7 @@ fn bake_technique_package(
     observer: &dyn BakeObserver,
 ) -> Result<ScenePackage> {
     let scene = &loaded.scene;
+    technique::check(scene, &technique, &loaded.surface())?;
     check_params(&technique, params)?;
     let plan = plan(scene, params.codec, technique);
     let input = input_identity(scene, scene_dir)?;

@@ -8,12 +8,14 @@
 //! boundary the VDM has no side faces, so the relief is lost at the edges, which the GDM's
 //! fins keep), lit by point and directional lights only (environment lighting needs the
 //! RTV, which is baked from the GDM), with the GDM renderer's accuracy knobs at the paper's
-//! setting (they set nothing in a VDM render). Everywhere else it picks GDM.
+//! setting (they set nothing in a VDM render), and a relief shallow enough for the VDM's
+//! curvature range (|c|·depth < 1 in tiles). Everywhere else it picks GDM.
 
 use super::{Effect, MesostructureSource, Scene};
 use crate::error::{Error, Result};
 use crate::render::quality::Quality;
 use crate::surface::base_mesh::MeshReport;
+use crate::surface::shell::Shell;
 use serde::{Deserialize, Serialize};
 
 /// The technique a scene asks for.
@@ -64,6 +66,49 @@ impl Default for TechniqueChoice {
     }
 }
 
+/// What the choice needs to know of a scene's surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Base-mesh edges used by one triangle (0: a closed surface).
+    pub boundary_edges: usize,
+    /// The relief's depth in tiles on the shell ([`super::vdm::relief_depth`]); none where the
+    /// shell has no area to map a relief onto.
+    pub relief_depth: Option<f64>,
+}
+
+impl Surface {
+    /// The facts of a base mesh validated as `base`, extruded into `shell`.
+    pub fn of(base: &MeshReport, shell: &Shell) -> Surface {
+        Surface {
+            boundary_edges: base.boundary_edges,
+            relief_depth: super::vdm::relief_depth(shell).ok(),
+        }
+    }
+
+    /// Why the scene's VDM grid cannot hold its relief on this surface, if it cannot.
+    fn vdm_misfit(&self, scene: &Scene) -> Option<String> {
+        let Some(depth) = self.relief_depth else {
+            return Some("the shell's reference surface has no area to map a relief onto".into());
+        };
+        let e = scene.vdm.grid().validate(depth).err()?;
+        Some(format!(
+            "the relief is {depth:.3} tiles deep on this shell, too deep for the VDM's \
+             curvature range ({e}); a thinner shell or a narrower vdm.curvature_range fits it"
+        ))
+    }
+}
+
+/// Checks that a scene whose technique is `choice` can bake it on `surface`: a VDM's grid
+/// must hold the relief's depth.
+pub fn check(scene: &Scene, choice: &TechniqueChoice, surface: &Surface) -> Result<()> {
+    match surface.vdm_misfit(scene) {
+        Some(why) if choice.technique == Technique::Vdm => {
+            Err(Error::Scene(format!("technique vdm: {why}")))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Whether the scene's mesostructure is a height field (a PNG or a built-in relief).
 pub fn is_height_field(scene: &Scene) -> bool {
     matches!(
@@ -95,10 +140,10 @@ pub fn validate(scene: &Scene) -> Result<()> {
     Ok(())
 }
 
-/// The technique for `scene` on a base mesh that validated as `base` says: the scene's own,
-/// or `auto` resolved as the module documentation says.
-pub fn choose(scene: &Scene, base: &MeshReport) -> TechniqueChoice {
-    let open = match base.boundary_edges {
+/// The technique for `scene` on `surface`: the scene's own, or `auto` resolved as the
+/// module documentation says.
+pub fn choose(scene: &Scene, surface: &Surface) -> TechniqueChoice {
+    let open = match surface.boundary_edges {
         0 => None,
         edges => Some(format!(
             "the base mesh is open ({edges} boundary edges), where VDM loses the relief at the \
@@ -129,7 +174,7 @@ pub fn choose(scene: &Scene, base: &MeshReport) -> TechniqueChoice {
                         .to_owned(),
                 )
             } else {
-                open
+                open.or_else(|| surface.vdm_misfit(scene))
             };
             match gdm {
                 Some(why) => (Technique::Gdm, format!("auto: {why}")),
@@ -172,12 +217,16 @@ mod tests {
     const RELIEF: &str = r#"{ "relief": "bumps" }"#;
     const VOLUME: &str = r#"{ "sample": "weave" }"#;
 
-    fn chosen(s: &Scene) -> TechniqueChoice {
-        let (_, report) = match &s.base_mesh {
+    fn surface(s: &Scene) -> Surface {
+        let (base, report) = match &s.base_mesh {
             crate::scene::BaseMeshSource::Builtin(b) => b.build().unwrap(),
             _ => unreachable!(),
         };
-        choose(s, &report)
+        Surface::of(&report, &Shell::new(&base, s.shell).unwrap())
+    }
+
+    fn chosen(s: &Scene) -> TechniqueChoice {
+        choose(s, &surface(s))
     }
 
     #[test]
@@ -203,6 +252,10 @@ mod tests {
                 scene(RELIEF, TORUS, r#", "gdm_refinements": 2"#),
                 "accuracy knobs",
             ),
+            (
+                scene(RELIEF, TORUS, r#", "vdm": { "curvature_range": [-9, 9] }"#),
+                "too deep for the VDM's curvature range",
+            ),
         ] {
             let c = chosen(&s.unwrap());
             assert_eq!(c.technique, Technique::Gdm, "{c:?}");
@@ -220,6 +273,22 @@ mod tests {
         let c = chosen(&scene(RELIEF, PLANE, r#", "technique": "vdm""#).unwrap());
         assert_eq!(c.technique, Technique::Vdm);
         assert!(c.reason.contains("loses the relief at the edges"), "{c:?}");
+        // Asked for where its grid cannot hold the relief: an error naming both.
+        let s = scene(
+            RELIEF,
+            TORUS,
+            r#", "technique": "vdm", "vdm": { "curvature_range": [-9, 9] }"#,
+        )
+        .unwrap();
+        let e = check(&s, &chosen(&s), &surface(&s))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("technique vdm: the relief is") && e.contains("|c|·depth"),
+            "{e}"
+        );
+        let s = scene(RELIEF, TORUS, "").unwrap();
+        check(&s, &chosen(&s), &surface(&s)).unwrap();
     }
 
     #[test]

@@ -19,8 +19,9 @@ use crate::error::{Error, Result};
 use crate::package::manifest::GdmCodec;
 use crate::scene::package::{ScenePackageParams, check_params};
 use crate::scene::plan::Plan;
-use crate::scene::technique::{Technique, choose};
+use crate::scene::technique::{Surface, Technique, check, choose};
 use crate::scene::{Effect, Scene, load_base_mesh};
+use crate::surface::shell::Shell;
 use crate::util::limits::Limits;
 use serde::{Deserialize, Serialize};
 use sqlx::any::AnyRow;
@@ -67,8 +68,10 @@ impl JobSpec {
     pub fn plan(&self, blobs: &BlobStore, limits: &Limits) -> Result<Plan> {
         let mut scene = self.scene.clone();
         resolve_assets(&mut scene, blobs)?;
-        let (_, base) = load_base_mesh(&scene, Path::new("/"), limits)?;
-        let technique = choose(&scene, &base);
+        let (base, report) = load_base_mesh(&scene, Path::new("/"), limits)?;
+        let surface = Surface::of(&report, &Shell::new(&base, scene.shell)?);
+        let technique = choose(&scene, &surface);
+        check(&scene, &technique, &surface)?;
         check_params(&technique, self.package_params())?;
         let mut plan = crate::scene::plan::plan(&scene, self.codec, technique);
         plan.stages.push("store".into());
