@@ -926,9 +926,10 @@ async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeli
             .send()
             .await
             .unwrap();
-        assert_eq!(r.status(), 200);
-        assert_eq!(r.headers()["x-mesobake-technique"], "vdm");
+        let (status, technique) = (r.status(), r.headers().get("x-mesobake-technique").cloned());
         let png = r.bytes().await.unwrap();
+        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&png));
+        assert_eq!(technique.unwrap(), "vdm");
         let shown = data.path().join("preview.png");
         std::fs::write(&shown, &png).unwrap();
         let loaded = LoadedScene::load(

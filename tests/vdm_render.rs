@@ -105,20 +105,21 @@ fn an_oblique_view_and_a_closed_curved_surface_stay_near_the_truth() {
 
 #[test]
 fn grazing_views_keep_the_relief_and_its_silhouettes() {
-    // The eye 6° above the flat plane's far half: every ray crosses many tiles inside the
-    // slab, the VDM's θ bins near π/2 and its MVM decide the relief's silhouettes against
-    // the sky. Measured GRAZING_MEASURED.
+    // The torus seen edge-on from 3° above its plane: most of it is seen at grazing angles
+    // (the VDM's last θ bins and its MVM decide the silhouettes against the background)
+    // and across the saddle of its inner side. Measured 16.9 dB, mask 1.23 %: no worse than
+    // the oblique view of the same torus.
+    let torus = r#"{ "builtin": { "torus": { "major_radius": 1.0, "minor_radius": 0.4, "segments": [96, 48] } } }"#;
     let loaded = scene(
-        PLANE,
-        PLANE_SHELL,
-        [0.0, 0.2, 1.9],
-        &["silhouettes"],
-        UNCOMPRESSED,
+        torus,
+        r#"{ "thickness": 0.04, "tiles_per_uv": [24, 10] }"#,
+        [0.0, 0.18, 3.6],
+        &["silhouettes", "shadows"],
+        "{}",
     );
     let c = vdm_against_truth(&loaded);
-    eprintln!("grazing: {c:?}");
-    assert!(c.mask_disagreement <= 1.0, "{c:?}");
-    assert!(c.psnr_db >= 0.0, "{c:?}");
+    assert!(c.mask_disagreement <= 0.015, "{c:?}");
+    assert!(c.psnr_db >= 16.0, "{c:?}");
 }
 
 #[test]

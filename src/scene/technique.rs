@@ -253,7 +253,11 @@ mod tests {
                 "accuracy knobs",
             ),
             (
-                scene(RELIEF, TORUS, r#", "vdm": { "curvature_range": [-9, 9] }"#),
+                scene(
+                    RELIEF,
+                    TORUS,
+                    r#", "vdm": { "curvature_range": [-30, 30] }"#,
+                ),
                 "too deep for the VDM's curvature range",
             ),
         ] {
@@ -277,7 +281,7 @@ mod tests {
         let s = scene(
             RELIEF,
             TORUS,
-            r#", "technique": "vdm", "vdm": { "curvature_range": [-9, 9] }"#,
+            r#", "technique": "vdm", "vdm": { "curvature_range": [-30, 30] }"#,
         )
         .unwrap();
         let e = check(&s, &chosen(&s), &surface(&s))

@@ -65,10 +65,12 @@ async fn evict(state: &AppState) -> Result<()> {
     let pool = &state.db.pool;
     let budget = i64::try_from(state.config.preview_cache_bytes).unwrap_or(i64::MAX);
     loop {
-        let total: i64 = sqlx::query_scalar("SELECT COALESCE(SUM(bytes), 0) FROM previews")
-            .fetch_one(pool)
-            .await
-            .map_err(db_error)?;
+        // PostgreSQL sums BIGINTs as NUMERIC, which the Any driver cannot decode.
+        let total: i64 =
+            sqlx::query_scalar("SELECT CAST(COALESCE(SUM(bytes), 0) AS BIGINT) FROM previews")
+                .fetch_one(pool)
+                .await
+                .map_err(db_error)?;
         if total <= budget {
             return Ok(());
         }
