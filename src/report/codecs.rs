@@ -16,7 +16,7 @@ use crate::compress::quantize::Quantization;
 use crate::compress::split::{CAP_MARGIN, SplitGdm, compress_split};
 use crate::compress::svd::RankChoice;
 use crate::compress::tiled::compress_tiled;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::grid::DirectionGrid;
 use crate::package::bake::check_codec_options;
 use crate::package::manifest::GdmCodec;
@@ -26,6 +26,7 @@ use crate::render::gdm_renderer::{GdmRenderer, longest_segment, prepare_prisms};
 use crate::render::image::compare;
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
+use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::LoadedScene;
@@ -167,15 +168,7 @@ pub fn codec_report(
     let tiled = sweep.tiles.len() * sweep.ranks.len();
     let split = sweep.visibility.len() * (1 + sweep.tiles.len()) * sweep.ranks.len();
     let total = (scenes.len() * (2 + settings.len() + tiled + split)) as u64;
-    let mut done = 0;
-    let mut step = || {
-        if observer.cancelled() {
-            return Err(Error::Cancelled);
-        }
-        done += 1;
-        observer.progress(done, total);
-        Ok(())
-    };
+    let mut steps = Steps::new(observer, total);
     let mut report = CodecReport {
         adapter: gpu.as_ref().map(|g| g.adapter.name.clone()),
         truth_s: Vec::new(),
@@ -191,7 +184,7 @@ pub fn codec_report(
         report
             .truth_s
             .push((name.clone(), start.elapsed().as_secs_f64()));
-        step()?;
+        steps.step()?;
         // One row: the CPU renderer's image with `lookup` against the truth, with the rest.
         let row = |(codec, series, rank): (&str, String, Option<usize>),
                    (bytes, bake_s): (u64, f64),
@@ -250,7 +243,7 @@ pub fn codec_report(
             &RawLookup::new(&exact),
             (None, None),
         )?);
-        step()?;
+        steps.step()?;
 
         for &(params, rank) in &settings {
             let start = Instant::now();
@@ -284,7 +277,7 @@ pub fn codec_report(
                 &*package_lookup(&package)?,
                 realtime,
             )?);
-            step()?;
+            steps.step()?;
         }
 
         let mut boundary = exact.clone();
@@ -306,7 +299,7 @@ pub fn codec_report(
                     &RawLookup::new(&t.reconstruction),
                     (None, None),
                 )?);
-                step()?;
+                steps.step()?;
             }
         }
 
@@ -343,7 +336,7 @@ pub fn codec_report(
                         &SplitLookup::new(&split),
                         (None, None),
                     )?);
-                    step()?;
+                    steps.step()?;
                 }
             }
         }

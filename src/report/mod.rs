@@ -12,3 +12,35 @@ pub mod plot;
 pub mod quality;
 pub mod render;
 pub mod vdm;
+
+use crate::bake::gdm::BakeObserver;
+use crate::error::{Error, Result};
+
+/// A report's progress: counts its finished steps out of a total for an observer, and stops
+/// the report at a cancellation.
+pub struct Steps<'o> {
+    observer: &'o dyn BakeObserver,
+    done: u64,
+    total: u64,
+}
+
+impl<'o> Steps<'o> {
+    /// Progress over `total` steps, told to `observer`.
+    pub fn new(observer: &'o dyn BakeObserver, total: u64) -> Steps<'o> {
+        Steps {
+            observer,
+            done: 0,
+            total,
+        }
+    }
+
+    /// One more step done; an error if a cancellation was asked for.
+    pub fn step(&mut self) -> Result<()> {
+        if self.observer.cancelled() {
+            return Err(Error::Cancelled);
+        }
+        self.done += 1;
+        self.observer.progress(self.done, self.total);
+        Ok(())
+    }
+}

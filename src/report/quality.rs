@@ -14,6 +14,7 @@ use crate::render::image::compare;
 use crate::render::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
+use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
@@ -104,15 +105,7 @@ pub fn quality_report(
         None
     };
     let total = (scenes.len() * (2 + settings.len())) as u64;
-    let mut done = 0;
-    let mut step = || {
-        if observer.cancelled() {
-            return Err(Error::Cancelled);
-        }
-        done += 1;
-        observer.progress(done, total);
-        Ok(())
-    };
+    let mut steps = Steps::new(observer, total);
     let mut report = QualityReport {
         adapter: gpu.as_ref().map(|g| g.adapter.name.clone()),
         truths: Vec::new(),
@@ -129,11 +122,11 @@ pub fn quality_report(
         report
             .truths
             .push((name.clone(), start.elapsed().as_secs_f64()));
-        step()?;
+        steps.step()?;
         let package: Package =
             gdm_scene_package(loaded, dir, ScenePackageParams::default(), limits, &())?;
         let lookup = package_lookup(&package)?;
-        step()?;
+        steps.step()?;
         let scene_quality = loaded.scene.quality;
         for &quality in settings {
             quality.validate()?;
@@ -173,7 +166,7 @@ pub fn quality_report(
                 frame_ms,
                 realtime_psnr_db,
             });
-            step()?;
+            steps.step()?;
         }
     }
     Ok(report)

@@ -13,7 +13,7 @@ use crate::bake::vdm::compare::{VdmError, compare as compare_vdm};
 use crate::bake::vdm::{self, Vdm, VdmMethod};
 use crate::compress::quantize::Quantization;
 use crate::compress::vdm::compress;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::package::vdm as vdm_package;
 use crate::realtime::gpu::Gpu;
 use crate::realtime::vdm_pipeline::VdmPreview;
@@ -23,6 +23,7 @@ use crate::render::image::{Comparison, Image, compare};
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::render::vdm_renderer::VdmRenderer;
+use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::LoadedScene;
@@ -168,15 +169,7 @@ pub fn vdm_report(
     };
     let settings = settings(scene.vdm, sweep);
     let total = settings.len() as u64 + 2;
-    let mut done = 0;
-    let mut step = || {
-        if observer.cancelled() {
-            return Err(Error::Cancelled);
-        }
-        done += 1;
-        observer.progress(done, total);
-        Ok(())
-    };
+    let mut steps = Steps::new(observer, total);
     let start = Instant::now();
     let truth = {
         let r = TruthRenderer::new(
@@ -187,7 +180,7 @@ pub fn vdm_report(
         render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
     };
     let truth_s = start.elapsed().as_secs_f64();
-    step()?;
+    steps.step()?;
     let mut report = VdmReport {
         scene: name.to_owned(),
         adapter: gpu.as_ref().map(|g| g.adapter.name.clone()),
@@ -245,7 +238,7 @@ pub fn vdm_report(
             realtime,
             &truth,
         )?);
-        step()?;
+        steps.step()?;
     }
     report.rows.push(gdm_row(
         loaded,
@@ -255,7 +248,7 @@ pub fn vdm_report(
         &truth,
         limits,
     )?);
-    step()?;
+    steps.step()?;
     Ok(report)
 }
 

@@ -230,24 +230,8 @@ pub fn gdm_preview(
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
     let preview = Preview::new(gpu, loaded, package, true)?;
-    let setup_seconds = start.elapsed().as_secs_f64();
-    let (image, first_frame_seconds, mean_frame_seconds) = run_frames(
-        || preview.render(),
-        |n| preview.time_frames(n, observer),
-        frames,
-        observer,
-    )?;
-    let report = PreviewReport {
-        adapter: gpu.adapter.clone(),
-        technique: Technique::Gdm,
-        variant: Some(preview.variant()),
-        memory: preview.memory(),
-        setup_seconds,
-        first_frame_seconds,
-        mean_frame_seconds,
-        frames,
-    };
-    Ok((image, report))
+    let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
+    measure(gpu, &preview, Technique::Gdm, setup, frames, observer)
 }
 
 /// [`preview`] by the VDM pipeline.
@@ -265,42 +249,69 @@ fn vdm_preview(
         depth: package.manifest().relief.depth,
     };
     let preview = VdmPreview::new(gpu, loaded, &package.query(), relief)?;
-    let setup_seconds = start.elapsed().as_secs_f64();
-    let (image, first_frame_seconds, mean_frame_seconds) = run_frames(
-        || preview.render(),
-        |n| preview.time_frames(n, observer),
-        frames,
-        observer,
-    )?;
+    let setup = (None, start.elapsed().as_secs_f64());
+    measure(gpu, &preview, Technique::Vdm, setup, frames, observer)
+}
+
+/// What a preview measures of a real-time pipeline.
+trait Pipeline {
+    fn render(&self) -> Result<Image>;
+    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64>;
+    fn memory(&self) -> GpuMemory;
+}
+
+impl Pipeline for Preview<'_> {
+    fn render(&self) -> Result<Image> {
+        Preview::render(self)
+    }
+    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
+        Preview::time_frames(self, frames, observer)
+    }
+    fn memory(&self) -> GpuMemory {
+        Preview::memory(self)
+    }
+}
+
+impl Pipeline for VdmPreview<'_> {
+    fn render(&self) -> Result<Image> {
+        VdmPreview::render(self)
+    }
+    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
+        VdmPreview::time_frames(self, frames, observer)
+    }
+    fn memory(&self) -> GpuMemory {
+        VdmPreview::memory(self)
+    }
+}
+
+/// Renders the first frame of `pipeline` (timed, read-back included) and, with `frames` >
+/// 0, times that many more; `setup` is the shader variant and the seconds setting it up took.
+fn measure(
+    gpu: &Gpu,
+    pipeline: &dyn Pipeline,
+    technique: Technique,
+    (variant, setup_seconds): (Option<ShaderVariant>, f64),
+    frames: u32,
+    observer: &dyn BakeObserver,
+) -> Result<(Image, PreviewReport)> {
+    let start = Instant::now();
+    let image = pipeline.render()?;
+    let first_frame_seconds = start.elapsed().as_secs_f64();
+    let mean_frame_seconds = if frames > 0 {
+        observer.stage("timing frames");
+        Some(pipeline.time_frames(frames, observer)?)
+    } else {
+        None
+    };
     let report = PreviewReport {
         adapter: gpu.adapter.clone(),
-        technique: Technique::Vdm,
-        variant: None,
-        memory: preview.memory(),
+        technique,
+        variant,
+        memory: pipeline.memory(),
         setup_seconds,
         first_frame_seconds,
         mean_frame_seconds,
         frames,
     };
     Ok((image, report))
-}
-
-/// Renders the first frame (timed, read-back included) and, with `frames` > 0, times that
-/// many more: the image, the first frame's seconds and the mean.
-fn run_frames(
-    render: impl Fn() -> Result<Image>,
-    time: impl Fn(u32) -> Result<f64>,
-    frames: u32,
-    observer: &dyn BakeObserver,
-) -> Result<(Image, f64, Option<f64>)> {
-    let start = Instant::now();
-    let image = render()?;
-    let first = start.elapsed().as_secs_f64();
-    let mean = if frames > 0 {
-        observer.stage("timing frames");
-        Some(time(frames)?)
-    } else {
-        None
-    };
-    Ok((image, first, mean))
 }
