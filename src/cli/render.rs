@@ -69,6 +69,11 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     }
     let load_s = start.elapsed().as_secs_f64();
     let dir = scene.parent().unwrap_or(Path::new("."));
+    if package.is_some() && matches!(method, Some(RenderMethod::Truth | RenderMethod::Explicit)) {
+        return Err(Error::InvalidParameter(
+            "--package only applies to --method gdm and vdm".into(),
+        ));
+    }
     let package = package
         .map(|path| -> Result<AnyPackage> {
             let package = AnyPackage::read(&path, limits)?;
@@ -91,15 +96,10 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             Technique::Gdm | Technique::Auto => RenderMethod::Gdm,
         },
     };
-    let source = match (&package, method) {
-        (Some(_), RenderMethod::Truth | RenderMethod::Explicit) => {
-            return Err(Error::InvalidParameter(
-                "--package only applies to --method gdm and vdm".into(),
-            ));
-        }
-        (Some(AnyPackage::Gdm(p)), _) => MapSource::Package(p),
-        (Some(AnyPackage::Vdm(p)), _) => MapSource::VdmPackage(p),
-        (None, _) => MapSource::Bake,
+    let source = match &package {
+        Some(AnyPackage::Gdm(p)) => MapSource::Package(p),
+        Some(AnyPackage::Vdm(p)) => MapSource::VdmPackage(p),
+        None => MapSource::Bake,
     };
     let progress = Progress::new(match (method, &source) {
         (RenderMethod::Gdm, MapSource::Bake) => "baking GDM (exact)",
