@@ -188,3 +188,44 @@ fn mesh_grid_must_be_square() {
     );
     assert!(e.err().unwrap().to_string().contains("X = Y"));
 }
+
+fn translucent_bytes() -> Vec<u8> {
+    let d = Dims::new(4, 4, 2).unwrap();
+    let v = Volume::from_fn(d, &Limits::default(), |i, _, _| i == 0).unwrap();
+    let opacity = (0..32).map(|n| n as f32 / 31.0).collect();
+    volume_format::encode(&v.with_opacity(opacity).unwrap())
+}
+
+/// The opacity channel is version 2, round-trips byte for byte, and is refused in version 1
+/// files; opacities outside [0, 1] or non-finite are named by voxel.
+#[test]
+fn opacity_channel_is_versioned_and_validated() {
+    let bytes = translucent_bytes();
+    assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 2);
+    assert_eq!(
+        u32::from_le_bytes(sample_bytes()[8..12].try_into().unwrap()),
+        1
+    );
+    let v = volume_format::decode(&bytes, &Limits::default()).unwrap();
+    assert_eq!(v.opacity().unwrap()[31], 1.0);
+    assert_eq!(volume_format::encode(&v), bytes);
+    let mut b = bytes.clone();
+    set_u32(&mut b, 8, 1);
+    let e = decode_err(&b);
+    assert!(
+        e.contains("channel set 0x5 is invalid for version 1"),
+        "{e}"
+    );
+    for (value, shown) in [(1.5f32, "1.5"), (-0.25, "-0.25"), (f32::NAN, "NaN")] {
+        let d = Dims::new(2, 2, 2).unwrap();
+        let v = Volume::from_fn(d, &Limits::default(), |_, _, _| true).unwrap();
+        let mut opacity = vec![0.5f32; 8];
+        opacity[6] = value;
+        let e = v.with_opacity(opacity).unwrap_err().to_string();
+        assert!(e.contains("voxel (0, 1, 1)") && e.contains(shown), "{e}");
+    }
+    for len in [bytes.len() - 4, bytes.len() - 1] {
+        let e = decode_err(&bytes[..len]);
+        assert!(e.contains("truncated"), "{e}");
+    }
+}

@@ -54,6 +54,14 @@ fn every_sample_scene_previews() {
         let scene_path = dir.path().join(name);
         std::fs::write(&scene_path, scene.to_string()).unwrap();
         let out = dir.path().join(name.replace(".json", ".png"));
+        if scene["mesostructure"].get("medium").is_some() {
+            // Translucent media have no real-time pipeline yet: refused by name.
+            each_fails_with(&[(
+                vec!["preview", "--scene", scene_path.to_str().unwrap()],
+                "the mesostructure is a translucent medium",
+            )]);
+            continue;
+        }
         let environment = scene["effects"]
             .as_array()
             .unwrap()

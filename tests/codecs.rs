@@ -33,8 +33,11 @@ fn the_default_package_renders_like_the_uncompressed_gdm_on_every_sample_scene()
         }
         let mut loaded = load_scene(&path, &limits).unwrap();
         // Height-field scenes are the VDM's (tests/vdm_render.rs): their exact surface is not
-        // the voxel grid an occupancy package stores.
-        if loaded.scene.wants(Effect::EnvironmentLighting) || loaded.height_field.is_some() {
+        // the voxel grid an occupancy package stores. Translucent media have no GDM.
+        if loaded.scene.wants(Effect::EnvironmentLighting)
+            || loaded.height_field.is_some()
+            || loaded.medium.is_some()
+        {
             continue;
         }
         let camera = &mut loaded.scene.camera;

@@ -82,6 +82,7 @@ fn loaded(base: BaseMesh, volume: &Volume, shell: ShellParams, scene: &str) -> L
         mesostructure: Mesostructure::Volume(VolumeCaster::new(volume)),
         material: MaterialVolume::from_volume(volume, DVec3::splat(0.7)),
         height_field: None,
+        medium: None,
         environment: None,
     }
 }

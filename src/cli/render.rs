@@ -23,7 +23,8 @@ pub struct RenderArgs {
     /// truth: exact mapping into the real mesostructure; gdm: the real-time algorithm;
     /// vdm (height fields): the VDM real-time algorithm; explicit (mesh tiles only): the
     /// tile's triangles mapped through the shell and ray cast as a plain mesh, the truth's
-    /// independent check. Default: the kind of --package, else the scene's technique.
+    /// independent check. Default: the kind of --package, else truth for a translucent medium, else the scene's
+    /// technique.
     #[arg(long)]
     method: Option<RenderMethod>,
     /// For --method gdm or vdm: render from this (GDM or VDM) package instead of baking. It
@@ -91,6 +92,7 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         (Some(method), _) => method,
         (None, Some(AnyPackage::Gdm(_))) => RenderMethod::Gdm,
         (None, Some(AnyPackage::Vdm(_))) => RenderMethod::Vdm,
+        (None, None) if loaded.medium.is_some() => RenderMethod::Truth,
         (None, None) => match loaded.technique().technique {
             Technique::Vdm => RenderMethod::Vdm,
             Technique::Gdm | Technique::Auto => RenderMethod::Gdm,

@@ -46,7 +46,8 @@ impl Mesostructure {
 /// Loads `path`: a `.mbvol` volume, a PNG height field or an OBJ tile, told apart by content
 /// ([`FileKind`]); any other kind is refused, naming what the file holds. `res` is required
 /// for height fields and OBJ tiles (the grid to sample them on) and, for volumes, must match
-/// the volume's own resolution when given.
+/// the volume's own resolution when given. A volume with an opacity channel (a translucent
+/// medium) is refused: every caster is opaque.
 pub fn load(
     path: &Path,
     res: Option<Dims>,
@@ -72,6 +73,13 @@ pub fn load(
                     "{} is a {} volume but --res asks for {res}; volumes are baked at their own resolution",
                     path.display(),
                     volume.dims()
+                )));
+            }
+            if volume.opacity().is_some() {
+                return Err(Error::InvalidParameter(format!(
+                    "{}: {}",
+                    path.display(),
+                    crate::mesostructure::medium::translucent_refusal("a GDM bake")
                 )));
             }
             Ok(Mesostructure::Volume(VolumeCaster::new(&volume)))

@@ -88,6 +88,22 @@ impl MaterialVolume {
         )
     }
 
+    /// For a translucent medium: normals from the gradient of `opacity` (per voxel, x fastest,
+    /// in [0, 1]) as the solid fraction, and optional per-voxel sRGB albedo.
+    pub fn from_opacity(
+        dims: Dims,
+        opacity: &[f32],
+        albedo: Option<&[[u8; 3]]>,
+        default_albedo: DVec3,
+    ) -> Self {
+        Self::from_field(
+            dims,
+            |i, j, k| opacity[dims.index(i, j, k)],
+            albedo,
+            default_albedo,
+        )
+    }
+
     /// From a solid fraction per voxel (`field(i, j, k)` in [0, 1]) and optional per-voxel
     /// sRGB albedo.
     fn from_field(

@@ -1,7 +1,7 @@
 //! Mesostructure inputs: what a tile of surface detail is made of, and how it is read.
 //! Voxel volumes ([`volume`], the `.mbvol` format in [`volume_format`]), closed OBJ tiles
 //! ([`trimesh`], validated on the tiling by [`mesh_tile`]), grayscale height fields
-//! ([`height_field`]), the built-in analytic samples ([`samples`]) and reliefs ([`reliefs`]),
+//! ([`height_field`]), translucent media ([`medium`], built-in ones in [`media`]), the built-in analytic samples ([`samples`]) and reliefs ([`reliefs`]),
 //! the empty-space distance
 //! that makes exact casting fast ([`empty_space`]), and the loader that turns any input file
 //! into a ray caster ([`input`]), telling its kind by content ([`file_kind`]).
@@ -11,6 +11,8 @@ pub mod file_kind;
 pub mod height_field;
 pub mod input;
 pub mod material;
+pub mod media;
+pub mod medium;
 pub mod mesh_tile;
 pub mod reliefs;
 pub mod samples;

@@ -522,8 +522,9 @@ fn design(kind: SampleKind) -> Design {
     }
 }
 
-/// Rejects grids a sample cannot be laid out on.
-fn check_dims(dims: Dims) -> Result<f64> {
+/// The height Z/X of a square tile on `dims`, in tile units; grids a sample cannot be laid
+/// out on (X ≠ Y) are an error.
+pub fn tile_height(dims: Dims) -> Result<f64> {
     if dims.x != dims.y {
         return Err(Error::InvalidParameter(format!(
             "samples are square tiles: the resolution needs X = Y for cubic voxels, got {dims}"
@@ -536,7 +537,7 @@ fn check_dims(dims: Dims) -> Result<f64> {
 /// odd count that includes the centre so there are no ties; threshold ½; albedo of the last
 /// primitive found, darkened towards the base).
 pub fn volume(kind: SampleKind, dims: Dims, limits: &Limits) -> Result<Volume> {
-    let height = check_dims(dims)?;
+    let height = tile_height(dims)?;
     limits.check("sample volume", dims.voxel_count(), 16)?;
     let design = design(kind);
     let z_scale = design.height / height;
@@ -579,7 +580,7 @@ pub fn volume(kind: SampleKind, dims: Dims, limits: &Limits) -> Result<Volume> {
 /// The sample as a closed OBJ-ready triangle mesh in tile units: x, y over the unit tile
 /// (parts may cross its borders), z in [0, Z/X].
 pub fn mesh(kind: SampleKind, dims: Dims) -> Result<TriMesh> {
-    let height = check_dims(dims)?;
+    let height = tile_height(dims)?;
     let design = design(kind);
     let z_scale = height / design.height;
     let mut out = TriMesh::default();

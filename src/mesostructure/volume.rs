@@ -1,5 +1,5 @@
-//! Voxel mesostructure volumes: density with a solid threshold, optional per-voxel albedo,
-//! tileable in x and y. The file format lives in [`crate::mesostructure::volume_format`].
+//! Voxel mesostructure volumes: density with a solid threshold, optional per-voxel albedo and
+//! opacity (a translucent medium, [`crate::mesostructure::medium`]), tileable in x and y. The file format lives in [`crate::mesostructure::volume_format`].
 
 use crate::error::{Error, Result};
 use crate::grid::{Dims, Wrap};
@@ -14,6 +14,7 @@ pub struct Volume {
     density: Vec<f32>,
     threshold: f32,
     albedo: Option<Vec<[u8; 3]>>,
+    opacity: Option<Vec<f32>>,
 }
 
 impl Volume {
@@ -57,6 +58,31 @@ impl Volume {
             density,
             threshold,
             albedo,
+            opacity: None,
+        })
+    }
+
+    /// The same volume with a per-voxel opacity (x fastest): the opacity of one voxel length
+    /// of the medium, in [0, 1] (see [`crate::mesostructure::medium`]).
+    pub fn with_opacity(self, opacity: Vec<f32>) -> Result<Self> {
+        let n = self.density.len();
+        if opacity.len() != n {
+            return Err(Error::VolumeFormat(format!(
+                "{} opacities given for a {} volume of {n} voxels",
+                opacity.len(),
+                self.dims
+            )));
+        }
+        if let Some(bad) = opacity.iter().position(|a| !(0.0..=1.0).contains(a)) {
+            let (i, j, k) = unravel(self.dims, bad);
+            return Err(Error::VolumeFormat(format!(
+                "opacity of voxel ({i}, {j}, {k}) is {}, not a number in [0, 1]",
+                opacity[bad]
+            )));
+        }
+        Ok(Volume {
+            opacity: Some(opacity),
+            ..self
         })
     }
 
@@ -97,6 +123,11 @@ impl Volume {
     /// Per-voxel sRGB albedo, x fastest, when the volume has one.
     pub fn albedo(&self) -> Option<&[[u8; 3]]> {
         self.albedo.as_deref()
+    }
+
+    /// Per-voxel opacity per voxel length, x fastest, when the volume is a translucent medium.
+    pub fn opacity(&self) -> Option<&[f32]> {
+        self.opacity.as_deref()
     }
 
     /// Whether voxel (i, j, k) is solid.

@@ -1,17 +1,22 @@
-//! The `.mbvol` mesostructure volume file format, version 1. All numbers little-endian.
+//! The `.mbvol` mesostructure volume file format, versions 1 and 2. All numbers little-endian.
 //!
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 8 | magic `MBVOL\0\r\n` |
-//! | 8 | 4 | version (u32) = 1 |
+//! | 8 | 4 | version (u32): 1, or 2 when the opacity channel is present |
 //! | 12 | 12 | X, Y, Z (u32 each), 1..=65536 |
-//! | 24 | 4 | channels (u32 bit set): bit 0 density (required), bit 1 albedo |
+//! | 24 | 4 | channels (u32 bit set): bit 0 density (required), bit 1 albedo, bit 2 opacity (version 2) |
 //! | 28 | 4 | solid threshold (f32, finite): voxel solid iff density ≥ threshold |
 //! | 32 | 4 | voxel size in metres (f32, finite, > 0) |
 //! | 36 | 4 | CRC-32 (IEEE) of the payload |
 //! | 40 | 8 | reserved, zero |
 //! | 48 | 4·N | density, f32 per voxel, x fastest, then y, then z (N = X·Y·Z) |
 //! | 48+4N | 3·N | albedo, sRGB u8 triples, same order (when bit 1 is set) |
+//! | after albedo | 4·N | opacity per voxel length, f32 in [0, 1], same order (when bit 2 is set) |
+//!
+//! Opacity makes the volume a translucent medium ([`crate::mesostructure::medium`]): a voxel's
+//! opacity is the fraction of light one voxel length of it absorbs. Version 2 adds only this
+//! channel; files without it are written as version 1, so version-1 readers still read them.
 //!
 //! The file ends right after the payload. A reader checks every field, the exact file length
 //! (truncated or oversized files are errors), the CRC, finite densities, and refuses sizes
@@ -25,12 +30,13 @@ use std::path::Path;
 
 /// The file's first eight bytes.
 pub const MAGIC: &[u8; 8] = b"MBVOL\0\r\n";
-/// The format version this code reads and writes.
-pub const VERSION: u32 = 1;
+/// The newest format version this code reads and writes.
+pub const VERSION: u32 = 2;
 /// Size of the fixed header.
 pub const HEADER_BYTES: usize = 48;
 const CHANNEL_DENSITY: u32 = 1;
 const CHANNEL_ALBEDO: u32 = 2;
+const CHANNEL_OPACITY: u32 = 4;
 
 /// Voxel size written by this version (one millimetre); carried for scenes and packages.
 pub const DEFAULT_VOXEL_SIZE_M: f32 = 1e-3;
@@ -49,9 +55,17 @@ pub fn encode(volume: &Volume) -> Vec<u8> {
             payload.extend_from_slice(rgb);
         }
     }
+    let mut version = 1;
+    if let Some(opacity) = volume.opacity() {
+        channels |= CHANNEL_OPACITY;
+        version = 2;
+        for a in opacity {
+            payload.extend_from_slice(&a.to_le_bytes());
+        }
+    }
     let mut out = Vec::with_capacity(HEADER_BYTES + payload.len());
     out.extend_from_slice(MAGIC);
-    for v in [VERSION, dims.x, dims.y, dims.z, channels] {
+    for v in [version, dims.x, dims.y, dims.z, channels] {
         out.extend_from_slice(&v.to_le_bytes());
     }
     out.extend_from_slice(&volume.threshold().to_le_bytes());
@@ -91,9 +105,9 @@ fn parse_header(header: &[u8], file_len: u64, limits: &Limits) -> Result<(Dims, 
         return Err(bad("not a mesobake volume (bad magic number)".into()));
     }
     let version = u32_at(header, 8);
-    if version != VERSION {
+    if !(1..=VERSION).contains(&version) {
         return Err(bad(format!(
-            "format version {version} is not supported (this build reads version {VERSION})"
+            "format version {version} is not supported (this build reads versions 1 to {VERSION})"
         )));
     }
     let (x, y, z) = (u32_at(header, 12), u32_at(header, 16), u32_at(header, 20));
@@ -104,9 +118,15 @@ fn parse_header(header: &[u8], file_len: u64, limits: &Limits) -> Result<(Dims, 
     }
     let dims = Dims::new(x, y, z)?;
     let channels = u32_at(header, 24);
-    if channels & CHANNEL_DENSITY == 0 || channels & !(CHANNEL_DENSITY | CHANNEL_ALBEDO) != 0 {
+    let known = match version {
+        1 => CHANNEL_DENSITY | CHANNEL_ALBEDO,
+        _ => CHANNEL_DENSITY | CHANNEL_ALBEDO | CHANNEL_OPACITY,
+    };
+    if channels & CHANNEL_DENSITY == 0 || channels & !known != 0 {
         return Err(bad(format!(
-            "channel set {channels:#x} is invalid: density (bit 0) is required, bits above 1 are unknown"
+            "channel set {channels:#x} is invalid for version {version}: density (bit 0) is \
+             required, bits above {} are unknown",
+            known.ilog2()
         )));
     }
     let threshold = f32_at(header, 28);
@@ -124,7 +144,13 @@ fn parse_header(header: &[u8], file_len: u64, limits: &Limits) -> Result<(Dims, 
     if header[40..48].iter().any(|&b| b != 0) {
         return Err(bad("reserved header bytes 40..48 are not zero".into()));
     }
-    let per_voxel = 4 + if channels & CHANNEL_ALBEDO != 0 { 3 } else { 0 };
+    let per_voxel = 4
+        + if channels & CHANNEL_ALBEDO != 0 { 3 } else { 0 }
+        + if channels & CHANNEL_OPACITY != 0 {
+            4
+        } else {
+            0
+        };
     let payload = limits.check(&format!("a {dims} volume"), dims.voxel_count(), per_voxel)?;
     let expected = HEADER_BYTES as u64 + payload;
     if file_len < expected {
@@ -150,17 +176,24 @@ pub fn decode(bytes: &[u8], limits: &Limits) -> Result<Volume> {
         return Err(bad("payload checksum mismatch: the file is corrupt".into()));
     }
     let n = dims.voxel_count() as usize;
-    let density: Vec<f32> = payload[..4 * n]
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-        .collect();
-    let albedo = (channels & CHANNEL_ALBEDO != 0).then(|| {
-        payload[4 * n..]
-            .chunks_exact(3)
-            .map(|c| [c[0], c[1], c[2]])
+    let floats = |bytes: &[u8]| -> Vec<f32> {
+        bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
             .collect()
+    };
+    let density = floats(&payload[..4 * n]);
+    let mut rest = &payload[4 * n..];
+    let albedo = (channels & CHANNEL_ALBEDO != 0).then(|| {
+        let (albedo, after) = rest.split_at(3 * n);
+        rest = after;
+        albedo.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
     });
-    Volume::new(dims, density, f32_at(bytes, 28), albedo)
+    let volume = Volume::new(dims, density, f32_at(bytes, 28), albedo)?;
+    match channels & CHANNEL_OPACITY {
+        0 => Ok(volume),
+        _ => volume.with_opacity(floats(rest)),
+    }
 }
 
 /// Reads a `.mbvol` file, checking its header and size against the limit before reading the

@@ -65,6 +65,23 @@ pub fn shade(
     to_eye: DVec3,
     mut visible: impl FnMut(&Incident) -> bool,
 ) -> DVec3 {
+    shade_transmitted(lights, material, p, Some(n), albedo, to_eye, |inc| {
+        f64::from(u8::from(visible(inc)))
+    })
+}
+
+/// [`shade`] with fractional visibility: `transmittance` says which fraction of an incident
+/// light reaches the point. A point without a normal (`None`: a translucent medium where
+/// its opacity does not vary) scatters every light as a surface facing it would.
+pub fn shade_transmitted(
+    lights: &[Light],
+    material: &MaterialParams,
+    p: DVec3,
+    n: Option<DVec3>,
+    albedo: DVec3,
+    to_eye: DVec3,
+    mut transmittance: impl FnMut(&Incident) -> f64,
+) -> DVec3 {
     let mut out = DVec3::ZERO;
     let specular = DVec3::from(material.specular);
     let s = material.shininess;
@@ -76,13 +93,18 @@ pub fn shade(
         let Some(inc) = incident(light, p) else {
             continue;
         };
+        let n = n.unwrap_or(inc.direction);
         let cos = n.dot(inc.direction);
-        if cos <= 0.0 || !visible(&inc) {
+        if cos <= 0.0 {
+            continue;
+        }
+        let visible = transmittance(&inc);
+        if visible <= 0.0 {
             continue;
         }
         let h = (inc.direction + to_eye).normalize_or_zero();
         let lobe = specular * ((s + 8.0) / (8.0 * PI) * n.dot(h).max(0.0).powf(s));
-        out += (albedo / PI + lobe) * inc.irradiance * cos;
+        out += (albedo / PI + lobe) * inc.irradiance * (cos * visible);
     }
     out
 }

@@ -10,9 +10,11 @@ pub mod gdm_lookup;
 pub mod gdm_renderer;
 pub mod image;
 pub mod lighting;
+pub mod medium_truth;
 pub mod path_tracer;
 pub mod prism_map;
 pub mod quality;
+pub mod shell_walk;
 pub mod truth;
 pub mod vdm_renderer;
 

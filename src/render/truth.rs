@@ -3,16 +3,9 @@
 //!
 //! The mesostructure in object space is the union over prisms of the prism mapping
 //! P(b, w) = Σ bᵢ (Bᵢ + w·h·dᵢ) applied to the solid of the tiled texture volume; the base
-//! surface itself is not an occluder. For a ray:
-//! 1. candidate prisms come from a BVH over the prisms' bounding boxes (a prism lies in the
-//!    convex hull of its six corners), visited by entry distance;
-//! 2. in a prism, every boundary crossing is found exactly: the top and bottom planes, and
-//!    each bilinear fin by its quadratic; the ray is inside the prism on the intervals between
-//!    crossings whose midpoint the inverse mapping ([`Prism::locate`]) puts inside;
-//! 3. on each interval the texture-space image of the ray, a curve, is split into chords
-//!    until each chord's midpoint lies within [`CHORD_TOLERANCE`] voxels of the curve (and no
-//!    chord is longer than [`MAX_CHORD`] voxels); each chord is cast into the mesostructure
-//!    with its exact caster, in order, and the first solid point is the hit.
+//! surface itself is not an occluder. A ray walks the shell ([`super::shell_walk`]): prism
+//! by prism, its texture-space image split into chords, each chord cast into the
+//! mesostructure with its exact caster, in order; the first solid point is the hit.
 //!
 //! Shading ([`TruthShading`]): a texture-space normal mapped to object space with the exact
 //! inverse-transpose Jacobian of the prism mapping at the hit; shadows by casting a ray
@@ -28,20 +21,14 @@
 //!   camera ray instead left dotted self-shadowing wherever the staircase lies under a smooth
 //!   normal).
 
-use super::accel::BoxBvh;
 use super::lighting::{SHADOW_OFFSET, shade};
+use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
 use crate::bake::gdm::caster::{Caster, Trace};
 use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
 use crate::scene::{Effect, Scene};
-use crate::surface::shell::{Prism, PrismPoint, Shell, cubic_roots};
+use crate::surface::shell::{PrismPoint, Shell};
 use glam::{DMat3, DVec3};
-
-/// Largest distance, in voxels, between a chord's midpoint and the texture-space curve it
-/// replaces.
-pub const CHORD_TOLERANCE: f64 = 0.01;
-
-/// Longest chord in voxels (keeps the midpoint test meaningful on long segments).
-pub const MAX_CHORD: f64 = 8.0;
+use std::ops::ControlFlow;
 
 /// Where rays into the environment (the path tracer's bounces) start, in voxels back along
 /// the arriving ray from the hit.
@@ -65,9 +52,6 @@ pub enum TruthShading {
     Material,
 }
 
-/// Tolerance of the inverse mapping's inside test, in barycentric / w units.
-const LOCATE_TOLERANCE: f64 = 1e-7;
-
 /// A ray's first hit on the mapped mesostructure.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TruthHit {
@@ -87,8 +71,7 @@ pub struct TruthHit {
 
 /// The ground-truth renderer over one shell and one mesostructure.
 pub struct TruthRenderer<'a> {
-    shell: &'a Shell,
-    bvh: BoxBvh,
+    walk: ShellWalk<'a>,
     caster: &'a dyn Caster,
     material: &'a MaterialVolume,
     scale: DVec3,
@@ -98,27 +81,12 @@ pub struct TruthRenderer<'a> {
 impl<'a> TruthRenderer<'a> {
     /// Prepares `shell` for casting into `caster`.
     pub fn new(shell: &'a Shell, caster: &'a dyn Caster, material: &'a MaterialVolume) -> Self {
-        let boxes = shell
-            .prisms
-            .iter()
-            .map(|p| {
-                let top = p.top();
-                let mut lo = p.bottom[0];
-                let mut hi = p.bottom[0];
-                for c in p.bottom.iter().chain(&top) {
-                    lo = lo.min(*c);
-                    hi = hi.max(*c);
-                }
-                (lo, hi)
-            })
-            .collect();
-        let d = caster.dims();
+        let walk = ShellWalk::new(shell, caster.dims());
         TruthRenderer {
-            shell,
-            bvh: BoxBvh::new(boxes),
+            scale: walk.scale(),
+            walk,
             caster,
             material,
-            scale: DVec3::new(d.x as f64, d.y as f64, d.z as f64),
             shading: TruthShading::default(),
         }
     }
@@ -130,17 +98,25 @@ impl<'a> TruthRenderer<'a> {
 
     /// The first hit along `origin + t·dir` (unit `dir`) with `t_min` ≤ t ≤ `t_max`.
     pub fn trace(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Option<TruthHit> {
-        let mut candidates = Vec::new();
-        self.bvh
-            .candidates(origin, dir, t_min, t_max, |i, t| candidates.push((t, i)));
-        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut best: Option<TruthHit> = None;
-        for (t_enter, i) in candidates {
+        for (t_enter, i) in self.walk.candidates(origin, dir, t_min, t_max) {
             if best.is_some_and(|b| b.t < t_enter) {
                 break;
             }
             let limit = best.map_or(t_max, |b| b.t);
-            if let Some(hit) = self.trace_prism(i, origin, dir, t_min, limit)
+            let hit = self
+                .walk
+                .inside(i, origin, dir, t_min, limit)
+                .into_iter()
+                .find_map(|span| {
+                    self.walk.chords(i, origin, dir, span, |chord| {
+                        match self.cast_chord(i, chord) {
+                            Some(hit) => ControlFlow::Break(hit),
+                            None => ControlFlow::Continue(()),
+                        }
+                    })
+                });
+            if let Some(hit) = hit
                 && best.is_none_or(|b| hit.t < b.t)
             {
                 best = Some(hit);
@@ -149,98 +125,16 @@ impl<'a> TruthRenderer<'a> {
         best
     }
 
-    fn trace_prism(
-        &self,
-        i: usize,
-        o: DVec3,
-        dir: DVec3,
-        t_min: f64,
-        t_max: f64,
-    ) -> Option<TruthHit> {
-        let prism = &self.shell.prisms[i];
-        let mut ts = crossings(prism, o, dir);
-        ts.retain(|t| *t > t_min && *t < t_max);
-        ts.sort_by(f64::total_cmp);
-        let &last = ts.last()?;
-        let end = if t_max.is_finite() { t_max } else { last };
-        let mut points = Vec::with_capacity(ts.len() + 2);
-        points.push(t_min);
-        points.extend(ts);
-        points.push(end);
-        let inside = |t: f64| prism.locate(o + dir * t, LOCATE_TOLERANCE, None).is_some();
-        let mut start: Option<f64> = None;
-        for w in points.windows(2) {
-            let (a, b) = (w[0], w[1]);
-            if b <= a {
-                continue;
-            }
-            if inside(0.5 * (a + b)) {
-                start.get_or_insert(a);
-            } else if let Some(s) = start.take()
-                && let Some(hit) = self.march(i, o, dir, s, a)
-            {
-                return Some(hit);
-            }
-        }
-        match start {
-            Some(s) => self.march(i, o, dir, s, end),
-            None => None,
-        }
-    }
-
-    /// Casts the texture-space image of the ray over [ta, tb] (inside prism `i`) chord by chord.
-    fn march(&self, i: usize, o: DVec3, dir: DVec3, ta: f64, tb: f64) -> Option<TruthHit> {
-        let prism = &self.shell.prisms[i];
-        let at = |t: f64, hint: Option<PrismPoint>| -> Option<(PrismPoint, DVec3)> {
-            let q = prism.locate(o + dir * t, 1e-6, hint)?.clamped();
-            Some((q, prism.texture(q) * self.scale))
-        };
-        let first = at(ta, None)?;
-        let last = at(tb, Some(first.0))?;
-        // Chords in order: a stack of pending segments, the nearest on top.
-        let mut stack = vec![(ta, first, tb, last, 0u32)];
-        while let Some((t0, a, t1, b, depth)) = stack.pop() {
-            let tm = 0.5 * (t0 + t1);
-            let chord = b.1 - a.1;
-            if depth < 40
-                && let Some(m) = at(tm, Some(a.0))
-            {
-                let deviation = (m.1 - 0.5 * (a.1 + b.1)).length();
-                if deviation > CHORD_TOLERANCE || chord.length() > MAX_CHORD {
-                    stack.push((tm, m, t1, b, depth + 1));
-                    stack.push((t0, a, tm, m, depth + 1));
-                    continue;
-                }
-            }
-            if let Some(hit) = self.cast_chord(i, (t0, a), (t1, b)) {
-                return Some(hit);
-            }
-        }
-        None
-    }
-
-    fn cast_chord(
-        &self,
-        i: usize,
-        (t0, a): (f64, (PrismPoint, DVec3)),
-        (t1, b): (f64, (PrismPoint, DVec3)),
-    ) -> Option<TruthHit> {
-        let z_top = self.scale.z;
-        let origin = DVec3::new(a.1.x, a.1.y, a.1.z.clamp(0.0, z_top));
-        let chord = b.1 - origin;
-        let len = chord.length();
-        if len.is_nan() || len <= 1e-12 {
-            return None;
-        }
-        let view = chord / len;
+    fn cast_chord(&self, i: usize, chord: &Chord) -> Option<TruthHit> {
+        let [origin, end] = chord.texture;
+        let len = (end - origin).length();
+        let view = (end - origin) / len;
         let s = self.cast(origin, view, len)?;
-        let tex = origin + view * s;
-        let t = t0 + s / len * (t1 - t0);
         Some(TruthHit {
-            t,
+            t: chord.t_at(s),
             prism: i,
-            point: interpolate(a.0, b.0, s / len),
-            texture: tex,
+            point: chord.point_at(s),
+            texture: origin + view * s,
             view,
             chord_start: origin,
         })
@@ -286,7 +180,7 @@ impl<'a> TruthRenderer<'a> {
 
     /// The shading inputs at `hit` of the ray `origin + t·dir`.
     pub fn surface(&self, hit: &TruthHit, origin: DVec3, dir: DVec3) -> Surface {
-        let prism = &self.shell.prisms[hit.prism];
+        let prism = &self.walk.shell().prisms[hit.prism];
         let jacobian = prism
             .jacobian(hit.point)
             .map(|j| j * DMat3::from_diagonal(self.scale.recip()));
@@ -351,52 +245,4 @@ pub struct Surface {
 /// space by `jacobian` (texture voxel units → object).
 pub fn light_start(jacobian: DMat3, point: DVec3, n_tex: DVec3) -> DVec3 {
     point + jacobian * (n_tex * SHADOW_OFFSET)
-}
-
-fn interpolate(a: PrismPoint, b: PrismPoint, f: f64) -> PrismPoint {
-    PrismPoint {
-        bary: [0, 1, 2].map(|k| a.bary[k] + (b.bary[k] - a.bary[k]) * f),
-        w: a.w + (b.w - a.w) * f,
-    }
-}
-
-/// Every ray parameter where the ray may cross the prism's boundary: the top and bottom
-/// planes, and the roots of each fin's quadratic (the heights w where the ray meets the line
-/// through the fin's level segment), a superset of the true crossings.
-fn crossings(prism: &Prism, o: DVec3, dir: DVec3) -> Vec<f64> {
-    let mut ts = Vec::with_capacity(8);
-    let top = prism.top();
-    for tri in [top, prism.bottom] {
-        let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-        let cos = n.dot(dir);
-        if cos != 0.0 {
-            ts.push(n.dot(tri[0] - o) / cos);
-        }
-    }
-    for k in 0..3 {
-        let (i, j) = (k, (k + 1) % 3);
-        let (a0, a1) = (prism.bottom[i] - o, prism.extrusion[i]);
-        let (e0, e1) = (
-            prism.bottom[j] - prism.bottom[i],
-            prism.extrusion[j] - prism.extrusion[i],
-        );
-        // g(w) = (a0 + w a1)·(dir × (e0 + w e1))
-        let c = [
-            a0.dot(dir.cross(e0)),
-            a1.dot(dir.cross(e0)) + a0.dot(dir.cross(e1)),
-            a1.dot(dir.cross(e1)),
-            0.0,
-        ];
-        for w in cubic_roots(c, -1e-6, 1.0 + 1e-6) {
-            // The ray parameter of the closest point to the line Q_i(w) + s·E(w).
-            let (r, e) = (a0 + a1 * w, e0 + e1 * w);
-            let (dd, de, ee) = (dir.dot(dir), dir.dot(e), e.dot(e));
-            let det = dd * ee - de * de;
-            if det > 0.0 {
-                ts.push((dir.dot(r) * ee - de * e.dot(r)) / det);
-            }
-        }
-    }
-    ts.retain(|t| t.is_finite());
-    ts
 }

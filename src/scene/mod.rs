@@ -23,10 +23,13 @@ use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::input::Mesostructure;
 use crate::mesostructure::material::MaterialVolume;
+use crate::mesostructure::media::{self, MediumKind};
+use crate::mesostructure::medium::{self, Medium};
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::reliefs::{self, ReliefKind};
 use crate::mesostructure::samples::{self, SampleKind};
 use crate::mesostructure::trimesh::TriMesh;
+use crate::mesostructure::volume::Volume;
 use crate::mesostructure::volume_format;
 use crate::render::quality::Quality;
 use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
@@ -198,6 +201,9 @@ pub enum MesostructureSource {
     /// A built-in relief ([`crate::mesostructure::reliefs`]) of X × X pixels (the scene's
     /// resolution must have X = Y), the volume under it on the scene's resolution.
     Relief(ReliefKind),
+    /// A built-in translucent medium ([`crate::mesostructure::media`]) on the scene's
+    /// resolution (X = Y).
+    Medium(MediumKind),
 }
 
 /// Blinn–Phong reflectance; the diffuse albedo comes from the volume where it has one.
@@ -541,6 +547,9 @@ pub struct LoadedScene {
     pub material: MaterialVolume,
     /// The height field of a height-field or relief mesostructure (what a VDM is baked from).
     pub height_field: Option<HeightField>,
+    /// The translucent medium of a medium, or of a volume with an opacity channel; its opaque
+    /// voxels are then `mesostructure`.
+    pub medium: Option<Medium>,
     /// The environment map, loaded only when the effects call for environment lighting.
     pub environment: Option<Environment>,
 }
@@ -554,12 +563,19 @@ impl LoadedScene {
         let dims = scene.dims()?;
         let default_albedo = DVec3::from(scene.material.albedo);
         let mut height_field = None;
+        let mut medium = None;
+        let mut volume_input = |volume: Volume| {
+            if volume.opacity().is_some() {
+                medium = Some(Medium::from_volume(&volume, default_albedo));
+            }
+            let material = MaterialVolume::from_volume(&volume, default_albedo);
+            (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+        };
         let (mesostructure, material) = match &scene.mesostructure {
             MesostructureSource::Sample(kind) => {
-                let volume = samples::volume(*kind, dims, limits)?;
-                let material = MaterialVolume::from_volume(&volume, default_albedo);
-                (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+                volume_input(samples::volume(*kind, dims, limits)?)
             }
+            MesostructureSource::Medium(kind) => volume_input(media::volume(*kind, dims, limits)?),
             MesostructureSource::Volume(p) => {
                 let volume = volume_format::read(&resolve(p), limits)?;
                 if volume.dims() != dims {
@@ -569,8 +585,7 @@ impl LoadedScene {
                         volume.dims()
                     )));
                 }
-                let material = MaterialVolume::from_volume(&volume, default_albedo);
-                (Mesostructure::Volume(VolumeCaster::new(&volume)), material)
+                volume_input(volume)
             }
             MesostructureSource::HeightField(_) | MesostructureSource::Relief(_) => {
                 let field = match &scene.mesostructure {
@@ -620,6 +635,7 @@ impl LoadedScene {
             mesostructure,
             material,
             height_field,
+            medium,
             environment,
         })
     }
@@ -634,8 +650,17 @@ impl LoadedScene {
         technique::Surface::of(&self.base_report, &self.shell)
     }
 
+    /// Refuses a translucent mesostructure for `what`, which only represents opaque ones.
+    pub fn check_opaque(&self, what: &str) -> Result<()> {
+        match &self.medium {
+            None => Ok(()),
+            Some(_) => Err(Error::Scene(medium::translucent_refusal(what))),
+        }
+    }
+
     /// Bakes the exact GDM of the scene's mesostructure on its grids.
     pub fn bake_gdm(&self, limits: &Limits, observer: &dyn BakeObserver) -> Result<Gdm> {
+        self.check_opaque("a GDM bake")?;
         crate::bake::gdm::exact::bake(
             self.mesostructure.caster(),
             self.scene.dirs()?,

@@ -341,7 +341,9 @@ pub fn check_input(found: &InputInfo, scene: &Scene, scene_dir: &Path) -> Result
 /// The identity of `scene`'s mesostructure input, as a manifest records it.
 pub fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
     let identity = match &scene.mesostructure {
-        MesostructureSource::Sample(_) | MesostructureSource::SampleTile(_) => {
+        MesostructureSource::Sample(_)
+        | MesostructureSource::SampleTile(_)
+        | MesostructureSource::Medium(_) => {
             serde_json::to_vec(&(&scene.mesostructure, scene.resolution))
                 .map_err(|e| Error::Scene(e.to_string()))?
         }
@@ -361,6 +363,7 @@ pub fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
             MesostructureSource::Relief(_) => "relief",
             MesostructureSource::Tile(_) | MesostructureSource::SampleTile(_) => "mesh",
             MesostructureSource::Volume(_) | MesostructureSource::Sample(_) => "volume",
+            MesostructureSource::Medium(_) => "medium",
         }
         .into(),
         bytes: identity.len() as u64,

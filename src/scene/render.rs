@@ -4,12 +4,14 @@
 use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
+use crate::mesostructure::medium::Medium;
 use crate::package::Package;
 use crate::package::vdm::VdmPackage;
 use crate::render::explicit::ExplicitRenderer;
 use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
 use crate::render::image::Image;
+use crate::render::medium_truth::MediumTruth;
 use crate::render::path_tracer::PathTracer;
 use crate::render::render_image_observed;
 use crate::render::truth::TruthRenderer;
@@ -38,15 +40,32 @@ pub enum RenderMethod {
     Vdm,
 }
 
+impl RenderMethod {
+    /// Every method.
+    pub const ALL: [RenderMethod; 4] = [
+        RenderMethod::Truth,
+        RenderMethod::Gdm,
+        RenderMethod::Explicit,
+        RenderMethod::Vdm,
+    ];
+
+    /// The method's name, as `--method` takes it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            RenderMethod::Truth => "truth",
+            RenderMethod::Gdm => "gdm",
+            RenderMethod::Explicit => "explicit",
+            RenderMethod::Vdm => "vdm",
+        }
+    }
+}
+
 impl FromStr for RenderMethod {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "truth" => Ok(RenderMethod::Truth),
-            "gdm" => Ok(RenderMethod::Gdm),
-            "explicit" => Ok(RenderMethod::Explicit),
-            "vdm" => Ok(RenderMethod::Vdm),
-            _ => Err(Error::InvalidParameter(format!(
+        match RenderMethod::ALL.into_iter().find(|m| m.name() == s) {
+            Some(m) => Ok(m),
+            None => Err(Error::InvalidParameter(format!(
                 "render method {s:?}: expected truth, gdm, vdm or explicit"
             ))),
         }
@@ -129,6 +148,9 @@ pub fn render_substituted(
     let mut seconds = RenderSeconds::default();
     let environment = scene.wants(Effect::EnvironmentLighting);
     let mut gi_report = None;
+    if let Some(medium) = &loaded.medium {
+        return render_medium(loaded, medium, method, observer);
+    }
     let image = match method {
         RenderMethod::Truth if environment => {
             let start = Instant::now();
@@ -264,5 +286,37 @@ pub fn render_substituted(
         image,
         seconds,
         gi: gi_report,
+    })
+}
+
+/// Renders a translucent medium: the ground truth is its only renderer so far.
+fn render_medium(
+    loaded: &LoadedScene,
+    medium: &Medium,
+    method: RenderMethod,
+    observer: &dyn BakeObserver,
+) -> Result<Rendered> {
+    let scene = &loaded.scene;
+    if method != RenderMethod::Truth {
+        loaded.check_opaque(&format!("the {} renderer", method.name()))?;
+    }
+    if scene.wants(Effect::EnvironmentLighting) {
+        return Err(Error::InvalidParameter(
+            "environment lighting of translucent media is not rendered yet: light them with \
+             point, directional and ambient lights"
+                .into(),
+        ));
+    }
+    let start = Instant::now();
+    let r = MediumTruth::new(&loaded.shell, medium);
+    observer.stage("rendering");
+    let image = render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
+    Ok(Rendered {
+        image,
+        seconds: RenderSeconds {
+            render: start.elapsed().as_secs_f64(),
+            ..RenderSeconds::default()
+        },
+        gi: None,
     })
 }

@@ -99,8 +99,17 @@ impl Surface {
 }
 
 /// Checks that a scene whose technique is `choice` can bake it on `surface`: a VDM's grid
-/// must hold the relief's depth.
+/// must hold the relief's depth; neither technique represents a translucent medium.
 pub fn check(scene: &Scene, choice: &TechniqueChoice, surface: &Surface) -> Result<()> {
+    if let MesostructureSource::Medium(_) = scene.mesostructure {
+        let what = match choice.technique {
+            Technique::Vdm => "a VDM",
+            _ => "a GDM",
+        };
+        return Err(Error::Scene(
+            crate::mesostructure::medium::translucent_refusal(what),
+        ));
+    }
     match surface.vdm_misfit(scene) {
         Some(why) if choice.technique == Technique::Vdm => {
             Err(Error::Scene(format!("technique vdm: {why}")))

@@ -28,7 +28,8 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
         MesostructureSource::HeightField(p) => wanted.push((p, "height_field")),
         MesostructureSource::Sample(_)
         | MesostructureSource::SampleTile(_)
-        | MesostructureSource::Relief(_) => {}
+        | MesostructureSource::Relief(_)
+        | MesostructureSource::Medium(_) => {}
     }
     if let BaseMeshSource::Obj(p) = &scene.base_mesh {
         wanted.push((p, "base_mesh"));

@@ -47,7 +47,8 @@ pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
         | MesostructureSource::HeightField(p) => resolve(p)?,
         MesostructureSource::Sample(_)
         | MesostructureSource::SampleTile(_)
-        | MesostructureSource::Relief(_) => {}
+        | MesostructureSource::Relief(_)
+        | MesostructureSource::Medium(_) => {}
     }
     if let BaseMeshSource::Obj(p) = &mut scene.base_mesh {
         resolve(p)?;

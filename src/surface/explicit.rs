@@ -1385,6 +1385,13 @@ impl ExplicitInput {
                     "explicit geometry needs triangles, but the mesostructure is a relief".into(),
                 ));
             }
+            MesostructureSource::Medium(_) => {
+                return Err(Error::Scene(
+                    "explicit geometry needs triangles, but the mesostructure is a translucent \
+                     medium"
+                        .into(),
+                ));
+            }
             MesostructureSource::Volume(p) | MesostructureSource::HeightField(p) => {
                 return Err(Error::Scene(format!(
                     "{}: explicit geometry needs triangles, but the mesostructure is the \
