@@ -57,7 +57,13 @@ fn every_sample_scene_previews() {
         if scene["mesostructure"].get("medium").is_some() {
             // Translucent media have no real-time pipeline yet: refused by name.
             each_fails_with(&[(
-                vec!["preview", "--scene", scene_path.to_str().unwrap()],
+                vec![
+                    "preview",
+                    "--scene",
+                    scene_path.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                ],
                 "the mesostructure is a translucent medium",
             )]);
             continue;

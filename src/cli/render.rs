@@ -23,8 +23,9 @@ pub struct RenderArgs {
     /// truth: exact mapping into the real mesostructure; gdm: the real-time algorithm;
     /// vdm (height fields): the VDM real-time algorithm; explicit (mesh tiles only): the
     /// tile's triangles mapped through the shell and ray cast as a plain mesh, the truth's
-    /// independent check. Default: the kind of --package, else truth for a translucent medium, else the scene's
-    /// technique.
+    /// independent check; cells (translucent media): the semi-transparent 3D texture
+    /// algorithm. Default: the kind of --package, else cells for a translucent medium, else
+    /// the scene's technique.
     #[arg(long)]
     method: Option<RenderMethod>,
     /// For --method gdm or vdm: render from this (GDM or VDM) package instead of baking. It
@@ -70,7 +71,12 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     }
     let load_s = start.elapsed().as_secs_f64();
     let dir = scene.parent().unwrap_or(Path::new("."));
-    if package.is_some() && matches!(method, Some(RenderMethod::Truth | RenderMethod::Explicit)) {
+    if package.is_some()
+        && matches!(
+            method,
+            Some(RenderMethod::Truth | RenderMethod::Explicit | RenderMethod::Cells)
+        )
+    {
         return Err(Error::InvalidParameter(
             "--package only applies to --method gdm and vdm".into(),
         ));
@@ -92,7 +98,7 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         (Some(method), _) => method,
         (None, Some(AnyPackage::Gdm(_))) => RenderMethod::Gdm,
         (None, Some(AnyPackage::Vdm(_))) => RenderMethod::Vdm,
-        (None, None) if loaded.medium.is_some() => RenderMethod::Truth,
+        (None, None) if loaded.medium.is_some() => RenderMethod::Cells,
         (None, None) => match loaded.technique().technique {
             Technique::Vdm => RenderMethod::Vdm,
             Technique::Gdm | Technique::Auto => RenderMethod::Gdm,

@@ -73,6 +73,20 @@ impl Medium {
         &self.material
     }
 
+    /// The voxel holding texture point `t` (voxel units; tiled in x and y), `None` below
+    /// or above the volume.
+    pub fn voxel_at(&self, t: DVec3) -> Option<usize> {
+        let k = t.z.floor();
+        if !(0.0..f64::from(self.dims.z)).contains(&k) {
+            return None;
+        }
+        Some(self.dims.index(
+            self.wrap[0].apply(t.x.floor() as i64) as u32,
+            self.wrap[1].apply(t.y.floor() as i64) as u32,
+            k as u32,
+        ))
+    }
+
     /// Transmittance of `length` voxels of voxel `v`: (1 − α)^length (1 for length 0, even
     /// where α = 1).
     pub fn transmittance(&self, v: usize, length: f64) -> f64 {
@@ -159,8 +173,9 @@ impl Medium {
 pub fn translucent_refusal(what: &str) -> String {
     format!(
         "the mesostructure is a translucent medium, and {what} represents opaque mesostructure \
-         only; translucent media render with the ground truth (`mesobake render --method \
-         truth`) until their real-time pipeline (semi-transparent 3D textures) is built"
+         only; translucent media render with `mesobake render --method cells` (the real-time \
+         algorithm) or `--method truth`; their preview, packages and server jobs are not built \
+         yet"
     )
 }
 

@@ -46,6 +46,53 @@ pub struct Gathered {
     pub transmittance: f64,
 }
 
+impl Gathered {
+    /// Nothing gathered yet: no radiance, everything transmitted.
+    pub const EMPTY: Gathered = Gathered {
+        radiance: DVec3::ZERO,
+        transmittance: 1.0,
+    };
+
+    /// Composites, behind what is gathered, a piece of medium that absorbs the fraction
+    /// `absorbed` of the light crossing it and scatters `light`; breaks once the ray is
+    /// absorbed ([`MIN_TRANSMITTANCE`]).
+    pub fn composite(&mut self, light: DVec3, absorbed: f64) -> ControlFlow<()> {
+        self.radiance += light * (self.transmittance * absorbed);
+        self.transmittance *= 1.0 - absorbed;
+        if self.transmittance < MIN_TRANSMITTANCE {
+            self.transmittance = 0.0;
+            return ControlFlow::Break(());
+        }
+        ControlFlow::Continue(())
+    }
+}
+
+/// Composites the stretch [`s0`, `s1`] (voxel lengths) of a segment through voxel `v` of
+/// `medium` in closed form: in pieces at most `light_step` long, each absorbing
+/// 1 − (1 − α)^ℓ and scattering `light(u)`, the light at the piece's start u.
+pub fn integrate_voxel(
+    medium: &Medium,
+    v: usize,
+    (s0, s1): (f64, f64),
+    light_step: f64,
+    out: &mut Gathered,
+    mut light: impl FnMut(f64) -> DVec3,
+) -> ControlFlow<()> {
+    if medium.opacity(v) <= 0.0 {
+        return ControlFlow::Continue(());
+    }
+    let pieces = ((s1 - s0) / light_step).ceil().max(1.0);
+    for p in 0..pieces as u32 {
+        let u0 = s0 + (s1 - s0) * f64::from(p) / pieces;
+        let u1 = s0 + (s1 - s0) * f64::from(p + 1) / pieces;
+        let absorbed = 1.0 - medium.transmittance(v, u1 - u0);
+        if absorbed > 0.0 {
+            out.composite(light(u0), absorbed)?;
+        }
+    }
+    ControlFlow::Continue(())
+}
+
 /// The translucent ground-truth renderer over one shell and one medium.
 pub struct MediumTruth<'a> {
     walk: ShellWalk<'a>,
@@ -115,47 +162,32 @@ impl<'a> MediumTruth<'a> {
     pub fn gather(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Gathered {
         let shadows = scene.wants(Effect::Shadows);
         let scale = self.walk.scale();
-        let mut out = Gathered {
-            radiance: DVec3::ZERO,
-            transmittance: 1.0,
-        };
+        let mut out = Gathered::EMPTY;
         self.chords(origin, dir, (0.0, f64::INFINITY), |chord, i| {
             let prism = &self.walk.shell().prisms[i];
             let [a, b] = chord.texture;
             let len = (b - a).length();
             let view = (b - a) / len;
             self.medium.walk(a, view, len, |v, s0, s1| {
-                let alpha = self.medium.opacity(v);
-                if alpha <= 0.0 {
-                    return ControlFlow::Continue(());
-                }
-                let pieces = ((s1 - s0) / self.light_step).ceil().max(1.0);
-                for p in 0..pieces as u32 {
-                    let u0 = s0 + (s1 - s0) * f64::from(p) / pieces;
-                    let u1 = s0 + (s1 - s0) * f64::from(p + 1) / pieces;
-                    let absorbed = 1.0 - self.medium.transmittance(v, u1 - u0);
-                    if absorbed <= 0.0 {
-                        continue;
-                    }
-                    let t = chord.t_at(u0);
+                integrate_voxel(self.medium, v, (s0, s1), self.light_step, &mut out, |u| {
+                    let t = chord.t_at(u);
                     let point = origin + dir * t;
-                    let texture = a + view * u0;
+                    let texture = a + view * u;
                     // Texture voxel units → object.
                     let jacobian = prism
-                        .jacobian(chord.point_at(u0))
+                        .jacobian(chord.point_at(u))
                         .map(|j| j * DMat3::from_diagonal(scale.recip()))
                         .filter(|j| j.determinant() != 0.0);
                     let inverse = jacobian.map(|j| j.inverse());
                     let normal = self.medium.material().normal_at(texture).and_then(|n| {
                         inverse.and_then(|inv| (inv.transpose() * n).try_normalize())
                     });
-                    let albedo = self.medium.colour(v);
-                    let light = shade_transmitted(
+                    shade_transmitted(
                         &scene.lights,
                         &scene.material,
                         point,
                         normal,
-                        albedo,
+                        self.medium.colour(v),
                         -dir,
                         |inc| {
                             if !shadows {
@@ -169,15 +201,8 @@ impl<'a> MediumTruth<'a> {
                             }
                             self.transmittance(point, inc.direction, start, inc.distance)
                         },
-                    );
-                    out.radiance += light * (out.transmittance * absorbed);
-                    out.transmittance *= 1.0 - absorbed;
-                    if out.transmittance < MIN_TRANSMITTANCE {
-                        out.transmittance = 0.0;
-                        return ControlFlow::Break(());
-                    }
-                }
-                ControlFlow::Continue(())
+                    )
+                })
             })
         });
         out

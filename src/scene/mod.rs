@@ -10,6 +10,7 @@ pub mod plan;
 pub mod preview;
 pub mod render;
 pub mod technique;
+pub mod transparency;
 pub mod vdm;
 
 use crate::bake::gdm::caster::Caster;
@@ -39,6 +40,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use technique::{Technique, TechniqueChoice};
+use transparency::TransparencySettings;
 use vdm::VdmSettings;
 
 /// Largest accepted scene file.
@@ -100,6 +102,9 @@ pub struct Scene {
     /// How the VDM of a height-field mesostructure is baked and compressed.
     #[serde(default, skip_serializing_if = "VdmSettings::is_default")]
     pub vdm: VdmSettings,
+    /// How a translucent medium is integrated by the real-time algorithm.
+    #[serde(default, skip_serializing_if = "TransparencySettings::is_default")]
+    pub transparency: TransparencySettings,
 }
 
 /// Where a scene's environment light comes from.
@@ -426,6 +431,7 @@ impl Scene {
         }
         self.quality.validate()?;
         self.vdm.validate()?;
+        self.transparency.validate()?;
         technique::validate(self)?;
         self.shell.validate()?;
         self.camera.validate()?;

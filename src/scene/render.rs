@@ -11,6 +11,7 @@ use crate::render::explicit::ExplicitRenderer;
 use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
 use crate::render::image::Image;
+use crate::render::medium_cells::CellRenderer;
 use crate::render::medium_truth::MediumTruth;
 use crate::render::path_tracer::PathTracer;
 use crate::render::render_image_observed;
@@ -19,6 +20,7 @@ use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::gi::{GiReport, GiShading};
 use crate::scene::{Effect, LoadedScene, Scene};
 use crate::util::limits::Limits;
+use glam::DVec3;
 use serde::Serialize;
 use std::path::Path;
 use std::str::FromStr;
@@ -38,15 +40,19 @@ pub enum RenderMethod {
     /// The VDM per-pixel algorithm (height-field mesostructure): the shell's top surface
     /// rendered with the view-dependent displacement map.
     Vdm,
+    /// The real-time algorithm of semi-transparent 3D textures (translucent media): the
+    /// shell's tetrahedra, each integrated and composited in order.
+    Cells,
 }
 
 impl RenderMethod {
     /// Every method.
-    pub const ALL: [RenderMethod; 4] = [
+    pub const ALL: [RenderMethod; 5] = [
         RenderMethod::Truth,
         RenderMethod::Gdm,
         RenderMethod::Explicit,
         RenderMethod::Vdm,
+        RenderMethod::Cells,
     ];
 
     /// The method's name, as `--method` takes it.
@@ -56,6 +62,7 @@ impl RenderMethod {
             RenderMethod::Gdm => "gdm",
             RenderMethod::Explicit => "explicit",
             RenderMethod::Vdm => "vdm",
+            RenderMethod::Cells => "cells",
         }
     }
 }
@@ -66,7 +73,7 @@ impl FromStr for RenderMethod {
         match RenderMethod::ALL.into_iter().find(|m| m.name() == s) {
             Some(m) => Ok(m),
             None => Err(Error::InvalidParameter(format!(
-                "render method {s:?}: expected truth, gdm, vdm or explicit"
+                "render method {s:?}: expected truth, gdm, vdm, explicit or cells"
             ))),
         }
     }
@@ -214,6 +221,13 @@ pub fn render_substituted(
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
+        RenderMethod::Cells => {
+            return Err(Error::InvalidParameter(
+                "the cells renderer renders translucent media (a `medium` mesostructure or a \
+                 volume with an opacity channel); this scene's mesostructure is opaque"
+                    .into(),
+            ));
+        }
         RenderMethod::Truth => {
             let start = Instant::now();
             let caster = loaded.mesostructure.caster();
@@ -289,7 +303,8 @@ pub fn render_substituted(
     })
 }
 
-/// Renders a translucent medium: the ground truth is its only renderer so far.
+/// Renders a translucent medium: its ground truth or the real-time algorithm's CPU
+/// specification.
 fn render_medium(
     loaded: &LoadedScene,
     medium: &Medium,
@@ -297,7 +312,7 @@ fn render_medium(
     observer: &dyn BakeObserver,
 ) -> Result<Rendered> {
     let scene = &loaded.scene;
-    if method != RenderMethod::Truth {
+    if !matches!(method, RenderMethod::Truth | RenderMethod::Cells) {
         loaded.check_opaque(&format!("the {} renderer", method.name()))?;
     }
     if scene.wants(Effect::EnvironmentLighting) {
@@ -308,9 +323,17 @@ fn render_medium(
         ));
     }
     let start = Instant::now();
-    let r = MediumTruth::new(&loaded.shell, medium);
+    let truth;
+    let cells;
+    let r: &(dyn Fn(DVec3, DVec3) -> Option<DVec3> + Sync) = if method == RenderMethod::Truth {
+        truth = MediumTruth::new(&loaded.shell, medium);
+        &|o, d| truth.radiance(scene, o, d)
+    } else {
+        cells = CellRenderer::new(&loaded.shell, medium, scene.transparency);
+        &|o, d| cells.radiance(scene, o, d)
+    };
     observer.stage("rendering");
-    let image = render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
+    let image = render_image_observed(&scene.camera, observer, r);
     Ok(Rendered {
         image,
         seconds: RenderSeconds {
