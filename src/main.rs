@@ -54,8 +54,9 @@ enum Command {
     /// Bake a built-in sample end to end and render a preview from its GDM: writes
     /// SAMPLE.mbvol, SAMPLE.obj, SAMPLE-gdm.npy and SAMPLE-preview.png into --out.
     Demo(sample::DemoArgs),
-    /// Render a scene file on the CPU with the ground truth or the GDM algorithm: .png
-    /// (8-bit sRGB, alpha = hit mask) or .exr (linear float, A = hit mask).
+    /// Render a scene file on the CPU with the ground truth, a real-time algorithm's
+    /// specification (GDM, VDM, or cells for translucent media) or the explicit geometry:
+    /// .png (8-bit sRGB, alpha = hit mask) or .exr (linear float, A = hit mask).
     Render(render::RenderArgs),
     /// Render a scene with the real-time pipeline (WGSL shaders on wgpu, headless, on any
     /// adapter including Mesa's software Vulkan driver) from a package, or from one baked for

@@ -438,3 +438,59 @@ fn the_cells_affine_error_shrinks_with_the_base_mesh() {
         "{fine:?} against {coarse:?}"
     );
 }
+
+/// `report transparency` on the fur scene (shrunk): one row per setting, the exact cells
+/// nearer the truth than one sample per cell, its files written; an opaque scene is refused.
+#[test]
+fn report_transparency_measures_each_setting_against_the_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    scene["resolution"] = serde_json::json!([16, 16, 8]);
+    let small = dir.path().join("fur.json");
+    std::fs::write(&small, scene.to_string()).unwrap();
+    let out = dir.path().join("report");
+    let (small, out_s) = (small.to_str().unwrap(), out.to_str().unwrap());
+    succeeds(&[
+        "report",
+        "transparency",
+        "--scene",
+        small,
+        "--samples",
+        "1,4",
+        "--side",
+        "32",
+        "--out",
+        out_s,
+    ]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("transparency.json")).unwrap())
+            .unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    let settings: Vec<&str> = rows
+        .iter()
+        .map(|r| r["setting"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        settings,
+        ["scene", "1 sample", "4 samples", "no shadows"],
+        "{report}"
+    );
+    let psnr = |i: usize| rows[i]["error"]["psnr_db"].as_f64().unwrap();
+    assert!(psnr(0) > psnr(1), "{report}");
+    assert_eq!(report["cells"].as_u64().unwrap(), 3 * 96 * 48 * 2);
+    assert!(out.join("transparency.svg").exists() && out.join("transparency.md").exists());
+    let chain = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-chain.json");
+    each_fails_with(&[(
+        vec![
+            "report",
+            "transparency",
+            "--scene",
+            chain.to_str().unwrap(),
+            "--out",
+            out_s,
+        ],
+        "has no translucent medium",
+    )]);
+}

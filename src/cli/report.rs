@@ -7,7 +7,7 @@ use clap::Subcommand;
 use mesobake::bake::vdm::VdmMethod;
 use mesobake::compress::quantize::Quantization;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::report::{accuracy, codecs, gi, quality, render, vdm};
+use mesobake::report::{accuracy, codecs, gi, quality, render, transparency, vdm};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::render::load_scene;
 use mesobake::util::fs::write_atomic;
@@ -193,6 +193,25 @@ pub enum ReportCommand {
         /// Real-time frames to time per row (0: none).
         #[arg(long, default_value_t = 3)]
         frames: u32,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
+    /// The real-time algorithm of translucent media (`render --method cells`) against their
+    /// ground truth: the scene's settings, each sample count per cell, exact integration and
+    /// no shadows, with PSNR, FLIP, mask and CPU seconds, and the time to order every pixel's
+    /// cells. Markdown on stdout; transparency.md, transparency.json and transparency.svg
+    /// (PSNR against seconds) in --out.
+    Transparency {
+        /// Scene file (a translucent medium).
+        #[arg(long, default_value = "scenes/torus-fur.json")]
+        scene: PathBuf,
+        /// Samples per cell, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "1,4,16,64")]
+        samples: Vec<u32>,
+        /// Image side in pixels instead of the scene camera's (square images).
+        #[arg(long)]
+        side: Option<u32>,
         /// Output directory.
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
@@ -467,6 +486,37 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
                 &out,
                 &table,
                 &[("vdm.md", &table), ("vdm.json", &json), ("vdm.svg", &svg)],
+            )
+        }
+        ReportCommand::Transparency {
+            scene,
+            samples,
+            side,
+            out,
+        } => {
+            let mut loaded = load_scene(&scene, limits)?;
+            if let Some(side) = side {
+                check_side(side)?;
+                loaded.scene.camera.width = side;
+                loaded.scene.camera.height = side;
+            }
+            let name = scene
+                .file_stem()
+                .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+            let progress = Progress::new("transparency report");
+            let report = transparency::transparency_report(&name, &loaded, &samples, &progress)?;
+            progress.finish();
+            let table = transparency::markdown(&report);
+            let json = to_json(&report);
+            let svg = transparency::svg_plot(&report)?;
+            publish(
+                &out,
+                &table,
+                &[
+                    ("transparency.md", &table),
+                    ("transparency.json", &json),
+                    ("transparency.svg", &svg),
+                ],
             )
         }
     }

@@ -3,7 +3,9 @@
 //! and size on scenes, samples and images), `report render` ([`render`]: the GDM renderer
 //! against the truth, and its error budget), `report quality` ([`quality`]: the per-pixel
 //! algorithm's accuracy knobs against the truth, and their time), `report gi` ([`gi`]:
-//! radiance transfer) and `report vdm` ([`vdm`]: the VDM's knobs, and the GDM beside it).
+//! radiance transfer), `report vdm` ([`vdm`]: the VDM's knobs, and the GDM beside it) and
+//! `report transparency` ([`transparency`]: the translucent media's real-time algorithm
+//! against their truth).
 
 pub mod accuracy;
 pub mod codecs;
@@ -11,6 +13,7 @@ pub mod gi;
 pub mod plot;
 pub mod quality;
 pub mod render;
+pub mod transparency;
 pub mod vdm;
 
 use crate::bake::gdm::BakeObserver;

@@ -1,0 +1,233 @@
+//! `mesobake report transparency`: what the real-time algorithm of translucent media costs
+//! and buys on a translucent scene. Every row renders the scene with the cells
+//! ([`CellRenderer`]) and compares the image with the ground truth ([`MediumTruth`]) of the
+//! scene as it is: the scene's own settings, each sample count per cell, exact integration,
+//! and (where the scene has shadows) the same without them. The time to find and order every
+//! pixel's cells (the per-pixel sorted lists) is measured on its own.
+
+use crate::bake::gdm::BakeObserver;
+use crate::error::{Error, Result};
+use crate::render::image::{Comparison, Image, compare};
+use crate::render::medium_cells::CellRenderer;
+use crate::render::medium_truth::MediumTruth;
+use crate::render::render_image;
+use crate::report::Steps;
+use crate::report::accuracy::table;
+use crate::report::plot::{plot_error, scene_panels};
+use crate::scene::transparency::{CellIntegration, TransparencySettings};
+use crate::scene::{Effect, LoadedScene};
+use serde::Serialize;
+use std::time::Instant;
+
+/// One row: a setting of the cells.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TransparencyRow {
+    /// What the row changes from the scene (`scene` for nothing).
+    pub setting: String,
+    /// The integration.
+    pub transparency: TransparencySettings,
+    /// Whether the row shades shadows.
+    pub shadows: bool,
+    /// The CPU render's seconds.
+    pub cpu_s: f64,
+    /// The render against the truth.
+    pub error: Comparison,
+}
+
+/// The report on one scene.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TransparencyReport {
+    /// The scene's name.
+    pub scene: String,
+    /// Image size.
+    pub pixels: [u32; 2],
+    /// Cells (tetrahedra) in the shell.
+    pub cells: usize,
+    /// Seconds the ground truth took.
+    pub truth_s: f64,
+    /// Seconds finding and ordering the cells under every pixel (no integration).
+    pub order_s: f64,
+    /// Mean cells crossed per pixel that meets any.
+    pub mean_crossings: f64,
+    /// The rows.
+    pub rows: Vec<TransparencyRow>,
+}
+
+/// Measures `loaded` (a translucent scene): its settings, each of `samples` per cell, exact
+/// integration, and without shadows.
+pub fn transparency_report(
+    name: &str,
+    loaded: &LoadedScene,
+    samples: &[u32],
+    observer: &dyn BakeObserver,
+) -> Result<TransparencyReport> {
+    let medium = loaded.medium.as_ref().ok_or_else(|| {
+        Error::InvalidParameter(format!(
+            "report transparency: scene {name} has no translucent medium (a `medium` \
+             mesostructure or a volume with an opacity channel)"
+        ))
+    })?;
+    let base = loaded.scene.transparency;
+    let mut settings = vec![("scene".to_owned(), base, true)];
+    let mut add = |label: String, s: TransparencySettings, shadows: bool| {
+        if !settings.iter().any(|&(_, t, sh)| t == s && sh == shadows) {
+            settings.push((label, s, shadows));
+        }
+    };
+    for &n in samples {
+        let s = TransparencySettings {
+            integration: CellIntegration::Samples,
+            samples: n,
+        };
+        s.validate()?;
+        let plural = if n == 1 { "" } else { "s" };
+        add(format!("{n} sample{plural}"), s, true);
+    }
+    let exact = TransparencySettings {
+        integration: CellIntegration::Exact,
+        ..base
+    };
+    add("exact".into(), exact, true);
+    let shadows = loaded.scene.wants(Effect::Shadows);
+    if shadows {
+        add("no shadows".into(), base, false);
+    }
+    let mut steps = Steps::new(observer, settings.len() as u64 + 2);
+    let scene = &loaded.scene;
+    let timed = |f: &dyn Fn() -> Image| {
+        let start = Instant::now();
+        let image = f();
+        (image, start.elapsed().as_secs_f64())
+    };
+    let (truth, truth_s) = timed(&|| {
+        let r = MediumTruth::new(&loaded.shell, medium);
+        render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
+    });
+    steps.step()?;
+    let cells = CellRenderer::new(&loaded.shell, medium, base);
+    let (crossings, order_s) = timed(&|| {
+        render_image(&scene.camera, |o, d| {
+            let n = cells.cells().crossings(o, d, 0.0, f64::INFINITY).len();
+            (n > 0).then_some(glam::DVec3::splat(n as f64))
+        })
+    });
+    let met: Vec<f64> = (crossings.rgb.iter().zip(&crossings.mask))
+        .filter(|(_, hit)| **hit)
+        .map(|(c, _)| f64::from(c[0]))
+        .collect();
+    let mean_crossings = met.iter().sum::<f64>() / met.len().max(1) as f64;
+    steps.step()?;
+    let mut rows = Vec::new();
+    for (setting, transparency, shadows) in settings {
+        let mut shaded = scene.clone();
+        if !shadows {
+            shaded.effects.retain(|&e| e != Effect::Shadows);
+        }
+        let (image, cpu_s) = timed(&|| {
+            let r = CellRenderer::new(&loaded.shell, medium, transparency);
+            render_image(&shaded.camera, |o, d| r.radiance(&shaded, o, d))
+        });
+        rows.push(TransparencyRow {
+            setting,
+            transparency,
+            shadows,
+            cpu_s,
+            error: compare(&truth, &image)?,
+        });
+        steps.step()?;
+    }
+    Ok(TransparencyReport {
+        scene: name.to_owned(),
+        pixels: [scene.camera.width, scene.camera.height],
+        cells: cells.cells().len(),
+        truth_s,
+        order_s,
+        mean_crossings,
+        rows,
+    })
+}
+
+/// The report as Markdown: the truth's and the ordering's times above one table.
+pub fn markdown(report: &TransparencyReport) -> String {
+    let cells = report.rows.iter().map(|r| {
+        let integration = match r.transparency.integration {
+            CellIntegration::Exact => "exact".to_owned(),
+            CellIntegration::Samples => format!("{} per cell", r.transparency.samples),
+        };
+        vec![
+            r.setting.clone(),
+            integration,
+            if r.shadows { "yes" } else { "no" }.to_owned(),
+            format!("{:.2}", r.error.psnr_db),
+            format!("{:.4}", r.error.flip_mean),
+            format!("{:.3}", 100.0 * r.error.mask_disagreement),
+            format!("{:.3}", r.cpu_s),
+        ]
+    });
+    format!(
+        "Scene {} at {}×{}, {} cells: ground truth {:.2} s; finding and ordering every pixel's \
+         cells {:.3} s ({:.1} cells per covered pixel).\n\n{}",
+        report.scene,
+        report.pixels[0],
+        report.pixels[1],
+        report.cells,
+        report.truth_s,
+        report.order_s,
+        report.mean_crossings,
+        table(
+            &[
+                "setting",
+                "integration",
+                "shadows",
+                "PSNR dB",
+                "FLIP",
+                "mask %",
+                "CPU s",
+            ],
+            cells,
+        )
+    )
+}
+
+/// An SVG plot: PSNR against the truth over CPU seconds, one labelled point per row.
+pub fn svg_plot(report: &TransparencyReport) -> Result<String> {
+    use plotters::prelude::*;
+    scene_panels(&[report.scene.as_str()], |panel, scene| {
+        let rows = &report.rows;
+        let fold = |f: &dyn Fn(&TransparencyRow) -> f64| {
+            rows.iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+                    (lo.min(f(r)), hi.max(f(r)))
+                })
+        };
+        let (t_lo, t_hi) = fold(&|r| r.cpu_s.max(1e-4));
+        let (p_lo, p_hi) = fold(&|r| r.error.psnr_db);
+        let mut chart = ChartBuilder::on(panel)
+            .caption(
+                format!("{scene}: PSNR against CPU seconds"),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .build_cartesian_2d(
+                ((t_lo * 0.5)..(t_hi * 2.0)).log_scale(),
+                (p_lo - 1.5)..(p_hi + 1.5),
+            )
+            .map_err(plot_error)?;
+        chart
+            .configure_mesh()
+            .x_desc("CPU seconds")
+            .y_desc("PSNR against the truth (dB)")
+            .draw()
+            .map_err(plot_error)?;
+        chart
+            .draw_series(rows.iter().map(|r| {
+                EmptyElement::at((r.cpu_s.max(1e-4), r.error.psnr_db))
+                    + Circle::new((0, 0), 4, BLUE.filled())
+                    + Text::new(r.setting.clone(), (6, -6), ("sans-serif", 12))
+            }))
+            .map_err(plot_error)?;
+        Ok(())
+    })
+}
