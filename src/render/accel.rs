@@ -74,9 +74,9 @@ impl BoxBvh {
             match f(index) {
                 Some(t) if best.is_none_or(|b| t < b.0) => {
                     best = Some((t, index));
-                    // The traversal culls boxes entered beyond this (rounded up: never culls a
-                    // box an f64 test would enter first).
-                    up(t) * 1.000_001
+                    // The traversal culls boxes entered beyond this, in its shifted parameter
+                    // (rounded up: never culls a box an f64 test would enter first).
+                    up(t + f64::from(TRAVERSAL_SHIFT)) * 1.000_001
                 }
                 _ => f32::INFINITY,
             }
@@ -84,21 +84,31 @@ impl BoxBvh {
         best
     }
 
-    /// The f32 traversal ray for `[t_min, t_max]`.
+    /// The f32 traversal ray for `[t_min, t_max]`, started [`TRAVERSAL_SHIFT`] back along
+    /// `dir` (its parameters shifted by as much).
     fn ray(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> Ray {
         // obvhs mis-traverses directions with negative zeros; adding +0 makes them positive.
+        let dir = dir + DVec3::ZERO;
+        let shift = f64::from(TRAVERSAL_SHIFT);
         Ray::new(
-            origin.as_vec3a(),
-            (dir + DVec3::ZERO).as_vec3a(),
-            (t_min as f32).max(0.0),
+            (origin - dir * shift).as_vec3a(),
+            dir.as_vec3a(),
+            ((t_min + shift) as f32).max(0.0),
             if t_max.is_finite() {
-                t_max as f32 * 1.000_001 + 1e-30
+                (t_max + shift) as f32 * 1.000_001 + 1e-30
             } else {
                 f32::INFINITY
             },
         )
     }
 }
+
+/// How far back along the ray (in ray parameter) the f32 traversal starts: obvhs's node
+/// test culls every box the ray leaves before parameter 10⁻⁴ (an absolute constant), which
+/// at small scene scales is the whole shell around a shadow ray's origin. Starting twice that
+/// far back keeps every box from the origin on; the boxes behind it that this adds are
+/// dropped by the f64 box test.
+const TRAVERSAL_SHIFT: f32 = 2e-4;
 
 /// The f32 box that holds the f64 box (min, max) with room to spare: padded outwards by a
 /// relative 1e-5 of its extent plus 1e-6 of its magnitude, rounded outwards.
