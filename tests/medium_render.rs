@@ -25,12 +25,14 @@ use std::path::Path;
 const EXACT: TransparencySettings = TransparencySettings {
     integration: CellIntegration::Exact,
     samples: 1,
+    mipmap: false,
+    mip_bias: 0.0,
 };
 
 /// Exact integration, 16 samples where sampled: the default.
 const EXACT_16: TransparencySettings = TransparencySettings {
-    integration: CellIntegration::Exact,
     samples: 16,
+    ..EXACT
 };
 
 /// `n` samples per cell.
@@ -38,6 +40,7 @@ fn samples(n: u32) -> TransparencySettings {
     TransparencySettings {
         integration: CellIntegration::Samples,
         samples: n,
+        ..EXACT
     }
 }
 
@@ -569,4 +572,116 @@ fn translucent_scenes_render_the_same_at_any_scale() {
         }
     }
     assert!(failed.is_empty(), "{failed:?}");
+}
+
+/// `image` box-filtered by `k`×`k` (misses count as black, the media's background); a pixel
+/// is a hit where at least half of its samples are.
+fn downsample(image: &Image, k: u32) -> Image {
+    let (w, h) = (image.width / k, image.height / k);
+    let mut out = Image::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let (mut sum, mut hits) = ([0.0f32; 3], 0);
+            for dy in 0..k {
+                for dx in 0..k {
+                    let i = ((y * k + dy) * image.width + x * k + dx) as usize;
+                    if image.mask[i] {
+                        hits += 1;
+                        (0..3).for_each(|c| sum[c] += image.rgb[i][c]);
+                    }
+                }
+            }
+            let o = (y * w + x) as usize;
+            out.rgb[o] = sum.map(|c| c / (k * k) as f32);
+            out.mask[o] = 2 * hits >= k * k;
+        }
+    }
+    out
+}
+
+/// Filtering where a pixel covers several voxels: the fur scene at 32² on a 16×16×8 grid
+/// (about 5 voxels per pixel), one ray per pixel, against the truth supersampled 4×4. The
+/// opacity-aware mip-map at its default bias (−1) brings the cells at least 2 dB nearer the
+/// supersampled truth than unfiltered cells, which alias (measured: 24.0 against 21.3 dB;
+/// its FLIP is worse, 0.196 against 0.125: the filtered image is smoother and darker, as
+/// averaged opacity darkens the shadows through coarse voxels). At bias 0, the footprint's
+/// own level, that darkening costs more than filtering gains (measured: 18.2 dB).
+#[test]
+fn the_mip_map_reduces_aliasing_where_pixels_cover_voxels() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    scene["resolution"] = serde_json::json!([16, 16, 8]);
+    let sized = |side: u32| {
+        let mut s = scene.clone();
+        s["camera"]["width"] = side.into();
+        s["camera"]["height"] = side.into();
+        let s = Scene::from_json(&s.to_string()).unwrap();
+        LoadedScene::load(s, Path::new("."), &Limits::default()).unwrap()
+    };
+    let big = sized(128);
+    let truth = MediumTruth::new(&big.shell, big.medium.as_ref().unwrap());
+    let reference = downsample(
+        &render_image(&big.scene.camera, |o, d| truth.radiance(&big.scene, o, d)),
+        4,
+    );
+    let small = sized(32);
+    let s = &small.scene;
+    let cells = |mipmap: bool, mip_bias: f64| {
+        let settings = TransparencySettings {
+            mipmap,
+            mip_bias,
+            ..TransparencySettings::default()
+        };
+        let r = CellRenderer::new(&small.shell, small.medium.as_ref().unwrap(), settings);
+        compare(
+            &reference,
+            &render_image(&s.camera, |o, d| r.radiance(s, o, d)),
+        )
+        .unwrap()
+    };
+    let plain = cells(false, 0.0);
+    let [sharp, default, footprint] = [-2.0, -1.0, 0.0].map(|bias| cells(true, bias));
+    eprintln!(
+        "against the 4×4 supersampled truth: unfiltered {plain:?}; mip-mapped at bias −2 \
+         {sharp:?}, −1 {default:?}, 0 {footprint:?}"
+    );
+    assert_eq!(TransparencySettings::default().mip_bias, -1.0);
+    assert!(reference.hits() > 32 * 32 / 4);
+    assert!(
+        default.psnr_db >= plain.psnr_db + 2.0,
+        "{default:?} against {plain:?}"
+    );
+}
+
+/// Bad transparency settings are refused by name when the scene is read.
+#[test]
+fn bad_transparency_settings_are_refused() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
+    let scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    for (settings, want) in [
+        (
+            serde_json::json!({ "samples": 0 }),
+            "samples must be 1 to 1024, got 0",
+        ),
+        (
+            serde_json::json!({ "samples": 5000 }),
+            "samples must be 1 to 1024, got 5000",
+        ),
+        (
+            serde_json::json!({ "mip_bias": 9.5 }),
+            "mip_bias must be within ±8, got 9.5",
+        ),
+        (
+            serde_json::json!({ "integration": "dda" }),
+            "unknown variant `dda`",
+        ),
+        (serde_json::json!({ "sample": 4 }), "unknown field `sample`"),
+    ] {
+        let mut s = scene.clone();
+        s["transparency"] = settings;
+        let err = Scene::from_json(&s.to_string()).unwrap_err().to_string();
+        assert!(err.contains(want), "{err}");
+    }
 }

@@ -36,7 +36,7 @@ impl MaterialVolume {
         Self::from_field(
             dims,
             |i, j, k| density[dims.index(i, j, k)].clamp(0.0, 1.0),
-            volume.albedo(),
+            volume.albedo().map(linear_albedo),
             default_albedo,
         )
     }
@@ -83,17 +83,17 @@ impl MaterialVolume {
         Self::from_field(
             occ.dims(),
             |i, j, k| occ.get(i, j, k) as u8 as f32,
-            albedo,
+            albedo.map(linear_albedo),
             default_albedo,
         )
     }
 
     /// For a translucent medium: normals from the gradient of `opacity` (per voxel, x fastest,
-    /// in [0, 1]) as the solid fraction, and optional per-voxel sRGB albedo.
+    /// in [0, 1]) as the solid fraction, and optional per-voxel linear albedo.
     pub fn from_opacity(
         dims: Dims,
         opacity: &[f32],
-        albedo: Option<&[[u8; 3]]>,
+        albedo: Option<Vec<Vec3>>,
         default_albedo: DVec3,
     ) -> Self {
         Self::from_field(
@@ -105,11 +105,11 @@ impl MaterialVolume {
     }
 
     /// From a solid fraction per voxel (`field(i, j, k)` in [0, 1]) and optional per-voxel
-    /// sRGB albedo.
+    /// linear albedo.
     fn from_field(
         dims: Dims,
         field: impl Fn(u32, u32, u32) -> f32,
-        albedo: Option<&[[u8; 3]]>,
+        albedo: Option<Vec<Vec3>>,
         default_albedo: DVec3,
     ) -> Self {
         let (wx, wy) = (Wrap::new(dims.x), Wrap::new(dims.y));
@@ -135,11 +135,6 @@ impl MaterialVolume {
                 }
             }
         }
-        let albedo = albedo.map(|a| {
-            a.iter()
-                .map(|c| Vec3::from(c.map(|v| srgb_to_linear(v as f32 / 255.0))))
-                .collect()
-        });
         MaterialVolume {
             dims,
             albedo,
@@ -195,6 +190,14 @@ impl MaterialVolume {
         }
         n.try_normalize()
     }
+}
+
+/// Per-voxel sRGB albedo as linear colours.
+pub fn linear_albedo(albedo: &[[u8; 3]]) -> Vec<Vec3> {
+    albedo
+        .iter()
+        .map(|c| Vec3::from(c.map(|v| srgb_to_linear(v as f32 / 255.0))))
+        .collect()
 }
 
 /// The sRGB transfer function's inverse.

@@ -20,7 +20,10 @@
 //!    the medium's piecewise-constant definition) with the opacity correction
 //!    α = 1 − (1 − α_t)^ℓ, ℓ the part's texture-space length in voxels; or every voxel the
 //!    stretch crosses, in closed form (as the ground truth does along its chords).
-//! 4. **Light.** Each sample is shaded with the scene's lights; with shadows, each light's
+//! 4. **Filtering** (where the settings ask for it): each crossing reads the level of the
+//!    opacity-aware mip-map ([`Medium::coarser`]) nearest to log₂ of its pixel's footprint
+//!    in voxels, plus a bias.
+//! 5. **Light.** Each sample is shaded with the scene's lights; with shadows, each light's
 //!    visibility is the transmittance of a ray through the cells towards it, integrated the
 //!    same way (the CPU stand-in for a deep shadow map: the paper's single shadow map keeps
 //!    the nearest opaque depth only).
@@ -192,17 +195,27 @@ fn owns(n: DVec3) -> bool {
 pub struct CellRenderer<'a> {
     cells: CellMesh,
     medium: &'a Medium,
+    /// The mip-map's coarser levels (level l at l − 1), where the settings ask for it.
+    coarser: Vec<Medium>,
     settings: TransparencySettings,
 }
 
 impl<'a> CellRenderer<'a> {
-    /// Splits `shell` into cells for `medium`, integrated as `settings` says.
+    /// Splits `shell` into cells for `medium`, integrated as `settings` says (building the
+    /// mip-map if they ask for it).
     pub fn new(shell: &Shell, medium: &'a Medium, settings: TransparencySettings) -> Self {
         let d = medium.dims();
         let scale = DVec3::new(f64::from(d.x), f64::from(d.y), f64::from(d.z));
+        let mut coarser: Vec<Medium> = Vec::new();
+        if settings.mipmap {
+            while let Some(next) = coarser.last().unwrap_or(medium).coarser() {
+                coarser.push(next);
+            }
+        }
         CellRenderer {
             cells: CellMesh::new(shell, scale),
             medium,
+            coarser,
             settings,
         }
     }
@@ -212,19 +225,52 @@ impl<'a> CellRenderer<'a> {
         &self.cells
     }
 
-    /// Integrates the crossing `c` of `origin + t·dir`: `light(t, texture point, voxel)`
-    /// gives the light scattered at each sample or piece.
+    /// Mip-map level `level` of the medium (0: the medium itself).
+    fn level(&self, level: usize) -> &Medium {
+        level
+            .checked_sub(1)
+            .map_or(self.medium, |l| &self.coarser[l])
+    }
+
+    /// The mip level for the crossing `c` of a camera ray whose pixels subtend
+    /// `pixel_angle` radians: log₂ of the pixel's footprint at the entry, in voxels (the
+    /// object footprint times the cell's mean voxels per object length, ∛|det M|), plus the
+    /// bias, rounded to the nearest level that exists.
+    fn level_for(&self, c: &Crossing, pixel_angle: f64) -> usize {
+        if self.coarser.is_empty() {
+            return 0;
+        }
+        let density = self.cells.cells[c.cell]
+            .to_texture
+            .matrix3
+            .determinant()
+            .abs()
+            .cbrt();
+        let lambda = (c.t_in.max(0.0) * pixel_angle * density).log2() + self.settings.mip_bias;
+        if lambda.is_finite() {
+            lambda.round().clamp(0.0, self.coarser.len() as f64) as usize
+        } else {
+            0
+        }
+    }
+
+    /// Integrates the crossing `c` of `origin + t·dir` in mip level `level`: `light(t,
+    /// texture point, voxel)` gives the light scattered at each sample or piece (texture
+    /// points and voxels of that level).
     fn integrate(
         &self,
         origin: DVec3,
         dir: DVec3,
         c: &Crossing,
+        level: usize,
         out: &mut Gathered,
         mut light: impl FnMut(f64, DVec3, usize) -> DVec3,
     ) -> ControlFlow<()> {
         let cell = &self.cells.cells[c.cell];
-        let a = cell.to_texture.transform_point3(origin + dir * c.t_in);
-        let b = cell.to_texture.transform_point3(origin + dir * c.t_out);
+        let medium = self.level(level);
+        let texel = 0.5f64.powi(level as i32);
+        let a = cell.to_texture.transform_point3(origin + dir * c.t_in) * texel;
+        let b = cell.to_texture.transform_point3(origin + dir * c.t_out) * texel;
         let len = (b - a).length();
         if len == 0.0 {
             return ControlFlow::Continue(());
@@ -238,10 +284,10 @@ impl<'a> CellRenderer<'a> {
                 for i in 0..n {
                     let s = (f64::from(i) + 0.5) * part;
                     let texture = a + (b - a) * (s / len);
-                    let Some(v) = self.medium.voxel_at(texture) else {
+                    let Some(v) = medium.voxel_at(texture) else {
                         continue;
                     };
-                    let absorbed = 1.0 - self.medium.transmittance(v, part);
+                    let absorbed = 1.0 - medium.transmittance(v, part);
                     if absorbed > 0.0 {
                         out.composite(light(c.t_in + s * dt, texture, v), absorbed)?;
                     }
@@ -250,8 +296,8 @@ impl<'a> CellRenderer<'a> {
             }
             CellIntegration::Exact => {
                 let view = (b - a) / len;
-                self.medium.walk(a, view, len, |v, s0, s1| {
-                    integrate_voxel(self.medium, v, (s0, s1), DEFAULT_LIGHT_STEP, out, |u| {
+                medium.walk(a, view, len, |v, s0, s1| {
+                    integrate_voxel(medium, v, (s0, s1), DEFAULT_LIGHT_STEP, out, |u| {
                         light(c.t_in + u * dt, a + view * u, v)
                     })
                 })
@@ -262,10 +308,15 @@ impl<'a> CellRenderer<'a> {
     /// Transmittance through the cells along `origin + t·dir` (unit `dir`), t ∈ [`t_min`,
     /// `t_max`], integrated like the camera rays.
     pub fn transmittance(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> f64 {
+        self.transmittance_in(0, origin, dir, t_min, t_max)
+    }
+
+    /// [`CellRenderer::transmittance`] in mip level `level`.
+    fn transmittance_in(&self, level: usize, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> f64 {
         let mut out = Gathered::EMPTY;
-        for c in self.cells.crossings(origin, dir, t_min, t_max) {
+        for c in self.cells.crossings(o, d, t_min, t_max) {
             if self
-                .integrate(origin, dir, &c, &mut out, |_, _, _| DVec3::ZERO)
+                .integrate(o, d, &c, level, &mut out, |_, _, _| DVec3::ZERO)
                 .is_break()
             {
                 break;
@@ -275,17 +326,22 @@ impl<'a> CellRenderer<'a> {
     }
 
     /// What the camera ray `origin + t·dir` (unit `dir`), t ≥ 0, gathers under the scene's
-    /// lights (shadows when the scene asks for them).
+    /// lights (shadows when the scene asks for them). With the mip-map, each crossing and its
+    /// shadow rays read the level its pixel's footprint calls for.
     pub fn gather(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Gathered {
         let shadows = scene.wants(Effect::Shadows);
+        let camera = &scene.camera;
+        let pixel_angle =
+            2.0 * (camera.fov_y_degrees.to_radians() / 2.0).tan() / f64::from(camera.height);
         let mut out = Gathered::EMPTY;
         for c in self.cells.crossings(origin, dir, 0.0, f64::INFINITY) {
             let cell = &self.cells.cells[c.cell];
             let to_object = cell.normal_to_object;
-            let flow = self.integrate(origin, dir, &c, &mut out, |t, texture, v| {
+            let level = self.level_for(&c, pixel_angle);
+            let medium = self.level(level);
+            let flow = self.integrate(origin, dir, &c, level, &mut out, |t, texture, v| {
                 let point = origin + dir * t;
-                let normal = self
-                    .medium
+                let normal = medium
                     .material()
                     .normal_at(texture)
                     .and_then(|n| (to_object * n).try_normalize());
@@ -294,7 +350,7 @@ impl<'a> CellRenderer<'a> {
                     &scene.material,
                     point,
                     normal,
-                    self.medium.colour(v),
+                    medium.colour(v),
                     -dir,
                     |inc| {
                         if !shadows {
@@ -306,7 +362,7 @@ impl<'a> CellRenderer<'a> {
                         if start >= inc.distance {
                             return 1.0;
                         }
-                        self.transmittance(point, inc.direction, start, inc.distance)
+                        self.transmittance_in(level, point, inc.direction, start, inc.distance)
                     },
                 )
             });

@@ -78,6 +78,7 @@ pub fn transparency_report(
         let s = TransparencySettings {
             integration: CellIntegration::Samples,
             samples: n,
+            ..base
         };
         s.validate()?;
         let plural = if n == 1 { "" } else { "s" };

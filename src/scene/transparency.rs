@@ -28,15 +28,29 @@ pub struct TransparencySettings {
     pub integration: CellIntegration,
     /// Samples per cell for [`CellIntegration::Samples`] (1 to [`MAX_CELL_SAMPLES`]).
     pub samples: u32,
+    /// Whether each crossing reads the level of the opacity-aware mip-map that its pixel's
+    /// footprint calls for ([`crate::mesostructure::medium::Medium::coarser`]).
+    pub mipmap: bool,
+    /// Added to the level the footprint calls for (negative: sharper; at most
+    /// [`MAX_MIP_BIAS`] either way).
+    pub mip_bias: f64,
 }
+
+/// Largest mip level bias either way.
+pub const MAX_MIP_BIAS: f64 = 8.0;
 
 impl Default for TransparencySettings {
     /// Exact integration; 16 samples per cell where `integration` is `samples` (the paper
-    /// takes 10 to 15 per image).
+    /// takes 10 to 15 per image); no mip-map, so that one ray per pixel integrates what the
+    /// ground truth integrates; with it, one level sharper than the footprint's (averaged
+    /// opacity darkens shadows through coarse voxels: on the fur scene bias −1 measured
+    /// nearest a supersampled truth).
     fn default() -> Self {
         TransparencySettings {
             integration: CellIntegration::Exact,
             samples: 16,
+            mipmap: false,
+            mip_bias: -1.0,
         }
     }
 }
@@ -47,8 +61,14 @@ impl TransparencySettings {
         *self == TransparencySettings::default()
     }
 
-    /// Checks the sample count.
+    /// Checks the sample count and the bias.
     pub fn validate(&self) -> Result<()> {
+        if !(self.mip_bias.abs() <= MAX_MIP_BIAS) {
+            return Err(Error::Scene(format!(
+                "transparency: mip_bias must be within ±{MAX_MIP_BIAS}, got {}",
+                self.mip_bias
+            )));
+        }
         if !(1..=MAX_CELL_SAMPLES).contains(&self.samples) {
             return Err(Error::Scene(format!(
                 "transparency: samples must be 1 to {MAX_CELL_SAMPLES}, got {}",
