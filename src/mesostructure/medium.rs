@@ -64,7 +64,7 @@ impl Medium {
     /// voxel long. Normals come from the coarse opacity's gradient.
     pub fn coarser(&self) -> Option<Medium> {
         let d = self.dims;
-        if d.x % 2 != 0 || d.y % 2 != 0 || d.z % 2 != 0 || d.z < 2 {
+        if [d.x, d.y, d.z].iter().any(|n| !n.is_multiple_of(2)) || d.z < 2 {
             return None;
         }
         let coarse = Dims::new(d.x / 2, d.y / 2, d.z / 2).ok()?;

@@ -63,7 +63,7 @@ impl TransparencySettings {
 
     /// Checks the sample count and the bias.
     pub fn validate(&self) -> Result<()> {
-        if !(self.mip_bias.abs() <= MAX_MIP_BIAS) {
+        if self.mip_bias.is_nan() || self.mip_bias.abs() > MAX_MIP_BIAS {
             return Err(Error::Scene(format!(
                 "transparency: mip_bias must be within ±{MAX_MIP_BIAS}, got {}",
                 self.mip_bias
