@@ -26,7 +26,7 @@ const EXACT: TransparencySettings = TransparencySettings {
     integration: CellIntegration::Exact,
     samples: 1,
     mipmap: false,
-    mip_bias: 0.0,
+    mip_bias: -1.0,
 };
 
 /// Exact integration, 16 samples where sampled: the default.
@@ -42,6 +42,22 @@ fn samples(n: u32) -> TransparencySettings {
         samples: n,
         ..EXACT
     }
+}
+
+/// Shipped scene `name` from `scenes/` as JSON, its grid replaced by `resolution` and its
+/// image by `side`² where given.
+fn shipped_scene(name: &str, resolution: Option<[u32; 3]>, side: Option<u32>) -> serde_json::Value {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("scenes/{name}.json"));
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    if let Some(r) = resolution {
+        scene["resolution"] = serde_json::json!(r);
+    }
+    if let Some(side) = side {
+        scene["camera"]["width"] = side.into();
+        scene["camera"]["height"] = side.into();
+    }
+    scene
 }
 
 /// A flat 2×2 plane (x–z, normals +Y) under a `thickness` shell, two tiles per unit of uv
@@ -60,6 +76,37 @@ fn flat_scene(dir: &Path, mesostructure: &str, thickness: f64) -> LoadedScene {
 }}"#
     );
     LoadedScene::load(Scene::from_json(&json).unwrap(), dir, &Limits::default()).unwrap()
+}
+
+/// The opacity of each of the 8 layers of the layered test medium.
+const LAYER_OPACITY: [f32; 8] = [1.0 / 3.0, 0.0, 0.05, 0.5, 0.9, 0.2, 0.0, 0.125];
+
+/// [`flat_scene`] with a 16×16×8 medium of opacity `opacity(voxel index)`, written to
+/// `NAME.mbvol` (version 2) in `dir` and read back through the scene.
+fn flat_medium_file(
+    dir: &Path,
+    name: &str,
+    thickness: f64,
+    opacity: impl Fn(usize) -> f32,
+) -> LoadedScene {
+    let dims = Dims::new(16, 16, 8).unwrap();
+    let volume = Volume::from_fn(dims, &Limits::default(), |_, _, _| false)
+        .unwrap()
+        .with_opacity((0..16 * 16 * 8).map(opacity).collect())
+        .unwrap();
+    let file = format!("{name}.mbvol");
+    volume_format::write(&volume, &dir.join(&file)).unwrap();
+    flat_scene(dir, &format!(r#"{{ "volume": "{file}" }}"#), thickness)
+}
+
+/// What the layered medium transmits along unit `d` across a flat shell of thickness `h`:
+/// each layer holds 1/8 of the path, T = Π (1 − α_k)^(ℓ/8).
+fn layered_transmittance(d: DVec3, h: f64) -> f64 {
+    let per_layer = voxels_across(d, h) / 8.0;
+    LAYER_OPACITY
+        .iter()
+        .map(|&a| (1.0 - f64::from(a)).powf(per_layer))
+        .product()
 }
 
 /// The texture-space length, in voxels, of the straight object-space path across the whole
@@ -98,25 +145,14 @@ fn a_uniform_medium_transmits_the_closed_form_across_the_shell() {
 #[test]
 fn a_layered_medium_file_transmits_the_product_over_its_layers() {
     let dir = tempfile::tempdir().unwrap();
-    let dims = Dims::new(16, 16, 8).unwrap();
-    let layer_opacity = [1.0f32 / 3.0, 0.0, 0.05, 0.5, 0.9, 0.2, 0.0, 0.125];
-    let volume = Volume::from_fn(dims, &Limits::default(), |_, _, _| false)
-        .unwrap()
-        .with_opacity((0..16 * 16 * 8).map(|v| layer_opacity[v / 256]).collect())
-        .unwrap();
-    volume_format::write(&volume, &dir.path().join("layers.mbvol")).unwrap();
     let h = 0.5;
-    let loaded = flat_scene(dir.path(), r#"{ "volume": "layers.mbvol" }"#, h);
+    let loaded = flat_medium_file(dir.path(), "layers", h, |v| LAYER_OPACITY[v / 256]);
     let truth = MediumTruth::new(&loaded.shell, loaded.medium.as_ref().unwrap());
     for d in SLANTS {
         let d = DVec3::from(d).normalize();
         let origin = DVec3::new(0.1, 1.0, -0.2) - d * (1.0 / d.y.abs());
         let t = truth.transmittance(origin, d, 0.0, f64::INFINITY);
-        let per_layer = voxels_across(d, h) / 8.0;
-        let exact: f64 = layer_opacity
-            .iter()
-            .map(|&a| (1.0 - f64::from(a)).powf(per_layer))
-            .product();
+        let exact = layered_transmittance(d, h);
         assert!((t / exact - 1.0).abs() < 1e-9, "{d}: {t} against {exact}");
     }
 }
@@ -124,12 +160,7 @@ fn a_layered_medium_file_transmits_the_product_over_its_layers() {
 /// The medium truth (α = 1) and the opaque truth with the same normals (the medium's, from
 /// its binary opacity) on the torus-chain scene shrunk to 96², under `effects`.
 fn opaque_chain_both_ways(effects: serde_json::Value) -> Comparison {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-chain.json");
-    let mut scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    scene["resolution"] = serde_json::json!([32, 32, 16]);
-    scene["camera"]["width"] = 96.into();
-    scene["camera"]["height"] = 96.into();
+    let mut scene = shipped_scene("torus-chain", Some([32, 32, 16]), Some(96));
     scene["effects"] = effects;
     let scene = Scene::from_json(&scene.to_string()).unwrap();
     let loaded = LoadedScene::load(scene, Path::new("."), &Limits::default()).unwrap();
@@ -176,14 +207,9 @@ fn shadowed_the_opaque_medium_sees_its_voxel_staircase() {
 /// The shipped translucent scene renders from the CLI (the default method is the cells);
 /// the real-time techniques refuse it by name, and nothing is written.
 #[test]
-fn a_translucent_scene_renders_its_truth_and_bakes_nothing() {
+fn a_translucent_scene_renders_by_its_cells_and_bakes_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
-    let mut scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    scene["resolution"] = serde_json::json!([32, 32, 16]);
-    scene["camera"]["width"] = 48.into();
-    scene["camera"]["height"] = 48.into();
+    let scene = shipped_scene("torus-fur", Some([32, 32, 16]), Some(48));
     let small = dir.path().join("fur.json");
     std::fs::write(&small, scene.to_string()).unwrap();
     let small = small.to_str().unwrap();
@@ -224,12 +250,7 @@ fn a_translucent_scene_renders_its_truth_and_bakes_nothing() {
 /// closer than 1 voxel and within the stated 30 dB (measured: 39.3 dB; 1 voxel 29.3 dB).
 #[test]
 fn the_light_step_converges_on_fur() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
-    let mut scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    scene["resolution"] = serde_json::json!([32, 32, 16]);
-    scene["camera"]["width"] = 40.into();
-    scene["camera"]["height"] = 40.into();
+    let scene = shipped_scene("torus-fur", Some([32, 32, 16]), Some(40));
     let scene = Scene::from_json(&scene.to_string()).unwrap();
     let loaded = LoadedScene::load(scene, Path::new("."), &Limits::default()).unwrap();
     let medium = loaded.medium.as_ref().unwrap();
@@ -298,26 +319,15 @@ fn cells_transmit_the_closed_form_on_a_flat_shell_even_along_shared_faces() {
 #[test]
 fn cells_integrate_a_layered_medium_exactly_or_converging_with_samples() {
     let dir = tempfile::tempdir().unwrap();
-    let dims = Dims::new(16, 16, 8).unwrap();
-    let layer_opacity = [1.0f32 / 3.0, 0.0, 0.05, 0.5, 0.9, 0.2, 0.0, 0.125];
-    let volume = Volume::from_fn(dims, &Limits::default(), |_, _, _| false)
-        .unwrap()
-        .with_opacity((0..16 * 16 * 8).map(|v| layer_opacity[v / 256]).collect())
-        .unwrap();
-    volume_format::write(&volume, &dir.path().join("layers.mbvol")).unwrap();
     let h = 0.5;
-    let loaded = flat_scene(dir.path(), r#"{ "volume": "layers.mbvol" }"#, h);
+    let loaded = flat_medium_file(dir.path(), "layers", h, |v| LAYER_OPACITY[v / 256]);
     let medium = loaded.medium.as_ref().unwrap();
     let error = |settings| {
         let cells = CellRenderer::new(&loaded.shell, medium, settings);
         flat_rays()
             .into_iter()
             .map(|(origin, d)| {
-                let per_layer = voxels_across(d, h) / 8.0;
-                let exact: f64 = layer_opacity
-                    .iter()
-                    .map(|&a| (1.0 - f64::from(a)).powf(per_layer))
-                    .product();
+                let exact = layered_transmittance(d, h);
                 (cells.transmittance(origin, d, 0.0, f64::INFINITY) / exact - 1.0).abs()
             })
             .fold(0.0, f64::max)
@@ -335,15 +345,8 @@ fn cells_integrate_a_layered_medium_exactly_or_converging_with_samples() {
 #[test]
 fn empty_and_opaque_media_are_the_limits() {
     let dir = tempfile::tempdir().unwrap();
-    let dims = Dims::new(16, 16, 8).unwrap();
     for (name, alpha) in [("empty", 0.0f32), ("opaque", 1.0)] {
-        let volume = Volume::from_fn(dims, &Limits::default(), |_, _, _| false)
-            .unwrap()
-            .with_opacity(vec![alpha; 16 * 16 * 8])
-            .unwrap();
-        let file = format!("{name}.mbvol");
-        volume_format::write(&volume, &dir.path().join(&file)).unwrap();
-        let loaded = flat_scene(dir.path(), &format!(r#"{{ "volume": "{file}" }}"#), 0.25);
+        let loaded = flat_medium_file(dir.path(), name, 0.25, |_| alpha);
         let medium = loaded.medium.as_ref().unwrap();
         let s = &loaded.scene;
         let truth = MediumTruth::new(&loaded.shell, medium);
@@ -367,12 +370,7 @@ fn empty_and_opaque_media_are_the_limits() {
 
 /// The fur scene shrunk to 64² on a 32×32×16 grid, its torus at `segments`.
 fn small_fur(segments: [u32; 2]) -> LoadedScene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
-    let mut scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    scene["resolution"] = serde_json::json!([32, 32, 16]);
-    scene["camera"]["width"] = 64.into();
-    scene["camera"]["height"] = 64.into();
+    let mut scene = shipped_scene("torus-fur", Some([32, 32, 16]), Some(64));
     scene["base_mesh"]["builtin"]["torus"]["segments"] = serde_json::json!(segments);
     let scene = Scene::from_json(&scene.to_string()).unwrap();
     LoadedScene::load(scene, Path::new("."), &Limits::default()).unwrap()
@@ -447,10 +445,7 @@ fn the_cells_affine_error_shrinks_with_the_base_mesh() {
 #[test]
 fn report_transparency_measures_each_setting_against_the_truth() {
     let dir = tempfile::tempdir().unwrap();
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
-    let mut scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    scene["resolution"] = serde_json::json!([16, 16, 8]);
+    let scene = shipped_scene("torus-fur", Some([16, 16, 8]), None);
     let small = dir.path().join("fur.json");
     std::fs::write(&small, scene.to_string()).unwrap();
     let out = dir.path().join("report");
@@ -539,12 +534,7 @@ fn grazing_rays_through_a_thin_shell_transmit_the_closed_form() {
 /// the mask to 0.1 % and to 40 dB (the fur scene shrunk to 48² on 16×16×8).
 #[test]
 fn translucent_scenes_render_the_same_at_any_scale() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
-    let mut scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    scene["resolution"] = serde_json::json!([16, 16, 8]);
-    scene["camera"]["width"] = 48.into();
-    scene["camera"]["height"] = 48.into();
+    let scene = shipped_scene("torus-fur", Some([16, 16, 8]), Some(48));
     let scene = Scene::from_json(&scene.to_string()).unwrap();
     let images = |scene: Scene| {
         let loaded = LoadedScene::load(scene, Path::new("."), &Limits::default()).unwrap();
@@ -608,10 +598,7 @@ fn downsample(image: &Image, k: u32) -> Image {
 /// own level, that darkening costs more than filtering gains (measured: 18.2 dB).
 #[test]
 fn the_mip_map_reduces_aliasing_where_pixels_cover_voxels() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
-    let mut scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    scene["resolution"] = serde_json::json!([16, 16, 8]);
+    let scene = shipped_scene("torus-fur", Some([16, 16, 8]), None);
     let sized = |side: u32| {
         let mut s = scene.clone();
         s["camera"]["width"] = side.into();
@@ -657,9 +644,7 @@ fn the_mip_map_reduces_aliasing_where_pixels_cover_voxels() {
 /// Bad transparency settings are refused by name when the scene is read.
 #[test]
 fn bad_transparency_settings_are_refused() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-fur.json");
-    let scene: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let scene = shipped_scene("torus-fur", None, None);
     for (settings, want) in [
         (
             serde_json::json!({ "samples": 0 }),

@@ -299,6 +299,20 @@ fn publish_report(
     )
 }
 
+/// The scene at `path` with its file stem as its name, its image made `side`² if given.
+fn load_named(path: &Path, side: Option<u32>, limits: &Limits) -> Result<(String, LoadedScene)> {
+    let mut loaded = load_scene(path, limits)?;
+    if let Some(side) = side {
+        check_side(side)?;
+        loaded.scene.camera.width = side;
+        loaded.scene.camera.height = side;
+    }
+    let name = path
+        .file_stem()
+        .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+    Ok((name, loaded))
+}
+
 /// Runs the report.
 pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
     match which {
@@ -458,12 +472,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             frames,
             out,
         } => {
-            let mut loaded = load_scene(&scene, limits)?;
-            if let Some(side) = side {
-                check_side(side)?;
-                loaded.scene.camera.width = side;
-                loaded.scene.camera.height = side;
-            }
+            let (name, loaded) = load_named(&scene, side, limits)?;
             let sweep = vdm::VdmSweep {
                 curvatures,
                 directions: dirs,
@@ -472,9 +481,6 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
                 quantizations: quants,
                 frames,
             };
-            let name = scene
-                .file_stem()
-                .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
             let dir = scene.parent().unwrap_or(Path::new("."));
             let progress = Progress::new("VDM report");
             let report = vdm::vdm_report(&name, &loaded, dir, &sweep, limits, &progress)?;
@@ -494,15 +500,7 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             side,
             out,
         } => {
-            let mut loaded = load_scene(&scene, limits)?;
-            if let Some(side) = side {
-                check_side(side)?;
-                loaded.scene.camera.width = side;
-                loaded.scene.camera.height = side;
-            }
-            let name = scene
-                .file_stem()
-                .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+            let (name, loaded) = load_named(&scene, side, limits)?;
             let progress = Progress::new("transparency report");
             let report = transparency::transparency_report(&name, &loaded, &samples, &progress)?;
             progress.finish();
