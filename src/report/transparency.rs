@@ -13,7 +13,7 @@ use crate::render::medium_truth::MediumTruth;
 use crate::render::render_image;
 use crate::report::Steps;
 use crate::report::accuracy::table;
-use crate::report::plot::{plot_error, scene_panels};
+use crate::report::plot::labelled_scatter;
 use crate::scene::transparency::{CellIntegration, TransparencySettings};
 use crate::scene::{Effect, LoadedScene};
 use serde::Serialize;
@@ -192,43 +192,20 @@ pub fn markdown(report: &TransparencyReport) -> String {
 
 /// An SVG plot: PSNR against the truth over CPU seconds, one labelled point per row.
 pub fn svg_plot(report: &TransparencyReport) -> Result<String> {
-    use plotters::prelude::*;
-    scene_panels(&[report.scene.as_str()], |panel, scene| {
-        let rows = &report.rows;
-        let fold = |f: &dyn Fn(&TransparencyRow) -> f64| {
-            rows.iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
-                    (lo.min(f(r)), hi.max(f(r)))
-                })
-        };
-        let (t_lo, t_hi) = fold(&|r| r.cpu_s.max(1e-4));
-        let (p_lo, p_hi) = fold(&|r| r.error.psnr_db);
-        let mut chart = ChartBuilder::on(panel)
-            .caption(
-                format!("{scene}: PSNR against CPU seconds"),
-                ("sans-serif", 18),
+    let points: Vec<_> = (report.rows.iter())
+        .map(|r| {
+            let label = r.setting.clone();
+            (
+                r.cpu_s.max(1e-4),
+                r.error.psnr_db,
+                label,
+                plotters::style::colors::BLUE,
             )
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(56)
-            .build_cartesian_2d(
-                ((t_lo * 0.5)..(t_hi * 2.0)).log_scale(),
-                (p_lo - 1.5)..(p_hi + 1.5),
-            )
-            .map_err(plot_error)?;
-        chart
-            .configure_mesh()
-            .x_desc("CPU seconds")
-            .y_desc("PSNR against the truth (dB)")
-            .draw()
-            .map_err(plot_error)?;
-        chart
-            .draw_series(rows.iter().map(|r| {
-                EmptyElement::at((r.cpu_s.max(1e-4), r.error.psnr_db))
-                    + Circle::new((0, 0), 4, BLUE.filled())
-                    + Text::new(r.setting.clone(), (6, -6), ("sans-serif", 12))
-            }))
-            .map_err(plot_error)?;
-        Ok(())
-    })
+        })
+        .collect();
+    labelled_scatter(
+        &format!("{}: PSNR against CPU seconds", report.scene),
+        ("CPU seconds", "PSNR against the truth (dB)"),
+        &points,
+    )
 }

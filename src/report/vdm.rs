@@ -25,7 +25,7 @@ use crate::render::truth::TruthRenderer;
 use crate::render::vdm_renderer::VdmRenderer;
 use crate::report::Steps;
 use crate::report::accuracy::table;
-use crate::report::plot::{plot_error, scene_panels};
+use crate::report::plot::labelled_scatter;
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package, input_identity};
 use crate::scene::preview::gdm_preview;
@@ -393,48 +393,20 @@ pub fn markdown(report: &VdmReport) -> String {
 /// An SVG plot: CPU render PSNR against the truth over package bytes, one labelled point per
 /// row.
 pub fn svg_plot(report: &VdmReport) -> Result<String> {
-    use plotters::prelude::*;
-    scene_panels(&[report.scene.as_str()], |panel, scene| {
-        let rows = &report.rows;
-        let fold = |f: &dyn Fn(&VdmReportRow) -> f64| {
-            rows.iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
-                    (lo.min(f(r)), hi.max(f(r)))
-                })
-        };
-        let (b_lo, b_hi) = fold(&|r| r.bytes as f64);
-        let (p_lo, p_hi) = fold(&|r| r.error.psnr_db);
-        let mut chart = ChartBuilder::on(panel)
-            .caption(
-                format!("{scene}: PSNR against package bytes"),
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(56)
-            .build_cartesian_2d(
-                ((b_lo * 0.5)..(b_hi * 2.0)).log_scale(),
-                (p_lo - 1.5)..(p_hi + 1.5),
-            )
-            .map_err(plot_error)?;
-        chart
-            .configure_mesh()
-            .x_desc("package bytes")
-            .y_desc("PSNR against the truth (dB)")
-            .draw()
-            .map_err(plot_error)?;
-        chart
-            .draw_series(rows.iter().map(|r| {
-                let colour = if r.technique == Technique::Gdm {
-                    RED
-                } else {
-                    BLUE
-                };
-                EmptyElement::at((r.bytes as f64, r.error.psnr_db))
-                    + Circle::new((0, 0), 4, colour.filled())
-                    + Text::new(r.setting.clone(), (6, -6), ("sans-serif", 12))
-            }))
-            .map_err(plot_error)?;
-        Ok(())
-    })
+    use plotters::style::colors::{BLUE, RED};
+    let points: Vec<_> = (report.rows.iter())
+        .map(|r| {
+            let colour = if r.technique == Technique::Gdm {
+                RED
+            } else {
+                BLUE
+            };
+            (r.bytes as f64, r.error.psnr_db, r.setting.clone(), colour)
+        })
+        .collect();
+    labelled_scatter(
+        &format!("{}: PSNR against package bytes", report.scene),
+        ("package bytes", "PSNR against the truth (dB)"),
+        &points,
+    )
 }
