@@ -493,9 +493,9 @@ fn report_transparency_measures_each_setting_against_the_truth() {
     )]);
 }
 
-/// Grazing rays, 1.1° to 3° above a thin flat shell (h = 0.01, so a path crosses up to
-/// 28 tiles' worth of prisms): the truth and the cells (exact and 16 samples per cell, a
-/// uniform medium) still transmit the closed form to 1e-9 relative.
+/// Grazing rays, 1.07° to 2.75° above a thin flat shell (h = 0.01, so each path runs 0.2 to
+/// 0.54 object units inside it, across several prisms): the truth and the cells (exact and 16
+/// samples per cell, a uniform medium) still transmit the closed form to 1e-9 relative.
 #[test]
 fn grazing_rays_through_a_thin_shell_transmit_the_closed_form() {
     let dir = tempfile::tempdir().unwrap();

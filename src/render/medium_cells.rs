@@ -1,7 +1,8 @@
 //! The real-time algorithm for translucent media (semi-transparent 3D textures), its CPU
-//! specification: the shell as cells, three tetrahedra per prism ([`Prism::tetrahedra`]),
-//! each mapped to texture space by one affine map; per ray, the cells it crosses in order,
-//! each integrated on its own and composited front to back.
+//! specification: the shell as cells, three tetrahedra per prism
+//! ([`crate::surface::shell::Prism::tetrahedra`]), each mapped to texture space by one affine
+//! map; per ray, the cells it crosses in order, each integrated on its own and composited
+//! front to back.
 //!
 //! 1. **Cells.** A tetrahedron's affine map takes its four object-space corners to their
 //!    texture coordinates (voxel units): the paper's M^{o→t}. Inside a cell the texture is
@@ -30,9 +31,7 @@
 
 use super::accel::BoxBvh;
 use super::lighting::shade_transmitted;
-use super::medium_truth::{
-    DEFAULT_LIGHT_STEP, Gathered, MIN_TRANSMITTANCE, SHADOW_START, integrate_voxel,
-};
+use super::medium_truth::{DEFAULT_LIGHT_STEP, Gathered, SHADOW_START, integrate_voxel};
 use crate::mesostructure::medium::Medium;
 use crate::scene::transparency::{CellIntegration, TransparencySettings};
 use crate::scene::{Effect, Scene};
@@ -369,9 +368,6 @@ impl<'a> CellRenderer<'a> {
             if flow.is_break() {
                 break;
             }
-        }
-        if out.transmittance < MIN_TRANSMITTANCE {
-            out.transmittance = 0.0;
         }
         out
     }
