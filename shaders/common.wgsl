@@ -1,6 +1,7 @@
 // What both real-time pipelines share (prepended to `gdm_preview.wgsl`'s variants and to
 // `vdm_preview.wgsl`): constants, the view and light records of bind group 0,
-// `normalize_or`, linear interpolation taps, and the direct lighting of one light.
+// `normalize_or`, linear interpolation taps, the direct lighting of one light, and the
+// stackless traversal of a BVH's nodes.
 
 const PI: f32 = 3.141592653589793;
 const TAU: f32 = 6.283185307179586;
@@ -94,4 +95,34 @@ fn direct(n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, inc: Incident, cos_l
     let h = normalize_or(inc.dir + to_eye, vec3<f32>(0.0));
     let lobe = view.specular.rgb * ((s + 8.0) / (8.0 * PI) * pow(max(dot(n, h), 0.0), s));
     return (base / PI + lobe) * inc.irradiance * cos_l;
+}
+
+// ---- BVH nodes ------------------------------------------------------------------------
+
+// Nodes in depth-first order: an inner node's first child follows it; `skip` is the node
+// after its subtree (the node count at the end), so traversal needs no stack.
+struct BvhNode {
+    lo: vec3<f32>,
+    // 0: an inner node; else a leaf of `count` primitives (prisms, cells) listed from
+    // `first` in the pipeline's index list.
+    count: u32,
+    hi: vec3<f32>,
+    first: u32,
+    skip: u32,
+}
+
+// 1 / dir with zero components replaced by a tiny positive one: their slabs then span all
+// of space.
+fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
+    return 1.0 / select(dir, vec3<f32>(1.0e-30), abs(dir) < vec3<f32>(1.0e-30));
+}
+
+// Entry distance (≥ 0) of the ray o + t·d (inv = 1/d) into the node's box before t_max, or
+// −1 when it misses.
+fn node_entry(node: BvhNode, o: vec3<f32>, inv: vec3<f32>, t_max: f32) -> f32 {
+    let a = (node.lo - o) * inv;
+    let b = (node.hi - o) * inv;
+    let near = max(max(min(a.x, b.x), min(a.y, b.y)), max(min(a.z, b.z), 0.0));
+    let far = min(min(max(a.x, b.x), max(a.y, b.y)), min(max(a.z, b.z), t_max));
+    return select(-1.0, near, near <= far);
 }

@@ -4,17 +4,6 @@
 // boxes (`upload_prism_bvh` in `src/realtime/resources.rs`). A light is visible iff no
 // fragment hits nearer than the light.
 
-// Nodes in depth-first order: an inner node's first child follows it; `skip` is the node
-// after its subtree (the node count at the end), so traversal needs no stack.
-struct BvhNode {
-    lo: vec3<f32>,
-    // 0: an inner node; else a leaf of `count` prisms listed from `bvh_prisms[first]`.
-    count: u32,
-    hi: vec3<f32>,
-    first: u32,
-    skip: u32,
-}
-
 @group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
 @group(0) @binding(4) var<storage, read> bvh_prisms: array<u32>;
 
@@ -43,22 +32,6 @@ fn intersect_face(pi: u32, f: u32, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot(e2, qv) * inv, u, v);
 }
 
-
-// 1 / dir with zero components replaced by a tiny positive one: their slabs then span all
-// of space.
-fn safe_inverse(dir: vec3<f32>) -> vec3<f32> {
-    return 1.0 / select(dir, vec3<f32>(1.0e-30), abs(dir) < vec3<f32>(1.0e-30));
-}
-
-// Entry distance (≥ 0) of the ray o + t·d (inv = 1/d) into the node's box before t_max, or
-// −1 when it misses.
-fn node_entry(node: BvhNode, o: vec3<f32>, inv: vec3<f32>, t_max: f32) -> f32 {
-    let a = (node.lo - o) * inv;
-    let b = (node.hi - o) * inv;
-    let near = max(max(min(a.x, b.x), min(a.y, b.y)), max(min(a.z, b.z), 0.0));
-    let far = min(min(max(a.x, b.x), max(a.y, b.y)), min(max(a.z, b.z), t_max));
-    return select(-1.0, near, near <= far);
-}
 
 // The fragment that the ray o + t·dir makes on face f of prism pi, if it meets that face
 // from the front at 0 < t < t_max (what the rasterizer would produce, depth-tested against

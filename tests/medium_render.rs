@@ -16,7 +16,7 @@ use mesobake::render::medium_cells::CellRenderer;
 use mesobake::render::medium_truth::MediumTruth;
 use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
-use mesobake::scene::transparency::{CellIntegration, TransparencySettings};
+use mesobake::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake::util::limits::Limits;
 use std::path::Path;
@@ -27,6 +27,7 @@ const EXACT: TransparencySettings = TransparencySettings {
     samples: 1,
     mipmap: false,
     mip_bias: -1.0,
+    order: CellOrder::PerPixel,
 };
 
 /// Exact integration, 16 samples where sampled: the default.

@@ -4,7 +4,7 @@
 use super::output::Progress;
 use clap::Subcommand;
 use mesobake::bench::counting_alloc::CountingAlloc;
-use mesobake::bench::{bakes, preview, server, vdm};
+use mesobake::bench::{bakes, media, preview, server, vdm};
 use mesobake::render::quality::Preset;
 use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
@@ -68,6 +68,32 @@ pub enum BenchCommand {
         #[arg(long)]
         adapter: Option<String>,
     },
+    /// The translucent-media pipeline on the paper's largest case (a 96×45 torus: 8 640
+    /// triangles, 25 920 cells; a 128×128×32 medium; 10 samples per cell): frame time in
+    /// each cell order against the CPU specification, in the same run.
+    Media {
+        /// Scene file (a translucent medium on a built-in torus).
+        #[arg(long, default_value = "scenes/torus-fur.json")]
+        scene: PathBuf,
+        /// The torus's segments (around, across).
+        #[arg(long, value_delimiter = ',', default_value = "96,45")]
+        segments: Vec<u32>,
+        /// The medium's grid.
+        #[arg(long, value_delimiter = ',', default_value = "128,128,32")]
+        texture: Vec<u32>,
+        /// Samples per cell (0: exact integration).
+        #[arg(long, default_value_t = 10)]
+        samples: u32,
+        /// Square image sizes.
+        #[arg(long, value_delimiter = ',', default_value = "256")]
+        sizes: Vec<u32>,
+        /// Frames timed per configuration.
+        #[arg(long, default_value_t = 3)]
+        frames: u32,
+        /// Use the adapter whose name contains this.
+        #[arg(long)]
+        adapter: Option<String>,
+    },
 }
 
 /// Runs the benchmark, reading heap use from `allocator` (the binary's global allocator).
@@ -122,6 +148,31 @@ pub fn bench(which: BenchCommand, allocator: &CountingAlloc, limits: &Limits) ->
         } => {
             let (adapter, rows) = vdm::run(&scene, &sizes, frames, adapter.as_deref(), limits)?;
             print!("{}", vdm::markdown(&adapter, &rows));
+        }
+        BenchCommand::Media {
+            scene,
+            segments,
+            texture,
+            samples,
+            sizes,
+            frames,
+            adapter,
+        } => {
+            let (Ok(segments), Ok(texture)) = (segments.try_into(), texture.try_into()) else {
+                return Err(Error::InvalidParameter(
+                    "--segments takes two numbers and --texture three".into(),
+                ));
+            };
+            let params = media::MediaBenchParams {
+                scene: &scene,
+                segments,
+                texture,
+                samples,
+                sizes: &sizes,
+                frames,
+                adapter: adapter.as_deref(),
+            };
+            print!("{}", media::markdown(&media::run(&params, limits)?));
         }
         BenchCommand::Server { database_url } => {
             print!("{}", server::run(database_url.as_deref(), limits)?);

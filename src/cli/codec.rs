@@ -46,6 +46,11 @@ impl CodecOptions {
         self.rank.unwrap_or(8)
     }
 
+    /// Whether any of the options was given.
+    pub fn is_chosen(&self) -> bool {
+        self.rank.is_some() || self.quant.is_some() || self.gdm_codec != GdmCodec::default()
+    }
+
     /// The package parameters of a scene's bake.
     pub fn scene_params(&self) -> ScenePackageParams {
         ScenePackageParams {

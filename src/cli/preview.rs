@@ -68,9 +68,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         json,
     } = args;
     codec.check(None)?;
-    if package.is_some()
-        && (codec.rank.is_some() || codec.quant.is_some() || codec.gdm_codec != Default::default())
-    {
+    if package.is_some() && codec.is_chosen() {
         return Err(mesobake::Error::InvalidParameter(
             "--gdm-codec, --rank and --quant choose the package baked for the scene; \
              --package renders a package as it is"
@@ -84,32 +82,48 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     }
     let load_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let package = match &package {
-        Some(path) => {
-            let package = AnyPackage::read(path, limits)?;
-            if !force {
-                let dir = scene.parent().unwrap_or(Path::new("."));
-                let checked = match &package {
-                    AnyPackage::Gdm(p) => check_package_input(p, &loaded.scene, dir),
-                    AnyPackage::Vdm(p) => check_input(&p.manifest().input, &loaded.scene, dir),
-                };
-                checked.map_err(|e| e.context(path.display()))?;
-            }
-            package
+    // Translucent media render without a package: the pipeline reads the medium itself.
+    let package = if loaded.medium.is_some() {
+        if package.is_some() || codec.is_chosen() {
+            return Err(mesobake::Error::InvalidParameter(
+                "the scene's mesostructure is a translucent medium, which the real-time \
+                 pipeline renders without a package; --package, --gdm-codec, --rank and \
+                 --quant do not apply"
+                    .into(),
+            ));
         }
-        None => {
-            let progress = Progress::new("baking the package");
+        None
+    } else if let Some(path) = &package {
+        let package = AnyPackage::read(path, limits)?;
+        if !force {
             let dir = scene.parent().unwrap_or(Path::new("."));
-            let p = scene_package(&loaded, dir, codec.scene_params(), limits, &progress)?;
-            progress.finish();
-            p
+            let checked = match &package {
+                AnyPackage::Gdm(p) => check_package_input(p, &loaded.scene, dir),
+                AnyPackage::Vdm(p) => check_input(&p.manifest().input, &loaded.scene, dir),
+            };
+            checked.map_err(|e| e.context(path.display()))?;
         }
+        Some(package)
+    } else {
+        let progress = Progress::new("baking the package");
+        let dir = scene.parent().unwrap_or(Path::new("."));
+        let p = scene_package(&loaded, dir, codec.scene_params(), limits, &progress)?;
+        progress.finish();
+        Some(p)
     };
     let package_s = start.elapsed().as_secs_f64();
     let device = PreviewDevice::open(adapter.as_deref(), fallback)?;
     let progress = Progress::new("rendering");
-    let rendered = device.render(&loaded, &package, frames, &progress);
+    let rendered = match &package {
+        Some(package) => device.render(&loaded, package, frames, &progress),
+        None => device.render_medium(&loaded, frames, &progress),
+    };
     progress.finish();
+    let technique = match &package {
+        Some(AnyPackage::Gdm(_)) => "gdm",
+        Some(AnyPackage::Vdm(_)) => "vdm",
+        None => "transparency",
+    };
     let (image, outcome) = rendered?;
     image.write(&out)?;
     let on = match (&outcome.gpu, &outcome.fallback_reason) {
@@ -119,7 +133,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
             report
                 .variant
                 .as_ref()
-                .map_or("the VDM pipeline".to_owned(), |v| v.name())
+                .map_or(format!("the {} pipeline", report.technique), |v| v.name())
         ),
         (None, reason) => format!(
             "the CPU twin of the real-time pipeline, as no GPU adapter is usable ({})",
@@ -156,10 +170,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
             "height": image.height,
             "hit_pixels": image.hits(),
             "seconds": { "load": load_s, "package": package_s },
-            "technique": match &package {
-                AnyPackage::Gdm(_) => "gdm",
-                AnyPackage::Vdm(_) => "vdm",
-            },
+            "technique": technique,
             "renderer": outcome.renderer,
             "fallback_reason": outcome.fallback_reason,
             "cpu_mean_frame_seconds": outcome.cpu_mean_frame_seconds,

@@ -198,9 +198,10 @@ pub enum ReportCommand {
         out: PathBuf,
     },
     /// The real-time algorithm of translucent media (`render --method cells`) against their
-    /// ground truth: the scene's settings, each sample count per cell, exact integration and
-    /// no shadows, with PSNR, FLIP, mask and CPU seconds, and the time to order every pixel's
-    /// cells. Markdown on stdout; transparency.md, transparency.json and transparency.svg
+    /// ground truth: the scene's settings, each sample count per cell, exact integration, no
+    /// shadows and the other real-time cell order, with PSNR, FLIP, mask and CPU seconds; the
+    /// WGSL pipeline's frame time and its error against the truth and its CPU twin; the time
+    /// to order every pixel's cells and to sort the cells for the view. Markdown on stdout; transparency.md, transparency.json and transparency.svg
     /// (PSNR against seconds) in --out.
     Transparency {
         /// Scene file (a translucent medium).
@@ -212,6 +213,9 @@ pub enum ReportCommand {
         /// Image side in pixels instead of the scene camera's (square images).
         #[arg(long)]
         side: Option<u32>,
+        /// Real-time frames to time per row (0: none).
+        #[arg(long, default_value_t = 3)]
+        frames: u32,
         /// Output directory.
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
@@ -498,11 +502,12 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             scene,
             samples,
             side,
+            frames,
             out,
         } => {
             let (name, loaded) = load_named(&scene, side, limits)?;
             let progress = Progress::new("transparency report");
-            let report = transparency::transparency_report(&name, &loaded, &samples, &progress)?;
+            let report = transparency::transparency_report(&name, &loaded, &samples, frames, &progress)?;
             progress.finish();
             let table = transparency::markdown(&report);
             let json = to_json(&report);

@@ -78,7 +78,8 @@ impl Gpu {
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("mesobake preview"),
             required_limits: adapter.limits(),
-            required_features: adapter.features() & wgpu::Features::SHADER_EARLY_DEPTH_TEST,
+            required_features: adapter.features()
+                & (wgpu::Features::SHADER_EARLY_DEPTH_TEST | wgpu::Features::FLOAT32_BLENDABLE),
             ..Default::default()
         }))
         .map_err(|e| Error::Gpu(format!("opening {}: {e}", info.name)))?;

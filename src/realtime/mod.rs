@@ -9,9 +9,12 @@
 //! - [`pipeline`]: the render pipeline, frames, read-back and timing;
 //! - [`target`]: the colour and depth target every pipeline draws into, and its read-back;
 //! - [`vdm_pipeline`]: the VDM pipeline (height fields), whose specification is
-//!   [`crate::render::vdm_renderer`].
+//!   [`crate::render::vdm_renderer`];
+//! - [`medium_pipeline`]: the translucent-media pipeline (semi-transparent 3D textures),
+//!   whose specification is [`crate::render::medium_cells`].
 
 pub mod gpu;
+pub mod medium_pipeline;
 pub mod pipeline;
 pub mod resources;
 pub mod target;

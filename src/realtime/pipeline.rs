@@ -321,7 +321,7 @@ impl<'g> Preview<'g> {
             let mut buffers = vec![(0, &view), (1, &lights), (2, &shell.prisms)];
             buffers.push((5, &nearest_hit));
             if let Some(bvh) = &bvh {
-                buffers.extend([(3, &bvh.nodes), (4, &bvh.prisms)]);
+                buffers.extend([(3, &bvh.nodes), (4, &bvh.primitives)]);
             }
             let entries: Vec<wgpu::BindGroupEntry> = buffers
                 .into_iter()

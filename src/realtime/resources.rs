@@ -13,6 +13,7 @@ use crate::package::Package;
 use crate::package::manifest::TexelFormat;
 use crate::render::gdm_renderer::PreparedPrism;
 use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
 use serde::Serialize;
 use wgpu::util::DeviceExt;
 
@@ -270,7 +271,7 @@ struct PrismRecord {
     convex: [u32; 4],
 }
 
-fn vec4(v: glam::DVec3, w: f64) -> [f32; 4] {
+fn vec4(v: DVec3, w: f64) -> [f32; 4] {
     [v.x as f32, v.y as f32, v.z as f32, w as f32]
 }
 
@@ -679,7 +680,7 @@ pub fn upload_material(
 
 /// Uploads the prepared prisms: their face triangles as vertices, nearest to `eye` first
 /// (so that an early depth test culls what lies behind the first hits), and their records.
-pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism], eye: glam::DVec3) -> Result<GpuShell> {
+pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism], eye: DVec3) -> Result<GpuShell> {
     let limits = gpu.device.limits();
     let record_bytes = std::mem::size_of::<PrismRecord>() as u64;
     let vertex_bytes = 24 * std::mem::size_of::<Vertex>() as u64;
@@ -697,7 +698,7 @@ pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism], eye: glam::DVec3) -> Re
     let mut vertices = Vec::with_capacity(prisms.len() * 24);
     let mut records = Vec::with_capacity(prisms.len().max(1));
     let distance = |p: &PreparedPrism| {
-        let centre: glam::DVec3 = p.faces[0]
+        let centre: DVec3 = p.faces[0]
             .triangle
             .corners
             .iter()
@@ -774,12 +775,13 @@ pub fn upload_shell(gpu: &Gpu, prisms: &[PreparedPrism], eye: glam::DVec3) -> Re
     })
 }
 
-/// The prisms' BVH on the GPU, for the shell-shadow variant's traversal.
+/// A BVH over boxes on the GPU (the prisms' for the shell-shadow variant, the cells' for
+/// translucent media).
 pub struct GpuBvh {
-    /// `BvhNode` records of `shaders/shadows_shell.wgsl`, the root first.
+    /// `BvhNode` records of `shaders/common.wgsl`, the root first.
     pub nodes: wgpu::Buffer,
-    /// Prism indices that the leaves list.
-    pub prisms: wgpu::Buffer,
+    /// Primitive (prism, cell) indices that the leaves list.
+    pub primitives: wgpu::Buffer,
     /// Bytes uploaded.
     pub bytes: u64,
 }
@@ -789,24 +791,31 @@ pub struct GpuBvh {
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct BvhNodeRecord {
     lo: [f32; 3],
-    /// Prisms in a leaf (0: an inner node).
+    /// Primitives in a leaf (0: an inner node).
     count: u32,
     hi: [f32; 3],
-    /// A leaf's first entry in the prism index list.
+    /// A leaf's first entry in the primitive index list.
     first: u32,
     /// The node after this subtree in depth-first order (the node count: none).
     skip: u32,
     _pad: [u32; 3],
 }
 
-/// Builds and uploads a binary BVH (obvhs) over the prisms' padded bounding boxes, the boxes
-/// the CPU renderer's traversal tests, laid out in depth-first order with skip links so that
-/// the shaders traverse it without a stack: from node i, a hit inner node continues at i + 1
-/// (its first child), a missed node or a leaf at its `skip`.
+/// [`upload_box_bvh`] over the prisms' bounding boxes, the boxes the CPU renderer's
+/// traversal tests.
 pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
-    let boxes: Vec<obvhs::aabb::Aabb> = prisms
+    let boxes: Vec<_> = prisms.iter().map(PreparedPrism::bounds).collect();
+    upload_box_bvh(gpu, &boxes)
+}
+
+/// Builds and uploads a binary BVH (obvhs) over the padded f32 versions of `bounds` (lower
+/// and upper corners), laid out in depth-first order with skip links so that the shaders
+/// traverse it without a stack: from node i, a hit inner node continues at i + 1 (its first
+/// child), a missed node or a leaf at its `skip`.
+pub fn upload_box_bvh(gpu: &Gpu, bounds: &[(DVec3, DVec3)]) -> Result<GpuBvh> {
+    let boxes: Vec<obvhs::aabb::Aabb> = bounds
         .iter()
-        .map(|p| crate::render::accel::padded_f32_box(p.bounds()))
+        .map(|&b| crate::render::accel::padded_f32_box(b))
         .collect();
     let bvh = obvhs::bvh2::builder::build_bvh2(
         &boxes,
@@ -814,7 +823,7 @@ pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
         &mut std::time::Duration::default(),
     );
     let mut nodes = Vec::with_capacity(bvh.nodes.len());
-    if !prisms.is_empty() && !bvh.nodes.is_empty() {
+    if !boxes.is_empty() && !bvh.nodes.is_empty() {
         // Preorder: a node is written, then its children's subtrees; its skip is patched once
         // its subtree is complete.
         enum Visit {
@@ -849,7 +858,7 @@ pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
         }
     }
     if nodes.is_empty() {
-        // No prism: one node that no ray enters.
+        // No box: one node that no ray enters.
         nodes.push(BvhNodeRecord {
             lo: [1.0; 3],
             count: 0,
@@ -872,11 +881,11 @@ pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
             })
     };
     let nodes = buffer("bvh nodes", bytemuck::cast_slice(&nodes));
-    let prisms = buffer("bvh prisms", bytemuck::cast_slice(&indices));
-    let bytes = nodes.size() + prisms.size();
+    let primitives = buffer("bvh primitives", bytemuck::cast_slice(&indices));
+    let bytes = nodes.size() + primitives.size();
     Ok(GpuBvh {
         nodes,
-        prisms,
+        primitives,
         bytes,
     })
 }

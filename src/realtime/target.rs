@@ -1,5 +1,5 @@
-//! The render target every real-time pipeline draws into: a linear `rgba32float` colour
-//! texture (alpha = hit mask) with a `depth32float` depth buffer, and the buffer it is read
+//! The render target every real-time pipeline draws (or, from a compute pass, writes) into:
+//! a linear `rgba32float` colour texture (alpha > 0: a hit; translucent media store 1 − transmittance there) with a `depth32float` depth buffer, and the buffer it is read
 //! back through as an [`Image`].
 
 use super::gpu::Gpu;
@@ -25,36 +25,71 @@ pub fn triangle_pipeline(
     module: &wgpu::ShaderModule,
     vertices: wgpu::VertexBufferLayout,
 ) -> wgpu::RenderPipeline {
+    let state = DrawState {
+        entry_points: ["vs_main", "fs_main"],
+        cull: Some(wgpu::Face::Back),
+        depth_tested: true,
+        blend: None,
+    };
+    target_pipeline(device, label, layout, module, &[Some(vertices)], state)
+}
+
+/// How a [`target_pipeline`] draws.
+pub struct DrawState {
+    /// The vertex and fragment entry points.
+    pub entry_points: [&'static str; 2],
+    /// The faces culled (fronts counter-clockwise).
+    pub cull: Option<wgpu::Face>,
+    /// Depth tested (less) and written, or neither.
+    pub depth_tested: bool,
+    /// How the fragment's colour meets the target's (`None`: replaces it).
+    pub blend: Option<wgpu::BlendState>,
+}
+
+/// A triangle-list pipeline that draws into a [`Target`] as `state` says.
+pub fn target_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    buffers: &[Option<wgpu::VertexBufferLayout>],
+    state: DrawState,
+) -> wgpu::RenderPipeline {
+    let [vertex, fragment] = state.entry_points;
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(layout),
         vertex: wgpu::VertexState {
             module,
-            entry_point: Some("vs_main"),
+            entry_point: Some(vertex),
             compilation_options: Default::default(),
-            buffers: &[Some(vertices)],
+            buffers,
         },
         primitive: wgpu::PrimitiveState {
             topology: wgpu::PrimitiveTopology::TriangleList,
             front_face: wgpu::FrontFace::Ccw,
-            cull_mode: Some(wgpu::Face::Back),
+            cull_mode: state.cull,
             ..Default::default()
         },
         depth_stencil: Some(wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
+            depth_write_enabled: Some(state.depth_tested),
+            depth_compare: Some(if state.depth_tested {
+                wgpu::CompareFunction::Less
+            } else {
+                wgpu::CompareFunction::Always
+            }),
             stencil: Default::default(),
             bias: Default::default(),
         }),
         multisample: Default::default(),
         fragment: Some(wgpu::FragmentState {
             module,
-            entry_point: Some("fs_main"),
+            entry_point: Some(fragment),
             compilation_options: Default::default(),
             targets: &[Some(wgpu::ColorTargetState {
                 format: COLOUR_FORMAT,
-                blend: None,
+                blend: state.blend,
                 write_mask: wgpu::ColorWrites::ALL,
             })],
         }),
@@ -121,7 +156,9 @@ impl Target {
         };
         let colour = texture(
             COLOUR_FORMAT,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
         );
         let depth = texture(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT)
             .create_view(&Default::default());
@@ -147,6 +184,16 @@ impl Target {
     /// GPU bytes of the target (colour, depth and read-back).
     pub fn bytes(&self) -> u64 {
         self.width as u64 * self.height as u64 * (COLOUR_TEXEL as u64 + 4) + self.readback.size()
+    }
+
+    /// Width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The colour texture's view (for compute passes that write it as a storage texture).
+    pub fn colour_view(&self) -> &wgpu::TextureView {
+        &self.colour_view
     }
 
     /// A render pass that clears the target to transparent black and the depth to 1.
@@ -219,7 +266,7 @@ impl Target {
                     bytemuck::cast_slice(&row[..(self.width * COLOUR_TEXEL) as usize]);
                 for (x, t) in texels.iter().enumerate() {
                     let i = y * self.width as usize + x;
-                    image.mask[i] = t[3] > 0.5;
+                    image.mask[i] = t[3] > 0.0;
                     image.rgb[i] = [t[0], t[1], t[2]];
                 }
             }

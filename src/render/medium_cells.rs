@@ -30,6 +30,7 @@
 //!    the nearest opaque depth only).
 
 use super::accel::BoxBvh;
+use super::cell_order::{ViewOrder, face_neighbours, far_first};
 use super::lighting::shade_transmitted;
 use super::medium_truth::{DEFAULT_LIGHT_STEP, Gathered, SHADOW_START, integrate_voxel};
 use crate::mesostructure::medium::Medium;
@@ -41,14 +42,17 @@ use std::ops::ControlFlow;
 
 /// One tetrahedron of the shell.
 #[derive(Clone, Debug)]
-struct Cell {
-    /// Face planes as (outward normal, offset): inside where n·x < offset.
-    planes: [(DVec3, f64); 4],
+pub struct Cell {
+    /// Object-space corners.
+    pub corners: [DVec3; 4],
+    /// Face planes as (outward normal, offset): inside where n·x < offset; face f leaves
+    /// out corner f.
+    pub planes: [(DVec3, f64); 4],
     /// Object → texture (voxel units): the paper's M^{o→t}.
-    to_texture: DAffine3,
+    pub to_texture: DAffine3,
     /// Texture normals → object normals (unnormalized): the linear part of M^{o→t},
     /// transposed.
-    normal_to_object: DMat3,
+    pub normal_to_object: DMat3,
 }
 
 /// A ray's stretch through one cell.
@@ -65,6 +69,8 @@ pub struct Crossing {
 /// The shell's tetrahedra, ready for crossing.
 pub struct CellMesh {
     cells: Vec<Cell>,
+    /// Per cell, the cell across each face.
+    neighbours: Vec<[Option<u32>; 4]>,
     bvh: BoxBvh,
 }
 
@@ -88,14 +94,13 @@ impl CellMesh {
                 let corners = tet.map(corner);
                 let (p, t) = (corners.map(|c| c.0), corners.map(|c| c.1));
                 if let Some(cell) = Cell::new(p, t) {
-                    let lo = p.into_iter().reduce(DVec3::min).expect("four corners");
-                    let hi = p.into_iter().reduce(DVec3::max).expect("four corners");
+                    boxes.push(cell.bounds());
                     cells.push(cell);
-                    boxes.push((lo, hi));
                 }
             }
         }
         CellMesh {
+            neighbours: face_neighbours(&cells.iter().map(|c| c.corners).collect::<Vec<_>>()),
             cells,
             bvh: BoxBvh::new(boxes),
         }
@@ -109,6 +114,38 @@ impl CellMesh {
     /// Whether there are no cells.
     pub fn is_empty(&self) -> bool {
         self.cells.is_empty()
+    }
+
+    /// The cells, in the order their indices ([`Crossing::cell`]) name them.
+    pub fn cells(&self) -> &[Cell] {
+        &self.cells
+    }
+
+    /// A drawing order of the cells for an eye at `eye`, back to front
+    /// ([`super::cell_order`]): across every shared face the far cell first, otherwise the
+    /// farthest centroid first.
+    pub fn view_order(&self, eye: DVec3) -> ViewOrder {
+        let distance: Vec<f64> = self
+            .cells
+            .iter()
+            .map(|c| (c.corners.iter().sum::<DVec3>() / 4.0).distance_squared(eye))
+            .collect();
+        let mut behind = Vec::new();
+        for (c, (cell, across)) in self.cells.iter().zip(&self.neighbours).enumerate() {
+            for (&(n, d), neighbour) in cell.planes.iter().zip(across) {
+                if let Some(neighbour) = *neighbour
+                    && n.dot(eye) > d
+                {
+                    behind.push((c as u32, neighbour));
+                }
+            }
+        }
+        far_first(&distance, &behind)
+    }
+
+    /// Each cell's bounding box (lower and upper corners).
+    pub fn bounds(&self) -> Vec<(DVec3, DVec3)> {
+        self.cells.iter().map(Cell::bounds).collect()
     }
 
     /// Every cell that `origin + t·dir`, t ∈ [`t_min`, `t_max`], crosses, clipped to that
@@ -153,10 +190,18 @@ impl Cell {
             if n.dot(p[f]) > d { (-n, -d) } else { (n, d) }
         });
         Some(Cell {
+            corners: p,
             planes,
             to_texture,
             normal_to_object: linear.transpose(),
         })
+    }
+
+    /// The cell's bounding box.
+    fn bounds(&self) -> (DVec3, DVec3) {
+        let lo = self.corners.into_iter().reduce(DVec3::min).expect("four corners");
+        let hi = self.corners.into_iter().reduce(DVec3::max).expect("four corners");
+        (lo, hi)
     }
 
     /// The stretch of `origin + t·dir`, t ∈ [`t_min`, `t_max`], inside the cell, if it has
@@ -222,6 +267,16 @@ impl<'a> CellRenderer<'a> {
     /// The cells.
     pub fn cells(&self) -> &CellMesh {
         &self.cells
+    }
+
+    /// The settings it integrates by.
+    pub fn settings(&self) -> TransparencySettings {
+        self.settings
+    }
+
+    /// The medium and, where the settings ask for the mip-map, its coarser levels.
+    pub fn levels(&self) -> impl Iterator<Item = &Medium> {
+        std::iter::once(self.medium).chain(&self.coarser)
     }
 
     /// Mip-map level `level` of the medium (0: the medium itself).

@@ -4,6 +4,7 @@
 //! truth for environment light ([`path_tracer`]); the demo's flat preview ([`flat_preview`]).
 
 pub mod accel;
+pub mod cell_order;
 pub mod explicit;
 pub mod flat_preview;
 pub mod gdm_lookup;

@@ -2,8 +2,12 @@
 //! and buys on a translucent scene. Every row renders the scene with the cells
 //! ([`CellRenderer`]) and compares the image with the ground truth ([`MediumTruth`]) of the
 //! scene as it is: the scene's own settings, each sample count per cell, exact integration,
-//! and (where the scene has shadows) the same without them. The time to find and order every
-//! pixel's cells (the per-pixel sorted lists) is measured on its own.
+//! (where the scene has shadows) the same without them, and the real-time pipeline's other
+//! cell order. With frames to time and an adapter, each row also renders with the WGSL
+//! pipeline ([`MediumPreview`]): its mean frame time, and its image against the truth and
+//! against its CPU twin. The time to find and order every pixel's cells (the per-pixel
+//! sorted lists) on the CPU, and to sort the cells once for the view, are measured on their
+//! own.
 
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -14,8 +18,11 @@ use crate::render::render_image;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
-use crate::scene::transparency::{CellIntegration, TransparencySettings};
+use crate::realtime::gpu::Gpu;
+use crate::realtime::medium_pipeline::MediumPreview;
+use crate::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
 use crate::scene::{Effect, LoadedScene};
+use glam::DVec3;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -32,6 +39,12 @@ pub struct TransparencyRow {
     pub cpu_s: f64,
     /// The render against the truth.
     pub error: Comparison,
+    /// The WGSL pipeline's mean seconds per frame (none without an adapter or frames).
+    pub frame_s: Option<f64>,
+    /// The WGSL image against the truth.
+    pub realtime_error: Option<Comparison>,
+    /// The WGSL image against the CPU render of the row (its specification).
+    pub realtime_vs_cpu: Option<Comparison>,
 }
 
 /// The report on one scene.
@@ -49,16 +62,24 @@ pub struct TransparencyReport {
     pub order_s: f64,
     /// Mean cells crossed per pixel that meets any.
     pub mean_crossings: f64,
+    /// Seconds sorting the cells once for the view (the per-view order's work per frame).
+    pub view_sort_s: f64,
+    /// Cycles the view's sort broke.
+    pub view_cycles_broken: usize,
+    /// The adapter the real-time rows ran on.
+    pub adapter: Option<String>,
     /// The rows.
     pub rows: Vec<TransparencyRow>,
 }
 
 /// Measures `loaded` (a translucent scene): its settings, each of `samples` per cell, exact
-/// integration, and without shadows.
+/// integration, without shadows and in the other cell order; with `frames` > 0 and an
+/// adapter, also the WGSL pipeline over that many frames per row.
 pub fn transparency_report(
     name: &str,
     loaded: &LoadedScene,
     samples: &[u32],
+    frames: u32,
     observer: &dyn BakeObserver,
 ) -> Result<TransparencyReport> {
     let medium = loaded.medium.as_ref().ok_or_else(|| {
@@ -93,6 +114,19 @@ pub fn transparency_report(
     if shadows {
         add("no shadows".into(), base, false);
     }
+    let other_order = match base.order {
+        CellOrder::PerPixel => ("per-view order", CellOrder::PerView),
+        CellOrder::PerView => ("per-pixel order", CellOrder::PerPixel),
+    };
+    add(
+        other_order.0.into(),
+        TransparencySettings {
+            order: other_order.1,
+            ..base
+        },
+        true,
+    );
+    let gpu = if frames > 0 { Gpu::open(None).ok() } else { None };
     let mut steps = Steps::new(observer, settings.len() as u64 + 2);
     let scene = &loaded.scene;
     let timed = |f: &dyn Fn() -> Image| {
@@ -109,7 +143,7 @@ pub fn transparency_report(
     let (crossings, order_s) = timed(&|| {
         render_image(&scene.camera, |o, d| {
             let n = cells.cells().crossings(o, d, 0.0, f64::INFINITY).len();
-            (n > 0).then_some(glam::DVec3::splat(n as f64))
+            (n > 0).then_some(DVec3::splat(n as f64))
         })
     });
     let met: Vec<f64> = (crossings.rgb.iter().zip(&crossings.mask))
@@ -128,15 +162,30 @@ pub fn transparency_report(
             let r = CellRenderer::new(&loaded.shell, medium, transparency);
             render_image(&shaded.camera, |o, d| r.radiance(&shaded, o, d))
         });
+        let (mut frame_s, mut realtime_error, mut realtime_vs_cpu) = (None, None, None);
+        if let Some(gpu) = &gpu {
+            shaded.transparency = transparency;
+            let preview = MediumPreview::new(gpu, &shaded, &loaded.shell, medium)?;
+            let realtime = preview.render()?;
+            frame_s = Some(preview.time_frames(frames, &())?);
+            realtime_error = Some(compare(&truth, &realtime)?);
+            realtime_vs_cpu = Some(compare(&image, &realtime)?);
+        }
         rows.push(TransparencyRow {
             setting,
             transparency,
             shadows,
             cpu_s,
             error: compare(&truth, &image)?,
+            frame_s,
+            realtime_error,
+            realtime_vs_cpu,
         });
         steps.step()?;
     }
+    let start = Instant::now();
+    let view = cells.cells().view_order(DVec3::from(scene.camera.eye));
+    let view_sort_s = start.elapsed().as_secs_f64();
     Ok(TransparencyReport {
         scene: name.to_owned(),
         pixels: [scene.camera.width, scene.camera.height],
@@ -144,6 +193,9 @@ pub fn transparency_report(
         truth_s,
         order_s,
         mean_crossings,
+        view_sort_s,
+        view_cycles_broken: view.cycles_broken,
+        adapter: gpu.map(|g| g.adapter.name),
         rows,
     })
 }
@@ -163,11 +215,17 @@ pub fn markdown(report: &TransparencyReport) -> String {
             format!("{:.4}", r.error.flip_mean),
             format!("{:.3}", 100.0 * r.error.mask_disagreement),
             format!("{:.3}", r.cpu_s),
+            r.transparency.order_name().to_owned(),
+            optional(r.frame_s.map(|s| s * 1e3), 1),
+            optional(r.realtime_error.as_ref().map(|c| c.psnr_db), 2),
+            optional(r.realtime_vs_cpu.as_ref().map(|c| c.psnr_db), 2),
+            optional(r.realtime_vs_cpu.as_ref().map(|c| 100.0 * c.mask_disagreement), 3),
         ]
     });
     format!(
         "Scene {} at {}×{}, {} cells: ground truth {:.2} s; finding and ordering every pixel's \
-         cells {:.3} s ({:.1} cells per covered pixel).\n\n{}",
+         cells {:.3} s ({:.1} cells per covered pixel); sorting the cells for the view once \
+         {:.4} s ({} cycles broken). Real-time columns: {}.\n\n{}",
         report.scene,
         report.pixels[0],
         report.pixels[1],
@@ -175,6 +233,9 @@ pub fn markdown(report: &TransparencyReport) -> String {
         report.truth_s,
         report.order_s,
         report.mean_crossings,
+        report.view_sort_s,
+        report.view_cycles_broken,
+        report.adapter.as_deref().unwrap_or("not measured (no adapter, or --frames 0)"),
         table(
             &[
                 "setting",
@@ -184,10 +245,20 @@ pub fn markdown(report: &TransparencyReport) -> String {
                 "FLIP",
                 "mask %",
                 "CPU s",
+                "WGSL order",
+                "frame ms",
+                "WGSL PSNR dB",
+                "WGSL vs CPU dB",
+                "WGSL vs CPU mask %",
             ],
             cells,
         )
     )
+}
+
+/// `value` with `digits` decimals, or a dash.
+fn optional(value: Option<f64>, digits: usize) -> String {
+    value.map_or("–".to_owned(), |v| format!("{v:.digits$}"))
 }
 
 /// An SVG plot: PSNR against the truth over CPU seconds, one labelled point per row.

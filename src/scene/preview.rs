@@ -9,6 +9,7 @@ use crate::error::{Error, Result};
 use crate::package::vdm::{VdmPackage, height_field};
 use crate::package::{AnyPackage, Package};
 use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
+use crate::realtime::medium_pipeline::MediumPreview;
 use crate::realtime::pipeline::Preview;
 use crate::realtime::resources::GpuMemory;
 use crate::realtime::variant::ShaderVariant;
@@ -16,6 +17,8 @@ use crate::realtime::vdm_pipeline::VdmPreview;
 use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::Image;
+use crate::mesostructure::medium::Medium;
+use crate::render::medium_cells::CellRenderer;
 use crate::render::render_image;
 use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::Effect;
@@ -94,9 +97,43 @@ impl PreviewDevice {
         frames: u32,
         observer: &dyn BakeObserver,
     ) -> Result<(Image, PreviewOutcome)> {
+        self.run(
+            |gpu| preview(gpu, loaded, package, frames, observer),
+            || render_on_cpu(loaded, package),
+            frames,
+            observer,
+        )
+    }
+
+    /// Renders `loaded`'s translucent medium with the translucent-media pipeline (no
+    /// package: it reads the medium itself), or on the CPU its specification,
+    /// [`CellRenderer`]; frames are timed as [`PreviewDevice::render`] times them.
+    pub fn render_medium(
+        &self,
+        loaded: &LoadedScene,
+        frames: u32,
+        observer: &dyn BakeObserver,
+    ) -> Result<(Image, PreviewOutcome)> {
+        self.run(
+            |gpu| medium_preview(gpu, loaded, frames, observer),
+            || medium_render_on_cpu(loaded),
+            frames,
+            observer,
+        )
+    }
+
+    /// Renders with `on_gpu`, or where there is no adapter with `on_cpu` (timing `frames`
+    /// more of them).
+    fn run(
+        &self,
+        on_gpu: impl FnOnce(&Gpu) -> Result<(Image, PreviewReport)>,
+        on_cpu: impl Fn() -> Result<Image>,
+        frames: u32,
+        observer: &dyn BakeObserver,
+    ) -> Result<(Image, PreviewOutcome)> {
         match self {
             PreviewDevice::Gpu(gpu) => {
-                let (image, report) = preview(gpu, loaded, package, frames, observer)?;
+                let (image, report) = on_gpu(gpu)?;
                 let outcome = PreviewOutcome {
                     renderer: self.renderer(),
                     fallback_reason: None,
@@ -106,11 +143,11 @@ impl PreviewDevice {
                 Ok((image, outcome))
             }
             PreviewDevice::Cpu { reason } => {
-                let image = render_on_cpu(loaded, package)?;
+                let image = on_cpu()?;
                 observer.stage("timing frames");
                 let start = Instant::now();
                 for frame in 1..=frames {
-                    render_on_cpu(loaded, package)?;
+                    on_cpu()?;
                     observer.progress(frame.into(), frames.into());
                 }
                 let mean = (frames > 0).then(|| start.elapsed().as_secs_f64() / frames as f64);
@@ -188,10 +225,11 @@ pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Imag
 pub struct PreviewReport {
     /// The adapter.
     pub adapter: AdapterDescription,
-    /// The pipeline: `gdm` or `vdm`, the package's technique.
-    pub technique: Technique,
-    /// The GDM shader variant the scene's effects chose (none for the VDM pipeline, which
-    /// has one).
+    /// The pipeline: `gdm` or `vdm` (the package's technique), or `transparency` (the
+    /// translucent-media pipeline, which needs no package).
+    pub technique: &'static str,
+    /// The GDM shader variant the scene's effects chose (none for the VDM and media
+    /// pipelines, which have one each).
     pub variant: Option<ShaderVariant>,
     /// GPU memory per kind of resource.
     pub memory: GpuMemory,
@@ -231,7 +269,7 @@ pub fn gdm_preview(
     let start = Instant::now();
     let preview = Preview::new(gpu, loaded, package, true)?;
     let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
-    measure(gpu, &preview, Technique::Gdm, setup, frames, observer)
+    measure(gpu, &preview, Technique::Gdm.name(), setup, frames, observer)
 }
 
 /// [`preview`] by the VDM pipeline.
@@ -250,7 +288,41 @@ fn vdm_preview(
     };
     let preview = VdmPreview::new(gpu, loaded, &package.query(), relief)?;
     let setup = (None, start.elapsed().as_secs_f64());
-    measure(gpu, &preview, Technique::Vdm, setup, frames, observer)
+    measure(gpu, &preview, Technique::Vdm.name(), setup, frames, observer)
+}
+
+/// `loaded`'s translucent medium, or the error that its mesostructure is opaque.
+fn translucent(loaded: &LoadedScene) -> Result<&Medium> {
+    loaded.medium.as_ref().ok_or_else(|| {
+        Error::Scene(
+            "the translucent-media pipeline renders translucent media only; this scene's \
+             mesostructure is opaque"
+                .into(),
+        )
+    })
+}
+
+/// The translucent-media pipeline's CPU twin: [`CellRenderer`] with the scene's
+/// transparency settings.
+pub fn medium_render_on_cpu(loaded: &LoadedScene) -> Result<Image> {
+    let medium = translucent(loaded)?;
+    let scene = &loaded.scene;
+    let cells = CellRenderer::new(&loaded.shell, medium, scene.transparency);
+    Ok(render_image(&scene.camera, |o, d| cells.radiance(scene, o, d)))
+}
+
+/// Renders `loaded`'s translucent medium with the translucent-media pipeline on `gpu`; with
+/// `frames` > 0, also times that many frames.
+pub fn medium_preview(
+    gpu: &Gpu,
+    loaded: &LoadedScene,
+    frames: u32,
+    observer: &dyn BakeObserver,
+) -> Result<(Image, PreviewReport)> {
+    let start = Instant::now();
+    let preview = MediumPreview::new(gpu, &loaded.scene, &loaded.shell, translucent(loaded)?)?;
+    let setup = (None, start.elapsed().as_secs_f64());
+    measure(gpu, &preview, "transparency", setup, frames, observer)
 }
 
 /// What a preview measures of a real-time pipeline.
@@ -272,6 +344,18 @@ impl Pipeline for Preview<'_> {
     }
 }
 
+impl Pipeline for MediumPreview<'_> {
+    fn render(&self) -> Result<Image> {
+        MediumPreview::render(self)
+    }
+    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
+        MediumPreview::time_frames(self, frames, observer)
+    }
+    fn memory(&self) -> GpuMemory {
+        MediumPreview::memory(self)
+    }
+}
+
 impl Pipeline for VdmPreview<'_> {
     fn render(&self) -> Result<Image> {
         VdmPreview::render(self)
@@ -289,7 +373,7 @@ impl Pipeline for VdmPreview<'_> {
 fn measure(
     gpu: &Gpu,
     pipeline: &dyn Pipeline,
-    technique: Technique,
+    technique: &'static str,
     (variant, setup_seconds): (Option<ShaderVariant>, f64),
     frames: u32,
     observer: &dyn BakeObserver,

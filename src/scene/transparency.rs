@@ -20,6 +20,21 @@ pub enum CellIntegration {
     Exact,
 }
 
+/// How the real-time pipeline (WGSL) finds the cells a pixel's ray crosses in order. The
+/// CPU specification always keeps the per-pixel list.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CellOrder {
+    /// Per pixel, the sorted list of the cells the ray crosses (from a BVH over the cells):
+    /// always the exact order, no cycles to break.
+    #[default]
+    PerPixel,
+    /// The cells sorted once per view on the CPU (MPVO for non-convex meshes:
+    /// [`crate::render::cell_order`]), drawn back to front and blended: the paper's
+    /// structure (it sorts with SXMPVO); wrong where that order is not a visibility order.
+    PerView,
+}
+
 /// The real-time algorithm's knobs.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -34,6 +49,8 @@ pub struct TransparencySettings {
     /// Added to the level the footprint calls for (negative: sharper; at most
     /// [`MAX_MIP_BIAS`] either way).
     pub mip_bias: f64,
+    /// How the real-time pipeline orders the cells.
+    pub order: CellOrder,
 }
 
 /// Largest mip level bias either way.
@@ -51,6 +68,7 @@ impl Default for TransparencySettings {
             samples: 16,
             mipmap: false,
             mip_bias: -1.0,
+            order: CellOrder::PerPixel,
         }
     }
 }
@@ -59,6 +77,14 @@ impl TransparencySettings {
     /// Whether these are the defaults (left out when a scene is written).
     pub fn is_default(&self) -> bool {
         *self == TransparencySettings::default()
+    }
+
+    /// The cell order's name as scenes write it.
+    pub fn order_name(&self) -> &'static str {
+        match self.order {
+            CellOrder::PerPixel => "per-pixel",
+            CellOrder::PerView => "per-view",
+        }
     }
 
     /// Checks the sample count and the bias.

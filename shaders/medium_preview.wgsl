@@ -1,0 +1,554 @@
+// The translucent-media real-time pipeline (semi-transparent 3D textures): the algorithm of
+// `src/render/medium_cells.rs`, step for step (that file's module documentation is the
+// specification; the tests hold the two to PSNR ≥ 35 dB). The shell is cut into
+// tetrahedral cells, each with its affine map to texture space; each cell a ray crosses is
+// integrated on its own (exactly, voxel by voxel, or with a fixed number of samples) and
+// the cells are composited front to back. Two ways to find the cells in order:
+//
+// - `cs_pixels` (a compute pass, one invocation per pixel): the sorted list of the cells the
+//   pixel's ray crosses, gathered from a BVH over the cells in batches of BATCH (the BATCH
+//   nearest not yet composited), composited front to back with early termination. Exact
+//   order.
+// - `fs_cell` (entry `vs_cell`): the cells' front faces rasterized in an order computed per
+//   view on the CPU, back to front, each fragment integrating its cell and blended "over"
+//   what is behind it (premultiplied). Exact where that order is a visibility order.
+//
+// Shadows (when the scene asks for them) are the transmittance of a ray through the cells
+// towards each light, found through the same BVH. Preceded by `common.wgsl`.
+
+// One tetrahedron.
+struct Cell {
+    // Face planes: xyz the unit outward normal, w the offset (inside where n·x < w).
+    planes: array<vec4<f32>, 4>,
+    // Rows of M^{o→t} (object → texture voxels): texture = rows · (x, 1).
+    to_texture: array<vec4<f32>, 3>,
+    // Rows of Mᵀ (texture normals → object normals); w of row 0: ∛|det M| (voxels per
+    // object length), for the mip level.
+    normal_to_object: array<vec4<f32>, 3>,
+    // Object-space corners (the rasterized faces' vertices).
+    corners: array<vec4<f32>, 4>,
+}
+
+struct Medium {
+    // Camera basis: forward, right · tan(fov/2) · aspect, up · tan(fov/2); w of forward:
+    // the angle one pixel subtends (2 tan(fov/2) / height).
+    forward: vec4<f32>,
+    right: vec4<f32>,
+    up: vec4<f32>,
+    height: u32,
+    // 0: exact (every voxel), 1: `samples` samples per cell.
+    integration: u32,
+    samples: u32,
+    // 1 when the scene calls for shadows.
+    shadows: u32,
+    // Mip levels uploaded (1: none but the medium).
+    level_count: u32,
+    mip_bias: f32,
+    light_step: f32,
+    shadow_start: f32,
+    min_transmittance: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    // Per level: xyz its dimensions, w its first voxel in `voxels` and `normals`.
+    levels: array<vec4<u32>, 16>,
+}
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> lights: array<Light>;
+@group(0) @binding(2) var<storage, read> cells: array<Cell>;
+@group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(4) var<storage, read> bvh_cells: array<u32>;
+@group(0) @binding(5) var<uniform> medium: Medium;
+// Per voxel of every level: rgb the linear albedo, a the opacity per voxel length.
+@group(0) @binding(6) var<storage, read> voxels: array<vec4<f32>>;
+// Per voxel of every level: xyz the unnormalized outward normal (−∇ opacity).
+@group(0) @binding(7) var<storage, read> normals: array<vec4<f32>>;
+
+// Cells composited per batch of the per-pixel list.
+const BATCH: u32 = 16u;
+const FAR: f32 = 3.0e38;
+
+// ---- Rays and cells ---------------------------------------------------------------------
+
+// The camera ray's unit direction through the pixel whose centre is `pixel` (framebuffer
+// coordinates, as `Camera::ray`).
+fn camera_ray(pixel: vec2<f32>) -> vec3<f32> {
+    let sx = pixel.x / f32(view.width) * 2.0 - 1.0;
+    let sy = 1.0 - pixel.y / f32(medium.height) * 2.0;
+    return normalize(medium.forward.xyz + medium.right.xyz * sx + medium.up.xyz * sy);
+}
+
+// Whether a cell owns the face with outward normal n when a ray lies in it: n's first
+// non-zero component is negative.
+fn owns(n: vec3<f32>) -> bool {
+    if n.x != 0.0 {
+        return n.x < 0.0;
+    }
+    if n.y != 0.0 {
+        return n.y < 0.0;
+    }
+    return n.z < 0.0;
+}
+
+// The stretch (entry, exit) of o + t·d, t ∈ [t_min, t_max], inside cell ci; entry ≥ exit
+// when the ray misses it.
+fn clip(ci: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> vec2<f32> {
+    var lo = t_min;
+    var hi = t_max;
+    for (var f = 0u; f < 4u; f++) {
+        let p = cells[ci].planes[f];
+        let along = dot(p.xyz, d);
+        let inside = p.w - dot(p.xyz, o);
+        if along == 0.0 {
+            if inside < 0.0 || (inside == 0.0 && !owns(p.xyz)) {
+                return vec2<f32>(1.0, 0.0);
+            }
+        } else if along > 0.0 {
+            hi = min(hi, inside / along);
+        } else {
+            lo = max(lo, inside / along);
+        }
+    }
+    return vec2<f32>(lo, hi);
+}
+
+fn to_texture(ci: u32, p: vec3<f32>) -> vec3<f32> {
+    let m = cells[ci].to_texture;
+    return vec3<f32>(dot(m[0].xyz, p) + m[0].w, dot(m[1].xyz, p) + m[1].w, dot(m[2].xyz, p) + m[2].w);
+}
+
+// The linear part of M^{o→t} applied to a direction.
+fn texture_direction(ci: u32, d: vec3<f32>) -> vec3<f32> {
+    let m = cells[ci].to_texture;
+    return vec3<f32>(dot(m[0].xyz, d), dot(m[1].xyz, d), dot(m[2].xyz, d));
+}
+
+// The mip level of a crossing entered at t_in (`level_for` in the specification).
+fn level_for(ci: u32, t_in: f32) -> u32 {
+    if medium.level_count <= 1u {
+        return 0u;
+    }
+    let footprint = max(t_in, 0.0) * medium.forward.w * cells[ci].normal_to_object[0].w;
+    if !(footprint > 0.0 && footprint < FAR) {
+        return 0u;
+    }
+    let lambda = log2(footprint) + medium.mip_bias;
+    return u32(clamp(round(lambda), 0.0, f32(medium.level_count - 1u)));
+}
+
+// ---- The medium ---------------------------------------------------------------------------
+
+// Index of voxel (i, j, k) (i, j periodic) of a level, or −1 outside its layers.
+fn voxel_index(level: u32, i: i32, j: i32, k: i32) -> i32 {
+    let d = medium.levels[level];
+    if k < 0 || k >= i32(d.z) {
+        return -1;
+    }
+    return i32(d.w + wrap(i, d.x) + d.x * (wrap(j, d.y) + d.y * u32(k)));
+}
+
+// The voxel containing texture point t (voxel units of the level), or −1.
+fn voxel_at(level: u32, t: vec3<f32>) -> i32 {
+    let c = vec3<i32>(floor(t));
+    return voxel_index(level, c.x, c.y, c.z);
+}
+
+// Transmittance of `len` voxel lengths of opacity `alpha`: (1 − α)^len.
+fn transmit(alpha: f32, len: f32) -> f32 {
+    if alpha >= 1.0 {
+        return select(1.0, 0.0, len > 0.0);
+    }
+    return pow(1.0 - alpha, len);
+}
+
+// Unit texture-space normal at t, trilinear over voxel centres (x, y periodic, z clamped);
+// zero where the gradient vanishes.
+fn normal_at(level: u32, t: vec3<f32>) -> vec3<f32> {
+    let d = medium.levels[level];
+    let f = vec3<f32>(t.x - 0.5, t.y - 0.5, clamp(t.z - 0.5, 0.0, f32(d.z - 1u)));
+    let base = floor(f);
+    let frac = f - base;
+    let b = vec3<i32>(base);
+    var n = vec3<f32>(0.0);
+    for (var c = 0u; c < 8u; c++) {
+        let o = vec3<u32>(c & 1u, (c >> 1u) & 1u, (c >> 2u) & 1u);
+        let w = select(1.0 - frac.x, frac.x, o.x == 1u) * select(1.0 - frac.y, frac.y, o.y == 1u)
+            * select(1.0 - frac.z, frac.z, o.z == 1u);
+        if w != 0.0 {
+            let k = min(u32(b.z) + o.z, d.z - 1u);
+            let v = voxel_index(level, b.x + i32(o.x), b.y + i32(o.y), i32(k));
+            n += normals[v].xyz * w;
+        }
+    }
+    return normalize_or(n, vec3<f32>(0.0));
+}
+
+// ---- Voxel traversal ----------------------------------------------------------------------
+
+// The exact voxel walk of a segment (`Medium::walk`): start with `walk_start`, then call
+// `walk_next` until it returns false; each call leaves the piece [s0, s1] of voxel `v`.
+struct Walk {
+    cell: vec3<i32>,
+    next: vec3<f32>,
+    delta: vec3<f32>,
+    step: vec3<i32>,
+    s: f32,
+    len: f32,
+    // The current piece.
+    v: i32,
+    s0: f32,
+    s1: f32,
+}
+
+fn walk_start(o: vec3<f32>, d: vec3<f32>, len: f32) -> Walk {
+    var w: Walk;
+    w.s = 0.0;
+    w.len = len;
+    let fl = floor(o);
+    let moving = d != vec3<f32>(0.0);
+    let up = d > vec3<f32>(0.0);
+    // Going down from exactly on a voxel face: the voxel below, a whole voxel ahead.
+    let on_face = !up & moving & (fl == o);
+    w.cell = vec3<i32>(fl) - select(vec3<i32>(0), vec3<i32>(1), on_face);
+    w.step = select(vec3<i32>(0), select(vec3<i32>(-1), vec3<i32>(1), up), moving);
+    w.delta = select(vec3<f32>(FAR), 1.0 / abs(d), moving);
+    let ahead = select((o - fl) / -d, (fl + 1.0 - o) / d, up);
+    w.next = select(vec3<f32>(FAR), select(ahead, w.delta, on_face), moving);
+    return w;
+}
+
+// Advances to the next piece inside the level's layers; false when the segment is done.
+// (Vector selects rather than indexing a vector by a varying axis, and loops that leave by
+// their conditions: Mesa's software driver of Debian 12 mis-executes both when invocations
+// diverge.)
+fn walk_next(w: ptr<function, Walk>, level: u32) -> bool {
+    let z = i32(medium.levels[level].z);
+    var found = false;
+    while !found && (*w).s < (*w).len {
+        let n = (*w).next;
+        // The axis whose face comes first (the first of equals).
+        let x = n.x <= n.y && n.x <= n.z;
+        let y = !x && n.y <= n.z;
+        let axis = vec3<bool>(x, y, !x && !y);
+        let end = min(min(n.x, min(n.y, n.z)), (*w).len);
+        let c = (*w).cell;
+        let start = (*w).s;
+        (*w).s = end;
+        (*w).cell += select(vec3<i32>(0), (*w).step, axis);
+        (*w).next += select(vec3<f32>(0.0), (*w).delta, axis);
+        if c.z >= 0 && c.z < z {
+            (*w).v = voxel_index(level, c.x, c.y, c.z);
+            (*w).s0 = start;
+            (*w).s1 = end;
+            found = true;
+        } else if (c.z < 0 && (*w).step.z <= 0) || (c.z >= z && (*w).step.z >= 0) {
+            // Left the layers for good.
+            (*w).s = (*w).len;
+        }
+    }
+    return found;
+}
+
+// ---- Shadow rays --------------------------------------------------------------------------
+
+// Transmittance of the crossing [t_in, t_out] of cell ci by o + t·d in a level (the walk
+// stops once below `min_transmittance`).
+fn crossing_transmittance(ci: u32, level: u32, o: vec3<f32>, d: vec3<f32>, r: vec2<f32>) -> f32 {
+    let texel = exp2(-f32(level));
+    let a = to_texture(ci, o + d * r.x) * texel;
+    let b = to_texture(ci, o + d * r.y) * texel;
+    let len = length(b - a);
+    var t = 1.0;
+    if len == 0.0 {
+        t = 1.0;
+    } else if medium.integration == 1u {
+        let part = len / f32(medium.samples);
+        for (var i = 0u; i < medium.samples; i++) {
+            let v = voxel_at(level, a + (b - a) * ((f32(i) + 0.5) / f32(medium.samples)));
+            if v >= 0 {
+                t *= transmit(voxels[v].a, part);
+            }
+        }
+    } else {
+        var w = walk_start(a, (b - a) / len, len);
+        while t >= medium.min_transmittance && walk_next(&w, level) {
+            t *= transmit(voxels[w.v].a, w.s1 - w.s0);
+        }
+    }
+    return t;
+}
+
+// Transmittance through the cells along o + t·d, t ∈ [t_min, t_max] (any order: it is a
+// product); 0 once below `min_transmittance`.
+fn transmittance(level: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> f32 {
+    let inv = safe_inverse(d);
+    let count = arrayLength(&bvh_nodes);
+    var t = 1.0;
+    var i = 0u;
+    while i < count && t >= medium.min_transmittance {
+        let node = bvh_nodes[i];
+        if node_entry(node, o, inv, t_max) < 0.0 {
+            i = node.skip;
+        } else if node.count == 0u {
+            i += 1u;
+        } else {
+            for (var k = 0u; k < node.count && t >= medium.min_transmittance; k++) {
+                let ci = bvh_cells[node.first + k];
+                let r = clip(ci, o, d, t_min, t_max);
+                if r.x < r.y {
+                    t *= crossing_transmittance(ci, level, o, d, r);
+                }
+            }
+            i = node.skip;
+        }
+    }
+    return select(t, 0.0, t < medium.min_transmittance);
+}
+
+// ---- Shading and compositing --------------------------------------------------------------
+
+// Composited radiance over black (premultiplied) and the transmittance so far.
+var<private> gathered_radiance: vec3<f32>;
+var<private> gathered_transmittance: f32;
+
+// Composites a piece absorbing `absorbed` and scattering `light` behind what is gathered;
+// false once the ray is absorbed.
+fn composite(light: vec3<f32>, absorbed: f32) -> bool {
+    gathered_radiance += light * (gathered_transmittance * absorbed);
+    gathered_transmittance *= 1.0 - absorbed;
+    if gathered_transmittance < medium.min_transmittance {
+        gathered_transmittance = 0.0;
+        return false;
+    }
+    return true;
+}
+
+// The light scattered towards the eye at `point` (texture point `t` of a level, voxel v,
+// in cell ci) under every light, each weighted by the transmittance towards it
+// (`shade_transmitted`).
+fn scattered(ci: u32, level: u32, point: vec3<f32>, t: vec3<f32>, v: i32, to_eye: vec3<f32>) -> vec3<f32> {
+    let albedo = voxels[v].rgb;
+    let m = cells[ci].normal_to_object;
+    let nt = normal_at(level, t);
+    let n_object = normalize_or(vec3<f32>(dot(m[0].xyz, nt), dot(m[1].xyz, nt), dot(m[2].xyz, nt)), vec3<f32>(0.0));
+    let has_normal = dot(n_object, n_object) > 0.0;
+    var out = vec3<f32>(0.0);
+    for (var li = 0u; li < view.light_count; li++) {
+        let light = lights[li];
+        if light.kind == 2u {
+            out += albedo * light.colour.rgb;
+            continue;
+        }
+        let inc = light_incidence(light, point);
+        if !inc.valid {
+            continue;
+        }
+        let n = select(inc.dir, n_object, has_normal);
+        let cos_l = dot(n, inc.dir);
+        if cos_l <= 0.0 {
+            continue;
+        }
+        var visible = 1.0;
+        if medium.shadows == 1u {
+            // The object distance that is `shadow_start` voxels towards the light.
+            let start = medium.shadow_start / length(texture_direction(ci, inc.dir));
+            if start < inc.distance {
+                visible = transmittance(level, point, inc.dir, start, inc.distance);
+            }
+        }
+        if visible > 0.0 {
+            out += direct(n, albedo, to_eye, inc, cos_l) * visible;
+        }
+    }
+    return out;
+}
+
+// Integrates the crossing r = (t_in, t_out) of cell ci by the camera ray o + t·d in a level
+// and composites it; false once the ray is absorbed.
+fn integrate(ci: u32, level: u32, o: vec3<f32>, d: vec3<f32>, r: vec2<f32>) -> bool {
+    let texel = exp2(-f32(level));
+    let a = to_texture(ci, o + d * r.x) * texel;
+    let b = to_texture(ci, o + d * r.y) * texel;
+    let len = length(b - a);
+    var going = true;
+    if len == 0.0 {
+        return true;
+    }
+    // Ray parameter per texture-space length.
+    let dt = (r.y - r.x) / len;
+    let dir_t = (b - a) / len;
+    if medium.integration == 1u {
+        let part = len / f32(medium.samples);
+        for (var i = 0u; i < medium.samples && going; i++) {
+            let s = (f32(i) + 0.5) * part;
+            let t = a + (b - a) * (s / len);
+            let v = voxel_at(level, t);
+            if v >= 0 {
+                let absorbed = 1.0 - transmit(voxels[v].a, part);
+                if absorbed > 0.0 {
+                    let light = scattered(ci, level, o + d * (r.x + s * dt), t, v, -d);
+                    going = composite(light, absorbed);
+                }
+            }
+        }
+        return going;
+    }
+    var w = walk_start(a, dir_t, len);
+    while going && walk_next(&w, level) {
+        let alpha = voxels[w.v].a;
+        if alpha > 0.0 {
+            // The voxel's stretch in pieces at most `light_step` long, lit at their starts.
+            let pieces = max(ceil((w.s1 - w.s0) / medium.light_step), 1.0);
+            for (var p = 0.0; p < pieces && going; p += 1.0) {
+                let u0 = w.s0 + (w.s1 - w.s0) * p / pieces;
+                let u1 = w.s0 + (w.s1 - w.s0) * (p + 1.0) / pieces;
+                let absorbed = 1.0 - transmit(alpha, u1 - u0);
+                if absorbed > 0.0 {
+                    let point = o + d * (r.x + u0 * dt);
+                    let light = scattered(ci, level, point, a + dir_t * u0, w.v, -d);
+                    going = composite(light, absorbed);
+                }
+            }
+        }
+    }
+    return going;
+}
+
+// What `gathered_*` hold as the target's texel: premultiplied radiance and 1 − T.
+fn gathered() -> vec4<f32> {
+    return vec4<f32>(gathered_radiance, 1.0 - gathered_transmittance);
+}
+
+// ---- Per-pixel sorted list ------------------------------------------------------------
+
+// Whether the crossing (t, cell) comes after (last_t, last_cell) in the list's order:
+// by entry, then by cell index.
+fn after(t: f32, cell: u32, last_t: f32, last_cell: u32) -> bool {
+    return t > last_t || (t == last_t && cell > last_cell);
+}
+
+// What the camera ray through the pixel centred at `pixel` gathers: the per-pixel sorted list
+// of its cells, composited front to back in batches.
+fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
+    let o = view.eye.xyz;
+    let d = camera_ray(pixel);
+    let inv = safe_inverse(d);
+    let count = arrayLength(&bvh_nodes);
+    gathered_radiance = vec3<f32>(0.0);
+    gathered_transmittance = 1.0;
+    // The last crossing composited (none yet: before every crossing).
+    var last_t = -1.0;
+    var last_cell = 0u;
+    var going = true;
+    var more = true;
+    while going && more {
+        // The BATCH nearest crossings after the last one, sorted.
+        var t_in: array<f32, BATCH>;
+        var t_out: array<f32, BATCH>;
+        var cell: array<u32, BATCH>;
+        var n = 0u;
+        more = false;
+        var i = 0u;
+        while i < count {
+            let node = bvh_nodes[i];
+            if node_entry(node, o, inv, FAR) < 0.0 {
+                i = node.skip;
+            } else if node.count == 0u {
+                i += 1u;
+            } else {
+                for (var k = 0u; k < node.count; k++) {
+                    let ci = bvh_cells[node.first + k];
+                    let r = clip(ci, o, d, 0.0, FAR);
+                    var keep = r.x < r.y && after(r.x, ci, last_t, last_cell);
+                    if keep && n == BATCH {
+                        // Full: the new crossing replaces the last if it comes before it.
+                        more = true;
+                        keep = after(t_in[n - 1u], cell[n - 1u], r.x, ci);
+                        if keep {
+                            n -= 1u;
+                        }
+                    }
+                    if keep {
+                        // Insertion into the sorted batch.
+                        var j = n;
+                        while j > 0u && after(t_in[j - 1u], cell[j - 1u], r.x, ci) {
+                            t_in[j] = t_in[j - 1u];
+                            t_out[j] = t_out[j - 1u];
+                            cell[j] = cell[j - 1u];
+                            j -= 1u;
+                        }
+                        t_in[j] = r.x;
+                        t_out[j] = r.y;
+                        cell[j] = ci;
+                        n += 1u;
+                    }
+                }
+                i = node.skip;
+            }
+        }
+        for (var c = 0u; c < n && going; c++) {
+            let level = level_for(cell[c], t_in[c]);
+            going = integrate(cell[c], level, o, d, vec2<f32>(t_in[c], t_out[c]));
+        }
+        if more {
+            last_t = t_in[n - 1u];
+            last_cell = cell[n - 1u];
+        }
+    }
+    return gathered();
+}
+
+// The target, written by `cs_pixels`.
+@group(1) @binding(0) var image: texture_storage_2d<rgba32float, write>;
+
+// One invocation per pixel (a compute pass: no quads, no helper invocations).
+@compute @workgroup_size(8, 8)
+fn cs_pixels(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= view.width || id.y >= medium.height {
+        return;
+    }
+    let value = gather_pixel(vec2<f32>(id.xy) + 0.5);
+    textureStore(image, vec2<i32>(id.xy), value);
+}
+
+// ---- Cells drawn in a per-view order --------------------------------------------------
+
+struct CellOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) @interpolate(flat) cell: u32,
+}
+
+// The cells in drawing order (back to front), written per frame.
+@group(0) @binding(8) var<storage, read> order: array<u32>;
+
+@vertex
+fn vs_cell(@builtin(vertex_index) i: u32, @builtin(instance_index) instance: u32) -> CellOut {
+    // Instance n draws cell order[n]; vertex i is corner i % 3 of its face i / 3 (face f
+    // leaves out corner f), wound counter-clockwise seen from outside.
+    let ci = order[instance];
+    let f = i / 3u;
+    var idx = array<u32, 3>((f + 1u) % 4u, (f + 2u) % 4u, (f + 3u) % 4u);
+    let e1 = cells[ci].corners[idx[1]].xyz - cells[ci].corners[idx[0]].xyz;
+    let e2 = cells[ci].corners[idx[2]].xyz - cells[ci].corners[idx[0]].xyz;
+    if dot(cross(e1, e2), cells[ci].planes[f].xyz) < 0.0 {
+        let s = idx[1];
+        idx[1] = idx[2];
+        idx[2] = s;
+    }
+    return CellOut(view.view_proj * vec4<f32>(cells[ci].corners[idx[i % 3u]].xyz, 1.0), ci);
+}
+
+@fragment
+fn fs_cell(in: CellOut) -> @location(0) vec4<f32> {
+    let o = view.eye.xyz;
+    let d = camera_ray(in.clip.xy);
+    let r = clip(in.cell, o, d, 0.0, FAR);
+    if !(r.x < r.y) {
+        discard;
+    }
+    gathered_radiance = vec3<f32>(0.0);
+    gathered_transmittance = 1.0;
+    integrate(in.cell, level_for(in.cell, r.x), o, d, r);
+    return gathered();
+}

@@ -1,0 +1,388 @@
+//! The translucent-media real-time pipeline (`shaders/medium_preview.wgsl`): the shell's
+//! tetrahedral cells, each integrated on its own and composited front to back, in one of two
+//! orders ([`CellOrder`]): a per-pixel sorted list gathered from a BVH over the cells in a
+//! compute pass (one invocation per pixel, writing the target), or the cells drawn back to
+//! front in an order sorted per view on the CPU and blended. Its specification is [`crate::render::medium_cells`], which it is tested
+//! against.
+
+use super::gpu::Gpu;
+use super::pipeline::{LightRecord, ViewUniform, layout_entry, light_records, storage, uniform, view_uniform};
+use super::resources::{GpuMemory, upload_box_bvh};
+use super::target::{DrawState, Target, target_pipeline, time_frames};
+use super::variant::COMMON;
+use crate::bake::gdm::BakeObserver;
+use crate::error::{Error, Result};
+use crate::render::image::Image;
+use crate::render::medium_cells::{Cell, CellRenderer};
+use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
+use crate::scene::transparency::{CellIntegration, CellOrder};
+use crate::mesostructure::medium::Medium;
+use crate::scene::{Effect, Scene};
+use crate::surface::shell::Shell;
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+use std::time::Instant;
+use wgpu::util::DeviceExt;
+
+const SHADER: &str = include_str!("../../shaders/medium_preview.wgsl");
+
+/// Most mip levels the shader takes.
+const MAX_LEVELS: usize = 16;
+
+/// The complete WGSL source of the translucent-media pipeline.
+pub fn source() -> String {
+    format!("{COMMON}\n{SHADER}")
+}
+
+/// The shader's `Cell`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct CellRecord {
+    planes: [[f32; 4]; 4],
+    to_texture: [[f32; 4]; 3],
+    normal_to_object: [[f32; 4]; 3],
+    corners: [[f32; 4]; 4],
+}
+
+/// The shader's `Medium`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct MediumUniform {
+    forward: [f32; 4],
+    right: [f32; 4],
+    up: [f32; 4],
+    height: u32,
+    integration: u32,
+    samples: u32,
+    shadows: u32,
+    level_count: u32,
+    mip_bias: f32,
+    light_step: f32,
+    shadow_start: f32,
+    min_transmittance: f32,
+    _pad: [u32; 3],
+    levels: [[u32; 4]; MAX_LEVELS],
+}
+
+fn vec4(v: DVec3, w: f64) -> [f32; 4] {
+    v.extend(w).as_vec4().to_array()
+}
+
+fn cell_record(cell: &Cell) -> CellRecord {
+    let m = cell.to_texture.matrix3;
+    let t = cell.to_texture.translation;
+    let n = cell.normal_to_object;
+    let density = m.determinant().abs().cbrt();
+    CellRecord {
+        // Unit normals keep f32 offsets well scaled; a face's two cells still compute the
+        // exact negation of each other's plane.
+        planes: cell.planes.map(|(n, d)| {
+            let len = n.length();
+            vec4(n / len, d / len)
+        }),
+        to_texture: [0, 1, 2].map(|r| vec4(m.row(r), t[r])),
+        normal_to_object: [0, 1, 2].map(|r| vec4(n.row(r), if r == 0 { density } else { 0.0 })),
+        corners: cell.corners.map(|c| vec4(c, 1.0)),
+    }
+}
+
+/// The medium's levels as the shader reads them: per voxel (linear albedo, opacity) and
+/// (normal, 0), every level after the one before; and each level's dimensions and first
+/// voxel.
+fn medium_texels(cells: &CellRenderer) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<[u32; 4]>)> {
+    let (mut voxels, mut normals, mut levels) = (Vec::new(), Vec::new(), Vec::new());
+    for medium in cells.levels() {
+        let d = medium.dims();
+        let first = u32::try_from(voxels.len())
+            .map_err(|_| Error::Gpu("the medium's mip-map exceeds 2³² voxels".into()))?;
+        levels.push([d.x, d.y, d.z, first]);
+        for v in 0..d.voxel_count() as usize {
+            let c = medium.colour(v);
+            voxels.push([c.x as f32, c.y as f32, c.z as f32, medium.opacity(v) as f32]);
+        }
+        normals.extend(medium.material().normal_voxels().iter().map(|n| n.extend(0.0).to_array()));
+    }
+    if levels.len() > MAX_LEVELS {
+        return Err(Error::Gpu(format!(
+            "the medium's mip-map has {} levels; the real-time pipeline takes at most {MAX_LEVELS}",
+            levels.len()
+        )));
+    }
+    Ok((voxels, normals, levels))
+}
+
+/// The pipeline of a cell order.
+enum MediaPipeline {
+    /// Per-pixel lists: the compute pipeline and its bind group 1 (the target).
+    PerPixel(wgpu::ComputePipeline, wgpu::BindGroup),
+    /// Per-view order: the cells' faces rasterized and blended.
+    PerView(wgpu::RenderPipeline),
+}
+
+/// A translucent scene ready to render with the real-time pipeline.
+pub struct MediumPreview<'g> {
+    gpu: &'g Gpu,
+    cells: CellRenderer<'g>,
+    pipeline: MediaPipeline,
+    group: wgpu::BindGroup,
+    order_buffer: wgpu::Buffer,
+    eye: DVec3,
+    target: Target,
+    memory: GpuMemory,
+}
+
+impl<'g> MediumPreview<'g> {
+    /// Cuts `shell` into cells for `medium`, uploads them, their BVH and the medium (with
+    /// its mip-map where `scene`'s transparency settings ask for it), and builds the
+    /// pipeline of the settings' cell order for `scene`'s camera, lights and effects.
+    pub fn new(
+        gpu: &'g Gpu,
+        scene: &Scene,
+        shell: &Shell,
+        medium: &'g Medium,
+    ) -> Result<MediumPreview<'g>> {
+        let settings = scene.transparency;
+        let cells = CellRenderer::new(shell, medium, settings);
+        let mesh = cells.cells();
+        let target = Target::new(gpu, scene.camera.width, scene.camera.height)?;
+        let mut records: Vec<CellRecord> = mesh.cells().iter().map(cell_record).collect();
+        if records.is_empty() {
+            // A storage buffer may not be empty; the BVH then has no leaf to list it.
+            records.push(CellRecord::zeroed());
+        }
+        let (voxels, normals, levels) = medium_texels(&cells)?;
+        let limit = u64::from(gpu.device.limits().max_storage_buffer_binding_size);
+        let voxel_bytes = std::mem::size_of_val(voxels.as_slice()) as u64;
+        if voxel_bytes > limit {
+            return Err(Error::Gpu(format!(
+                "the medium takes {voxel_bytes} bytes per channel buffer; this adapter binds at \
+                 most {limit}"
+            )));
+        }
+        let camera = &scene.camera;
+        let eye = DVec3::from(camera.eye);
+        let forward = (DVec3::from(camera.target) - eye).normalize();
+        let right = forward.cross(DVec3::from(camera.up)).normalize();
+        let up = right.cross(forward);
+        let half = (camera.fov_y_degrees.to_radians() * 0.5).tan();
+        let aspect = f64::from(camera.width) / f64::from(camera.height);
+        let mut level_table = [[0u32; 4]; MAX_LEVELS];
+        level_table[..levels.len()].copy_from_slice(&levels);
+        let params = MediumUniform {
+            forward: vec4(forward, 2.0 * half / f64::from(camera.height)),
+            right: vec4(right * (half * aspect), 0.0),
+            up: vec4(up * half, 0.0),
+            height: camera.height,
+            integration: u32::from(settings.integration == CellIntegration::Samples),
+            samples: settings.samples,
+            shadows: u32::from(scene.wants(Effect::Shadows)),
+            level_count: levels.len() as u32,
+            mip_bias: settings.mip_bias as f32,
+            light_step: DEFAULT_LIGHT_STEP as f32,
+            shadow_start: SHADOW_START as f32,
+            min_transmittance: MIN_TRANSMITTANCE as f32,
+            _pad: [0; 3],
+            levels: level_table,
+        };
+        let view: ViewUniform =
+            view_uniform(scene, mesh.cells().iter().flat_map(|c| c.corners));
+        let lights: Vec<LightRecord> = light_records(scene);
+        let bvh = upload_box_bvh(gpu, &mesh.bounds())?;
+        let order: Vec<u32> = (0..records.len() as u32).collect();
+        let memory = GpuMemory {
+            package: 0,
+            material: voxel_bytes * 2,
+            geometry: (std::mem::size_of_val(records.as_slice())
+                + std::mem::size_of_val(order.as_slice())) as u64
+                + bvh.bytes,
+            environment: 0,
+            targets: target.bytes(),
+        };
+        let d = &gpu.device;
+        let (pipeline, group, order_buffer) = gpu.checked("building the media pipeline", || {
+            let buffer = |label: &str, contents: &[u8], usage| {
+                d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                })
+            };
+            let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
+            let own = [
+                buffer("view", bytemuck::bytes_of(&view), u),
+                buffer("lights", bytemuck::cast_slice(&lights), s),
+                buffer("cells", bytemuck::cast_slice(&records), s),
+                buffer("medium", bytemuck::bytes_of(&params), u),
+                buffer("voxels", bytemuck::cast_slice(&voxels), s),
+                buffer("normals", bytemuck::cast_slice(&normals), s),
+                buffer(
+                    "order",
+                    bytemuck::cast_slice(&order),
+                    s | wgpu::BufferUsages::COPY_DST,
+                ),
+            ];
+            let [view_b, lights_b, cells_b, medium_b, voxels_b, normals_b, order_b] = &own;
+            let bound = [
+                view_b,
+                lights_b,
+                cells_b,
+                &bvh.nodes,
+                &bvh.primitives,
+                medium_b,
+                voxels_b,
+                normals_b,
+                order_b,
+            ];
+            let all = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..bound.len() as u32)
+                .map(|b| layout_entry(b, all, if b == 0 || b == 5 { uniform() } else { storage() }))
+                .collect();
+            let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("media"),
+                entries: &entries,
+            });
+            let bindings: Vec<wgpu::BindGroupEntry> = bound
+                .iter()
+                .enumerate()
+                .map(|(b, buffer)| wgpu::BindGroupEntry {
+                    binding: b as u32,
+                    resource: buffer.as_entire_binding(),
+                })
+                .collect();
+            let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("media"),
+                layout: &layout,
+                entries: &bindings,
+            });
+            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("media preview"),
+                source: wgpu::ShaderSource::Wgsl(source().into()),
+            });
+            let pipeline = match settings.order {
+                CellOrder::PerPixel => {
+                    let image_layout =
+                        d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                            label: Some("media image"),
+                            entries: &[wgpu::BindGroupLayoutEntry {
+                                binding: 0,
+                                visibility: wgpu::ShaderStages::COMPUTE,
+                                ty: wgpu::BindingType::StorageTexture {
+                                    access: wgpu::StorageTextureAccess::WriteOnly,
+                                    format: wgpu::TextureFormat::Rgba32Float,
+                                    view_dimension: wgpu::TextureViewDimension::D2,
+                                },
+                                count: None,
+                            }],
+                        });
+                    let image = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("media image"),
+                        layout: &image_layout,
+                        entries: &[wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: wgpu::BindingResource::TextureView(target.colour_view()),
+                        }],
+                    });
+                    let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("media per-pixel lists"),
+                        bind_group_layouts: &[Some(&layout), Some(&image_layout)],
+                        immediate_size: 0,
+                    });
+                    let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some("media per-pixel lists"),
+                        layout: Some(&layout),
+                        module: &module,
+                        entry_point: Some("cs_pixels"),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    });
+                    MediaPipeline::PerPixel(pipeline, image)
+                }
+                CellOrder::PerView => {
+                    let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("media per-view order"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+                    // Back to front, premultiplied: dst = src + (1 − src α) · dst.
+                    let state = DrawState {
+                        entry_points: ["vs_cell", "fs_cell"],
+                        cull: Some(wgpu::Face::Back),
+                        depth_tested: false,
+                        blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                    };
+                    let label = "media per-view order";
+                    MediaPipeline::PerView(target_pipeline(d, label, &layout, &module, &[], state))
+                }
+            };
+            let [.., order_buffer] = own;
+            (pipeline, group, order_buffer)
+        })?;
+        Ok(MediumPreview {
+            gpu,
+            cells,
+            pipeline,
+            group,
+            order_buffer,
+            eye,
+            target,
+            memory,
+        })
+    }
+
+    /// Records one frame (for the per-view order: sorting the cells for the eye and
+    /// uploading the order first; and, with `read_back`, the copy of the target into the
+    /// read-back buffer) and submits it.
+    fn submit_frame(&self, read_back: bool) {
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        match &self.pipeline {
+            MediaPipeline::PerPixel(pipeline, image) => {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &self.group, &[]);
+                pass.set_bind_group(1, image, &[]);
+                let (w, h) = self.target.size();
+                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            }
+            MediaPipeline::PerView(pipeline) => {
+                let order = self.cells.cells().view_order(self.eye).order;
+                self.gpu
+                    .queue
+                    .write_buffer(&self.order_buffer, 0, bytemuck::cast_slice(&order));
+                let mut pass = self.target.pass(&mut encoder, "media per-view order");
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &self.group, &[]);
+                pass.draw(0..12, 0..order.len() as u32);
+            }
+        }
+        if read_back {
+            self.target.copy_out(&mut encoder);
+        }
+        self.gpu.queue.submit([encoder.finish()]);
+    }
+
+    /// GPU memory per kind of resource: the medium (its levels' voxels and normals, as
+    /// `material`), the cells, their BVH and order (`geometry`) and the targets.
+    pub fn memory(&self) -> GpuMemory {
+        self.memory
+    }
+
+    /// Renders one frame and reads it back.
+    pub fn render(&self) -> Result<Image> {
+        self.gpu.checked("rendering", || self.submit_frame(true))?;
+        self.target.read(self.gpu)
+    }
+
+    /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
+    /// and waited for, reported to `observer` as it finishes.
+    pub fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
+        time_frames(self.gpu, frames, observer, || self.submit_frame(false))
+    }
+
+    /// CPU seconds to sort the cells for the view once (what each frame of the per-view
+    /// order spends before drawing).
+    pub fn sort_seconds(&self) -> f64 {
+        let start = Instant::now();
+        std::hint::black_box(self.cells.cells().view_order(self.eye));
+        start.elapsed().as_secs_f64()
+    }
+}
