@@ -47,7 +47,11 @@ struct Medium {
     light_step: f32,
     shadow_start: f32,
     min_transmittance: f32,
-    _pad0: u32,
+    // Loop iterations an invocation may run and be sure the adapter cut none short (0: no
+    // limit; `Gpu::loop_budget`: Mesa's software rasterizer stops every loop of a SIMD batch
+    // of invocations once they have run 65 535 iterations together). Pixels over it are
+    // counted in `overflow` instead of being trusted.
+    loop_budget: u32,
     _pad1: u32,
     _pad2: u32,
     // Per level: xyz its dimensions, w its first voxel in `voxels` and `normals`.
@@ -94,23 +98,28 @@ fn owns(n: vec3<f32>) -> bool {
 // The stretch (entry, exit) of o + t·d, t ∈ [t_min, t_max], inside cell ci; entry ≥ exit
 // when the ray misses it.
 fn clip(ci: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> vec2<f32> {
-    var lo = t_min;
-    var hi = t_max;
-    for (var f = 0u; f < 4u; f++) {
-        let p = cells[ci].planes[f];
-        let along = dot(p.xyz, d);
-        let inside = p.w - dot(p.xyz, o);
-        if along == 0.0 {
-            if inside < 0.0 || (inside == 0.0 && !owns(p.xyz)) {
-                return vec2<f32>(1.0, 0.0);
-            }
-        } else if along > 0.0 {
-            hi = min(hi, inside / along);
-        } else {
-            lo = max(lo, inside / along);
+    // Written out plane by plane: loops count against the software driver's budget.
+    var r = vec2<f32>(t_min, t_max);
+    r = clip_plane(cells[ci].planes[0], o, d, r);
+    r = clip_plane(cells[ci].planes[1], o, d, r);
+    r = clip_plane(cells[ci].planes[2], o, d, r);
+    return clip_plane(cells[ci].planes[3], o, d, r);
+}
+
+// (entry, exit) narrowed by the plane p; entry ≥ exit once missed.
+fn clip_plane(p: vec4<f32>, o: vec3<f32>, d: vec3<f32>, r: vec2<f32>) -> vec2<f32> {
+    let along = dot(p.xyz, d);
+    let inside = p.w - dot(p.xyz, o);
+    if along == 0.0 {
+        if inside < 0.0 || (inside == 0.0 && !owns(p.xyz)) {
+            return vec2<f32>(1.0, 0.0);
         }
+        return r;
     }
-    return vec2<f32>(lo, hi);
+    if along > 0.0 {
+        return vec2<f32>(r.x, min(r.y, inside / along));
+    }
+    return vec2<f32>(max(r.x, inside / along), r.y);
 }
 
 fn to_texture(ci: u32, p: vec3<f32>) -> vec3<f32> {
@@ -168,20 +177,29 @@ fn normal_at(level: u32, t: vec3<f32>) -> vec3<f32> {
     let d = medium.levels[level];
     let f = vec3<f32>(t.x - 0.5, t.y - 0.5, clamp(t.z - 0.5, 0.0, f32(d.z - 1u)));
     let base = floor(f);
-    let frac = f - base;
+    let w1 = f - base;
+    let w0 = 1.0 - w1;
     let b = vec3<i32>(base);
-    var n = vec3<f32>(0.0);
-    for (var c = 0u; c < 8u; c++) {
-        let o = vec3<u32>(c & 1u, (c >> 1u) & 1u, (c >> 2u) & 1u);
-        let w = select(1.0 - frac.x, frac.x, o.x == 1u) * select(1.0 - frac.y, frac.y, o.y == 1u)
-            * select(1.0 - frac.z, frac.z, o.z == 1u);
-        if w != 0.0 {
-            let k = min(u32(b.z) + o.z, d.z - 1u);
-            let v = voxel_index(level, b.x + i32(o.x), b.y + i32(o.y), i32(k));
-            n += normals[v].xyz * w;
-        }
-    }
+    let k0 = i32(min(u32(b.z), d.z - 1u));
+    let k1 = i32(min(u32(b.z) + 1u, d.z - 1u));
+    // The eight corners written out (loops count against the software driver's budget).
+    var n = corner_normal(level, b.x, b.y, k0, w0.x * w0.y * w0.z);
+    n += corner_normal(level, b.x + 1, b.y, k0, w1.x * w0.y * w0.z);
+    n += corner_normal(level, b.x, b.y + 1, k0, w0.x * w1.y * w0.z);
+    n += corner_normal(level, b.x + 1, b.y + 1, k0, w1.x * w1.y * w0.z);
+    n += corner_normal(level, b.x, b.y, k1, w0.x * w0.y * w1.z);
+    n += corner_normal(level, b.x + 1, b.y, k1, w1.x * w0.y * w1.z);
+    n += corner_normal(level, b.x, b.y + 1, k1, w0.x * w1.y * w1.z);
+    n += corner_normal(level, b.x + 1, b.y + 1, k1, w1.x * w1.y * w1.z);
     return normalize_or(n, vec3<f32>(0.0));
+}
+
+// The weighted normal of one interpolation corner (none at weight 0).
+fn corner_normal(level: u32, i: i32, j: i32, k: i32, w: f32) -> vec3<f32> {
+    if w == 0.0 {
+        return vec3<f32>(0.0);
+    }
+    return normals[voxel_index(level, i, j, k)].xyz * w;
 }
 
 // ---- Voxel traversal ----------------------------------------------------------------------
@@ -226,6 +244,7 @@ fn walk_next(w: ptr<function, Walk>, level: u32) -> bool {
     let z = i32(medium.levels[level].z);
     var found = false;
     while !found && (*w).s < (*w).len {
+        steps += 1u;
         let n = (*w).next;
         // The axis whose face comes first (the first of equals).
         let x = n.x <= n.y && n.x <= n.z;
@@ -265,6 +284,7 @@ fn crossing_transmittance(ci: u32, level: u32, o: vec3<f32>, d: vec3<f32>, r: ve
     } else if medium.integration == 1u {
         let part = len / f32(medium.samples);
         for (var i = 0u; i < medium.samples; i++) {
+            steps += 1u;
             let v = voxel_at(level, a + (b - a) * ((f32(i) + 0.5) / f32(medium.samples)));
             if v >= 0 {
                 t *= transmit(voxels[v].a, part);
@@ -273,6 +293,7 @@ fn crossing_transmittance(ci: u32, level: u32, o: vec3<f32>, d: vec3<f32>, r: ve
     } else {
         var w = walk_start(a, (b - a) / len, len);
         while t >= medium.min_transmittance && walk_next(&w, level) {
+            steps += 1u;
             t *= transmit(voxels[w.v].a, w.s1 - w.s0);
         }
     }
@@ -287,6 +308,7 @@ fn transmittance(level: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32)
     var t = 1.0;
     var i = 0u;
     while i < count && t >= medium.min_transmittance {
+        steps += 1u;
         let node = bvh_nodes[i];
         if node_entry(node, o, inv, t_max) < 0.0 {
             i = node.skip;
@@ -294,6 +316,7 @@ fn transmittance(level: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32)
             i += 1u;
         } else {
             for (var k = 0u; k < node.count && t >= medium.min_transmittance; k++) {
+                steps += 1u;
                 let ci = bvh_cells[node.first + k];
                 let r = clip(ci, o, d, t_min, t_max);
                 if r.x < r.y {
@@ -307,6 +330,9 @@ fn transmittance(level: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32)
 }
 
 // ---- Shading and compositing --------------------------------------------------------------
+
+// Loop iterations this invocation has run (see `loop_budget`).
+var<private> steps: u32;
 
 // Composited radiance over black (premultiplied) and the transmittance so far.
 var<private> gathered_radiance: vec3<f32>;
@@ -335,6 +361,7 @@ fn scattered(ci: u32, level: u32, point: vec3<f32>, t: vec3<f32>, v: i32, to_eye
     let has_normal = dot(n_object, n_object) > 0.0;
     var out = vec3<f32>(0.0);
     for (var li = 0u; li < view.light_count; li++) {
+        steps += 1u;
         let light = lights[li];
         if light.kind == 2u {
             out += albedo * light.colour.rgb;
@@ -381,6 +408,7 @@ fn integrate(ci: u32, level: u32, o: vec3<f32>, d: vec3<f32>, r: vec2<f32>) -> b
     if medium.integration == 1u {
         let part = len / f32(medium.samples);
         for (var i = 0u; i < medium.samples && going; i++) {
+            steps += 1u;
             let s = (f32(i) + 0.5) * part;
             let t = a + (b - a) * (s / len);
             let v = voxel_at(level, t);
@@ -396,11 +424,13 @@ fn integrate(ci: u32, level: u32, o: vec3<f32>, d: vec3<f32>, r: vec2<f32>) -> b
     }
     var w = walk_start(a, dir_t, len);
     while going && walk_next(&w, level) {
+        steps += 1u;
         let alpha = voxels[w.v].a;
         if alpha > 0.0 {
             // The voxel's stretch in pieces at most `light_step` long, lit at their starts.
             let pieces = max(ceil((w.s1 - w.s0) / medium.light_step), 1.0);
             for (var p = 0.0; p < pieces && going; p += 1.0) {
+                steps += 1u;
                 let u0 = w.s0 + (w.s1 - w.s0) * p / pieces;
                 let u1 = w.s0 + (w.s1 - w.s0) * (p + 1.0) / pieces;
                 let absorbed = 1.0 - transmit(alpha, u1 - u0);
@@ -443,6 +473,7 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
     var going = true;
     var more = true;
     while going && more {
+        steps += 1u;
         // The BATCH nearest crossings after the last one, sorted.
         var t_in: array<f32, BATCH>;
         var t_out: array<f32, BATCH>;
@@ -451,6 +482,7 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
         more = false;
         var i = 0u;
         while i < count {
+            steps += 1u;
             let node = bvh_nodes[i];
             if node_entry(node, o, inv, FAR) < 0.0 {
                 i = node.skip;
@@ -458,6 +490,7 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
                 i += 1u;
             } else {
                 for (var k = 0u; k < node.count; k++) {
+                    steps += 1u;
                     let ci = bvh_cells[node.first + k];
                     let r = clip(ci, o, d, 0.0, FAR);
                     var keep = r.x < r.y && after(r.x, ci, last_t, last_cell);
@@ -473,6 +506,7 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
                         // Insertion into the sorted batch.
                         var j = n;
                         while j > 0u && after(t_in[j - 1u], cell[j - 1u], r.x, ci) {
+                            steps += 1u;
                             t_in[j] = t_in[j - 1u];
                             t_out[j] = t_out[j - 1u];
                             cell[j] = cell[j - 1u];
@@ -488,6 +522,7 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
             }
         }
         for (var c = 0u; c < n && going; c++) {
+            steps += 1u;
             let level = level_for(cell[c], t_in[c]);
             going = integrate(cell[c], level, o, d, vec2<f32>(t_in[c], t_out[c]));
         }
@@ -501,6 +536,8 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
 
 // The target, written by `cs_pixels`.
 @group(1) @binding(0) var image: texture_storage_2d<rgba32float, write>;
+// Pixels whose invocation ran out of `loop_budget`.
+@group(1) @binding(1) var<storage, read_write> overflow: atomic<u32>;
 
 // One invocation per pixel (a compute pass: no quads, no helper invocations).
 @compute @workgroup_size(8, 8)
@@ -508,7 +545,11 @@ fn cs_pixels(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= view.width || id.y >= medium.height {
         return;
     }
+    steps = 0u;
     let value = gather_pixel(vec2<f32>(id.xy) + 0.5);
+    if medium.loop_budget > 0u && steps >= medium.loop_budget {
+        atomicAdd(&overflow, 1u);
+    }
     textureStore(image, vec2<i32>(id.xy), value);
 }
 

@@ -49,6 +49,20 @@ pub enum Error {
     #[error("GPU: {0}")]
     Gpu(String),
     /// The database refused or failed a query.
+    /// The adapter cuts loops short (see `Gpu::loop_budget`), and the render needed or
+    /// may need more.
+    #[error(
+        "GPU: {adapter} runs at most {budget} loop iterations per shader invocation, and \
+         {what}; the image would be wrong"
+    )]
+    LoopBudget {
+        /// The adapter.
+        adapter: String,
+        /// Its budget.
+        budget: u32,
+        /// What needed more: "150 pixels needed more (…)".
+        what: String,
+    },
     #[error("database: {0}")]
     Database(String),
     /// The caller asked the operation to stop.
@@ -84,7 +98,10 @@ impl Error {
             Error::Package(m) => Error::Package(with(m)),
             Error::Gpu(m) => Error::Gpu(with(m)),
             Error::Database(m) => Error::Database(with(m)),
-            e @ (Error::MemoryLimit { .. } | Error::Io { .. } | Error::Cancelled) => e,
+            e @ (Error::MemoryLimit { .. }
+            | Error::Io { .. }
+            | Error::LoopBudget { .. }
+            | Error::Cancelled) => e,
         }
     }
 

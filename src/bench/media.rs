@@ -9,8 +9,8 @@ use crate::realtime::medium_pipeline::MediumPreview;
 use crate::render::image::{Comparison, compare};
 use crate::render::medium_cells::CellRenderer;
 use crate::render::render_image;
-use crate::scene::{LoadedScene, Scene};
 use crate::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
+use crate::scene::{LoadedScene, Scene};
 use crate::util::limits::Limits;
 use serde::Serialize;
 use std::path::Path;
@@ -29,12 +29,15 @@ pub struct MediaBenchRow {
     pub size: u32,
     /// The CPU specification, seconds per image (rayon over all cores).
     pub cpu_seconds: f64,
-    /// The real-time pipeline, mean seconds per frame (the per-view sort included).
-    pub gpu_seconds: f64,
+    /// The real-time pipeline, mean seconds per frame (the per-view sort included); none
+    /// where the adapter refused it ([`Error::LoopBudget`]).
+    pub gpu_seconds: Option<f64>,
     /// Seconds sorting the cells for the view once (per-view order only).
     pub sort_seconds: Option<f64>,
     /// The WGSL image against the CPU specification's.
-    pub wgsl_vs_cpu: Comparison,
+    pub wgsl_vs_cpu: Option<Comparison>,
+    /// Why the adapter refused the row.
+    pub refused: Option<String>,
 }
 
 /// What the benchmark ran on.
@@ -68,6 +71,8 @@ pub struct MediaBenchParams<'a> {
     pub frames: u32,
     /// The adapter whose name contains this.
     pub adapter: Option<&'a str>,
+    /// Whether to shade shadows (where the scene asks for them).
+    pub shadows: bool,
 }
 
 /// Runs the benchmark: the scene with the torus and grid of `params`, over its sizes and
@@ -78,7 +83,7 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
     let mut json: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(scene_path).map_err(|e| Error::io(scene_path, e))?,
     )
-        .map_err(|e| Error::Scene(format!("{}: {e}", scene_path.display())))?;
+    .map_err(|e| Error::Scene(format!("{}: {e}", scene_path.display())))?;
     let torus = json
         .pointer_mut("/base_mesh/builtin/torus")
         .ok_or_else(|| {
@@ -89,6 +94,9 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
         })?;
     torus["segments"] = serde_json::json!(params.segments);
     json["resolution"] = serde_json::json!(params.texture);
+    if !params.shadows {
+        json["effects"] = serde_json::json!([]);
+    }
     let scene = Scene::from_json(&json.to_string())?;
     let dir = scene_path.parent().unwrap_or(Path::new("."));
     let mut loaded = LoadedScene::load(scene, dir, limits)?;
@@ -122,17 +130,28 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
         for order in [CellOrder::PerPixel, CellOrder::PerView] {
             let mut scene = loaded.scene.clone();
             scene.transparency = TransparencySettings { order, ..base };
-            let preview = MediumPreview::new(&gpu, &scene, &loaded.shell, &medium)?;
-            let image = preview.render()?;
-            let gpu_seconds = preview.time_frames(frames, &())?;
-            rows.push(MediaBenchRow {
+            let mut row = MediaBenchRow {
                 order: scene.transparency.order_name(),
                 size,
                 cpu_seconds,
-                gpu_seconds,
-                sort_seconds: (order == CellOrder::PerView).then(|| preview.sort_seconds()),
-                wgsl_vs_cpu: compare(&cpu_image, &image)?,
-            });
+                gpu_seconds: None,
+                sort_seconds: None,
+                wgsl_vs_cpu: None,
+                refused: None,
+            };
+            let rendered = MediumPreview::new(&gpu, &scene, &loaded.shell, &medium)
+                .and_then(|p| Ok((p.render()?, p)));
+            match rendered {
+                Ok((image, preview)) => {
+                    row.gpu_seconds = Some(preview.time_frames(frames, &())?);
+                    row.sort_seconds =
+                        (order == CellOrder::PerView).then(|| preview.sort_seconds());
+                    row.wgsl_vs_cpu = Some(compare(&cpu_image, &image)?);
+                }
+                Err(e @ Error::LoopBudget { .. }) => row.refused = Some(e.to_string()),
+                Err(e) => return Err(e),
+            }
+            rows.push(row);
         }
     }
     Ok(MediaBench {
@@ -165,17 +184,31 @@ pub fn markdown(bench: &MediaBench) -> String {
     );
     out += "| order | image | CPU image (s) | real-time frame (ms) | per-view sort (ms) | WGSL vs CPU PSNR (dB) | mask |\n";
     out += "|---|---:|---:|---:|---:|---:|---:|\n";
+    let ms = |s: Option<f64>| s.map_or("–".to_owned(), |s| format!("{:.1}", s * 1e3));
     for r in &bench.rows {
+        let (psnr, mask) = r
+            .wgsl_vs_cpu
+            .as_ref()
+            .map_or(("–".into(), "–".into()), |c| {
+                (
+                    format!("{:.2}", c.psnr_db),
+                    format!("{:.3} %", 100.0 * c.mask_disagreement),
+                )
+            });
         out += &format!(
-            "| {} | {size}×{size} | {:.3} | {:.1} | {} | {:.2} | {:.3} % |\n",
+            "| {} | {size}×{size} | {:.3} | {} | {} | {psnr} | {mask} |\n",
             r.order,
             r.cpu_seconds,
-            r.gpu_seconds * 1e3,
-            r.sort_seconds
-                .map_or("–".to_owned(), |s| format!("{:.2}", s * 1e3)),
-            r.wgsl_vs_cpu.psnr_db,
-            100.0 * r.wgsl_vs_cpu.mask_disagreement,
+            ms(r.gpu_seconds),
+            ms(r.sort_seconds),
             size = r.size,
+        );
+    }
+    for r in bench.rows.iter().filter(|r| r.refused.is_some()) {
+        out += &format!(
+            "\n{} order refused: {}\n",
+            r.order,
+            r.refused.as_deref().unwrap_or("")
         );
     }
     out

@@ -93,6 +93,9 @@ pub enum BenchCommand {
         /// Use the adapter whose name contains this.
         #[arg(long)]
         adapter: Option<String>,
+        /// Leave out the scene's shadows.
+        #[arg(long)]
+        no_shadows: bool,
     },
 }
 
@@ -157,6 +160,7 @@ pub fn bench(which: BenchCommand, allocator: &CountingAlloc, limits: &Limits) ->
             sizes,
             frames,
             adapter,
+            no_shadows,
         } => {
             let (Ok(segments), Ok(texture)) = (segments.try_into(), texture.try_into()) else {
                 return Err(Error::InvalidParameter(
@@ -171,6 +175,7 @@ pub fn bench(which: BenchCommand, allocator: &CountingAlloc, limits: &Limits) ->
                 sizes: &sizes,
                 frames,
                 adapter: adapter.as_deref(),
+                shadows: !no_shadows,
             };
             print!("{}", media::markdown(&media::run(&params, limits)?));
         }

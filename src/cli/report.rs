@@ -507,7 +507,8 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
         } => {
             let (name, loaded) = load_named(&scene, side, limits)?;
             let progress = Progress::new("transparency report");
-            let report = transparency::transparency_report(&name, &loaded, &samples, frames, &progress)?;
+            let report =
+                transparency::transparency_report(&name, &loaded, &samples, frames, &progress)?;
             progress.finish();
             let table = transparency::markdown(&report);
             let json = to_json(&report);

@@ -6,17 +6,20 @@
 //! against.
 
 use super::gpu::Gpu;
-use super::pipeline::{LightRecord, ViewUniform, layout_entry, light_records, storage, uniform, view_uniform};
+use super::pipeline::{
+    LightRecord, ViewUniform, layout_entry, light_records, storage, storage_read_write, uniform,
+    view_uniform,
+};
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, target_pipeline, time_frames};
 use super::variant::COMMON;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
+use crate::mesostructure::medium::Medium;
 use crate::render::image::Image;
 use crate::render::medium_cells::{Cell, CellRenderer};
 use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
 use crate::scene::transparency::{CellIntegration, CellOrder};
-use crate::mesostructure::medium::Medium;
 use crate::scene::{Effect, Scene};
 use crate::surface::shell::Shell;
 use bytemuck::{Pod, Zeroable};
@@ -60,7 +63,8 @@ struct MediumUniform {
     light_step: f32,
     shadow_start: f32,
     min_transmittance: f32,
-    _pad: [u32; 3],
+    loop_budget: u32,
+    _pad: [u32; 2],
     levels: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -86,10 +90,18 @@ fn cell_record(cell: &Cell) -> CellRecord {
     }
 }
 
-/// The medium's levels as the shader reads them: per voxel (linear albedo, opacity) and
-/// (normal, 0), every level after the one before; and each level's dimensions and first
-/// voxel.
-fn medium_texels(cells: &CellRenderer) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<[u32; 4]>)> {
+/// The medium's levels as the shader reads them.
+struct MediumTexels {
+    /// Per voxel (linear albedo, opacity), every level after the one before.
+    voxels: Vec<[f32; 4]>,
+    /// Per voxel (normal, 0), in the same order.
+    normals: Vec<[f32; 4]>,
+    /// Per level its dimensions and first voxel.
+    levels: Vec<[u32; 4]>,
+}
+
+/// [`MediumTexels`] of the cells' medium and its mip levels.
+fn medium_texels(cells: &CellRenderer) -> Result<MediumTexels> {
     let (mut voxels, mut normals, mut levels) = (Vec::new(), Vec::new(), Vec::new());
     for medium in cells.levels() {
         let d = medium.dims();
@@ -100,7 +112,13 @@ fn medium_texels(cells: &CellRenderer) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>, 
             let c = medium.colour(v);
             voxels.push([c.x as f32, c.y as f32, c.z as f32, medium.opacity(v) as f32]);
         }
-        normals.extend(medium.material().normal_voxels().iter().map(|n| n.extend(0.0).to_array()));
+        normals.extend(
+            medium
+                .material()
+                .normal_voxels()
+                .iter()
+                .map(|n| n.extend(0.0).to_array()),
+        );
     }
     if levels.len() > MAX_LEVELS {
         return Err(Error::Gpu(format!(
@@ -108,15 +126,46 @@ fn medium_texels(cells: &CellRenderer) -> Result<(Vec<[f32; 4]>, Vec<[f32; 4]>, 
             levels.len()
         )));
     }
-    Ok((voxels, normals, levels))
+    Ok(MediumTexels {
+        voxels,
+        normals,
+        levels,
+    })
 }
 
 /// The pipeline of a cell order.
 enum MediaPipeline {
-    /// Per-pixel lists: the compute pipeline and its bind group 1 (the target).
-    PerPixel(wgpu::ComputePipeline, wgpu::BindGroup),
+    /// Per-pixel lists: the compute pipeline, its bind group 1 (the target and the count of
+    /// pixels over the adapter's loop budget), that count and its read-back buffer.
+    PerPixel {
+        pipeline: wgpu::ComputePipeline,
+        group: wgpu::BindGroup,
+        overflow: wgpu::Buffer,
+        overflow_read: wgpu::Buffer,
+    },
     /// Per-view order: the cells' faces rasterized and blended.
     PerView(wgpu::RenderPipeline),
+}
+
+/// The first u32 of a mappable buffer, once the submission writing it is done.
+fn read_u32(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<u32> {
+    let slice = buffer.slice(..4);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.wait()?;
+    rx.recv()
+        .map_err(|_| Error::Gpu("read-back was never mapped".into()))?
+        .map_err(|e| Error::Gpu(format!("reading back: {e}")))?;
+    let value = {
+        let data = slice
+            .get_mapped_range()
+            .map_err(|e| Error::Gpu(format!("reading back: {e}")))?;
+        u32::from_le_bytes([data[0], data[1], data[2], data[3]])
+    };
+    buffer.unmap();
+    Ok(value)
 }
 
 /// A translucent scene ready to render with the real-time pipeline.
@@ -142,6 +191,18 @@ impl<'g> MediumPreview<'g> {
         medium: &'g Medium,
     ) -> Result<MediumPreview<'g>> {
         let settings = scene.transparency;
+        let shadows = scene.wants(Effect::Shadows);
+        if let (Some(budget), CellOrder::PerView, true) =
+            (gpu.loop_budget(), settings.order, shadows)
+        {
+            // Fragments cannot count what they ran; the per-pixel lists can.
+            return Err(Error::LoopBudget {
+                adapter: gpu.adapter.name.clone(),
+                budget,
+                what: "the per-view order's fragments trace shadow rays without counting them"
+                    .into(),
+            });
+        }
         let cells = CellRenderer::new(shell, medium, settings);
         let mesh = cells.cells();
         let target = Target::new(gpu, scene.camera.width, scene.camera.height)?;
@@ -150,8 +211,12 @@ impl<'g> MediumPreview<'g> {
             // A storage buffer may not be empty; the BVH then has no leaf to list it.
             records.push(CellRecord::zeroed());
         }
-        let (voxels, normals, levels) = medium_texels(&cells)?;
-        let limit = u64::from(gpu.device.limits().max_storage_buffer_binding_size);
+        let MediumTexels {
+            voxels,
+            normals,
+            levels,
+        } = medium_texels(&cells)?;
+        let limit = gpu.device.limits().max_storage_buffer_binding_size;
         let voxel_bytes = std::mem::size_of_val(voxels.as_slice()) as u64;
         if voxel_bytes > limit {
             return Err(Error::Gpu(format!(
@@ -175,17 +240,17 @@ impl<'g> MediumPreview<'g> {
             height: camera.height,
             integration: u32::from(settings.integration == CellIntegration::Samples),
             samples: settings.samples,
-            shadows: u32::from(scene.wants(Effect::Shadows)),
+            shadows: u32::from(shadows),
             level_count: levels.len() as u32,
             mip_bias: settings.mip_bias as f32,
             light_step: DEFAULT_LIGHT_STEP as f32,
             shadow_start: SHADOW_START as f32,
             min_transmittance: MIN_TRANSMITTANCE as f32,
-            _pad: [0; 3],
+            loop_budget: gpu.loop_budget().unwrap_or(0),
+            _pad: [0; 2],
             levels: level_table,
         };
-        let view: ViewUniform =
-            view_uniform(scene, mesh.cells().iter().flat_map(|c| c.corners));
+        let view: ViewUniform = view_uniform(scene, mesh.cells().iter().flat_map(|c| c.corners));
         let lights: Vec<LightRecord> = light_records(scene);
         let bvh = upload_box_bvh(gpu, &mesh.bounds())?;
         let order: Vec<u32> = (0..records.len() as u32).collect();
@@ -221,7 +286,15 @@ impl<'g> MediumPreview<'g> {
                     s | wgpu::BufferUsages::COPY_DST,
                 ),
             ];
-            let [view_b, lights_b, cells_b, medium_b, voxels_b, normals_b, order_b] = &own;
+            let [
+                view_b,
+                lights_b,
+                cells_b,
+                medium_b,
+                voxels_b,
+                normals_b,
+                order_b,
+            ] = &own;
             let bound = [
                 view_b,
                 lights_b,
@@ -235,7 +308,17 @@ impl<'g> MediumPreview<'g> {
             ];
             let all = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
             let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..bound.len() as u32)
-                .map(|b| layout_entry(b, all, if b == 0 || b == 5 { uniform() } else { storage() }))
+                .map(|b| {
+                    layout_entry(
+                        b,
+                        all,
+                        if b == 0 || b == 5 {
+                            uniform()
+                        } else {
+                            storage()
+                        },
+                    )
+                })
                 .collect();
             let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("media"),
@@ -260,27 +343,49 @@ impl<'g> MediumPreview<'g> {
             });
             let pipeline = match settings.order {
                 CellOrder::PerPixel => {
+                    let compute = wgpu::ShaderStages::COMPUTE;
                     let image_layout =
                         d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                             label: Some("media image"),
-                            entries: &[wgpu::BindGroupLayoutEntry {
-                                binding: 0,
-                                visibility: wgpu::ShaderStages::COMPUTE,
-                                ty: wgpu::BindingType::StorageTexture {
-                                    access: wgpu::StorageTextureAccess::WriteOnly,
-                                    format: wgpu::TextureFormat::Rgba32Float,
-                                    view_dimension: wgpu::TextureViewDimension::D2,
+                            entries: &[
+                                wgpu::BindGroupLayoutEntry {
+                                    binding: 0,
+                                    visibility: compute,
+                                    ty: wgpu::BindingType::StorageTexture {
+                                        access: wgpu::StorageTextureAccess::WriteOnly,
+                                        format: wgpu::TextureFormat::Rgba32Float,
+                                        view_dimension: wgpu::TextureViewDimension::D2,
+                                    },
+                                    count: None,
                                 },
-                                count: None,
-                            }],
+                                layout_entry(1, compute, storage_read_write()),
+                            ],
                         });
+                    let overflow = d.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("loop budget overflow"),
+                        size: 4,
+                        usage: s | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    });
+                    let overflow_read = d.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("loop budget overflow read-back"),
+                        size: 4,
+                        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                        mapped_at_creation: false,
+                    });
                     let image = d.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("media image"),
                         layout: &image_layout,
-                        entries: &[wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: wgpu::BindingResource::TextureView(target.colour_view()),
-                        }],
+                        entries: &[
+                            wgpu::BindGroupEntry {
+                                binding: 0,
+                                resource: wgpu::BindingResource::TextureView(target.colour_view()),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 1,
+                                resource: overflow.as_entire_binding(),
+                            },
+                        ],
                     });
                     let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                         label: Some("media per-pixel lists"),
@@ -295,7 +400,12 @@ impl<'g> MediumPreview<'g> {
                         compilation_options: Default::default(),
                         cache: None,
                     });
-                    MediaPipeline::PerPixel(pipeline, image)
+                    MediaPipeline::PerPixel {
+                        pipeline,
+                        group: image,
+                        overflow,
+                        overflow_read,
+                    }
                 }
                 CellOrder::PerView => {
                     let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -335,13 +445,24 @@ impl<'g> MediumPreview<'g> {
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         match &self.pipeline {
-            MediaPipeline::PerPixel(pipeline, image) => {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &self.group, &[]);
-                pass.set_bind_group(1, image, &[]);
-                let (w, h) = self.target.size();
-                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            MediaPipeline::PerPixel {
+                pipeline,
+                group,
+                overflow,
+                overflow_read,
+            } => {
+                encoder.clear_buffer(overflow, 0, None);
+                {
+                    let mut pass = encoder.begin_compute_pass(&Default::default());
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, &self.group, &[]);
+                    pass.set_bind_group(1, group, &[]);
+                    let (w, h) = self.target.size();
+                    pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+                }
+                if read_back {
+                    encoder.copy_buffer_to_buffer(overflow, 0, overflow_read, 0, 4);
+                }
             }
             MediaPipeline::PerView(pipeline) => {
                 let order = self.cells.cells().view_order(self.eye).order;
@@ -366,10 +487,25 @@ impl<'g> MediumPreview<'g> {
         self.memory
     }
 
-    /// Renders one frame and reads it back.
+    /// Renders one frame and reads it back; refused ([`Error::LoopBudget`]) where the
+    /// adapter cut some pixel's loops short.
     pub fn render(&self) -> Result<Image> {
         self.gpu.checked("rendering", || self.submit_frame(true))?;
-        self.target.read(self.gpu)
+        let image = self.target.read(self.gpu)?;
+        if let MediaPipeline::PerPixel { overflow_read, .. } = &self.pipeline {
+            let pixels = read_u32(self.gpu, overflow_read)?;
+            if pixels > 0 {
+                return Err(Error::LoopBudget {
+                    adapter: self.gpu.adapter.name.clone(),
+                    budget: self.gpu.loop_budget().unwrap_or(0),
+                    what: format!(
+                        "{pixels} pixels needed more (shadow rays through the cells, a large \
+                         medium)"
+                    ),
+                });
+            }
+        }
+        Ok(image)
     }
 
     /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted

@@ -156,7 +156,7 @@ pub(super) fn storage() -> wgpu::BindingType {
     }
 }
 
-fn storage_read_write() -> wgpu::BindingType {
+pub(super) fn storage_read_write() -> wgpu::BindingType {
     wgpu::BindingType::Buffer {
         ty: wgpu::BufferBindingType::Storage { read_only: false },
         has_dynamic_offset: false,

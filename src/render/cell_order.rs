@@ -87,7 +87,8 @@ pub fn far_first(distance: &[f64], behind: &[(u32, u32)]) -> ViewOrder {
         .collect();
     // Every cell by distance, for breaking cycles.
     let mut by_distance: Vec<u32> = (0..n as u32).collect();
-    by_distance.sort_unstable_by(|&a, &b| Far(distance[b as usize], b).cmp(&Far(distance[a as usize], a)));
+    by_distance
+        .sort_unstable_by(|&a, &b| Far(distance[b as usize], b).cmp(&Far(distance[a as usize], a)));
     let mut next_far = 0;
     let mut done = vec![false; n];
     let mut out = ViewOrder {

@@ -199,8 +199,16 @@ impl Cell {
 
     /// The cell's bounding box.
     fn bounds(&self) -> (DVec3, DVec3) {
-        let lo = self.corners.into_iter().reduce(DVec3::min).expect("four corners");
-        let hi = self.corners.into_iter().reduce(DVec3::max).expect("four corners");
+        let lo = self
+            .corners
+            .into_iter()
+            .reduce(DVec3::min)
+            .expect("four corners");
+        let hi = self
+            .corners
+            .into_iter()
+            .reduce(DVec3::max)
+            .expect("four corners");
         (lo, hi)
     }
 

@@ -11,6 +11,8 @@
 
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
+use crate::realtime::gpu::Gpu;
+use crate::realtime::medium_pipeline::MediumPreview;
 use crate::render::image::{Comparison, Image, compare};
 use crate::render::medium_cells::CellRenderer;
 use crate::render::medium_truth::MediumTruth;
@@ -18,8 +20,6 @@ use crate::render::render_image;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
-use crate::realtime::gpu::Gpu;
-use crate::realtime::medium_pipeline::MediumPreview;
 use crate::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
 use crate::scene::{Effect, LoadedScene};
 use glam::DVec3;
@@ -126,7 +126,11 @@ pub fn transparency_report(
         },
         true,
     );
-    let gpu = if frames > 0 { Gpu::open(None).ok() } else { None };
+    let gpu = if frames > 0 {
+        Gpu::open(None).ok()
+    } else {
+        None
+    };
     let mut steps = Steps::new(observer, settings.len() as u64 + 2);
     let scene = &loaded.scene;
     let timed = |f: &dyn Fn() -> Image| {
@@ -165,11 +169,18 @@ pub fn transparency_report(
         let (mut frame_s, mut realtime_error, mut realtime_vs_cpu) = (None, None, None);
         if let Some(gpu) = &gpu {
             shaded.transparency = transparency;
-            let preview = MediumPreview::new(gpu, &shaded, &loaded.shell, medium)?;
-            let realtime = preview.render()?;
-            frame_s = Some(preview.time_frames(frames, &())?);
-            realtime_error = Some(compare(&truth, &realtime)?);
-            realtime_vs_cpu = Some(compare(&image, &realtime)?);
+            let rendered = MediumPreview::new(gpu, &shaded, &loaded.shell, medium)
+                .and_then(|p| Ok((p.render()?, p)));
+            match rendered {
+                Ok((realtime, preview)) => {
+                    frame_s = Some(preview.time_frames(frames, &())?);
+                    realtime_error = Some(compare(&truth, &realtime)?);
+                    realtime_vs_cpu = Some(compare(&image, &realtime)?);
+                }
+                // The adapter cannot run the row (the software driver's loop budget): a dash.
+                Err(Error::LoopBudget { .. }) => {}
+                Err(e) => return Err(e),
+            }
         }
         rows.push(TransparencyRow {
             setting,
@@ -219,7 +230,12 @@ pub fn markdown(report: &TransparencyReport) -> String {
             optional(r.frame_s.map(|s| s * 1e3), 1),
             optional(r.realtime_error.as_ref().map(|c| c.psnr_db), 2),
             optional(r.realtime_vs_cpu.as_ref().map(|c| c.psnr_db), 2),
-            optional(r.realtime_vs_cpu.as_ref().map(|c| 100.0 * c.mask_disagreement), 3),
+            optional(
+                r.realtime_vs_cpu
+                    .as_ref()
+                    .map(|c| 100.0 * c.mask_disagreement),
+                3,
+            ),
         ]
     });
     format!(
@@ -235,7 +251,10 @@ pub fn markdown(report: &TransparencyReport) -> String {
         report.mean_crossings,
         report.view_sort_s,
         report.view_cycles_broken,
-        report.adapter.as_deref().unwrap_or("not measured (no adapter, or --frames 0)"),
+        report
+            .adapter
+            .as_deref()
+            .unwrap_or("not measured (no adapter, or --frames 0)"),
         table(
             &[
                 "setting",

@@ -6,6 +6,7 @@
 use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
+use crate::mesostructure::medium::Medium;
 use crate::package::vdm::{VdmPackage, height_field};
 use crate::package::{AnyPackage, Package};
 use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
@@ -17,7 +18,6 @@ use crate::realtime::vdm_pipeline::VdmPreview;
 use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::Image;
-use crate::mesostructure::medium::Medium;
 use crate::render::medium_cells::CellRenderer;
 use crate::render::render_image;
 use crate::render::vdm_renderer::VdmRenderer;
@@ -122,8 +122,8 @@ impl PreviewDevice {
         )
     }
 
-    /// Renders with `on_gpu`, or where there is no adapter with `on_cpu` (timing `frames`
-    /// more of them).
+    /// Renders with `on_gpu`, or with `on_cpu` (timing `frames` more of them) where there is
+    /// no adapter or the adapter cut the pipeline's loops short ([`Error::LoopBudget`]).
     fn run(
         &self,
         on_gpu: impl FnOnce(&Gpu) -> Result<(Image, PreviewReport)>,
@@ -131,44 +131,47 @@ impl PreviewDevice {
         frames: u32,
         observer: &dyn BakeObserver,
     ) -> Result<(Image, PreviewOutcome)> {
-        match self {
-            PreviewDevice::Gpu(gpu) => {
-                let (image, report) = on_gpu(gpu)?;
-                let outcome = PreviewOutcome {
-                    renderer: self.renderer(),
-                    fallback_reason: None,
-                    gpu: Some(report),
-                    cpu_mean_frame_seconds: None,
-                };
-                Ok((image, outcome))
-            }
-            PreviewDevice::Cpu { reason } => {
-                let image = on_cpu()?;
-                observer.stage("timing frames");
-                let start = Instant::now();
-                for frame in 1..=frames {
-                    on_cpu()?;
-                    observer.progress(frame.into(), frames.into());
+        let reason = match self {
+            PreviewDevice::Gpu(gpu) => match on_gpu(gpu) {
+                Ok((image, report)) => {
+                    let outcome = PreviewOutcome {
+                        renderer: "gpu",
+                        fallback_reason: None,
+                        gpu: Some(report),
+                        cpu_mean_frame_seconds: None,
+                    };
+                    return Ok((image, outcome));
                 }
-                let mean = (frames > 0).then(|| start.elapsed().as_secs_f64() / frames as f64);
-                let outcome = PreviewOutcome {
-                    renderer: self.renderer(),
-                    fallback_reason: Some(reason.clone()),
-                    gpu: None,
-                    cpu_mean_frame_seconds: mean,
-                };
-                Ok((image, outcome))
-            }
+                Err(e @ Error::LoopBudget { .. }) => e.to_string(),
+                Err(e) => return Err(e),
+            },
+            PreviewDevice::Cpu { reason } => reason.clone(),
+        };
+        let image = on_cpu()?;
+        observer.stage("timing frames");
+        let start = Instant::now();
+        for frame in 1..=frames {
+            on_cpu()?;
+            observer.progress(frame.into(), frames.into());
         }
+        let mean = (frames > 0).then(|| start.elapsed().as_secs_f64() / frames as f64);
+        let outcome = PreviewOutcome {
+            renderer: "cpu",
+            fallback_reason: Some(reason),
+            gpu: None,
+            cpu_mean_frame_seconds: mean,
+        };
+        Ok((image, outcome))
     }
 }
 
 /// What rendered a preview, and what it measured.
 #[derive(Clone, Debug, Serialize)]
 pub struct PreviewOutcome {
-    /// `gpu` (the WGSL pipeline) or `cpu` (its CPU twin, where no adapter exists).
+    /// `gpu` (the WGSL pipeline) or `cpu` (its CPU twin, where no adapter exists or the
+    /// adapter cut the pipeline short).
     pub renderer: &'static str,
-    /// Why the CPU twin rendered: the adapter error.
+    /// Why the CPU twin rendered: the adapter error, or the loop budget it ran out of.
     pub fallback_reason: Option<String>,
     /// The real-time pipeline's report, for `gpu`.
     pub gpu: Option<PreviewReport>,
@@ -269,7 +272,14 @@ pub fn gdm_preview(
     let start = Instant::now();
     let preview = Preview::new(gpu, loaded, package, true)?;
     let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
-    measure(gpu, &preview, Technique::Gdm.name(), setup, frames, observer)
+    measure(
+        gpu,
+        &preview,
+        Technique::Gdm.name(),
+        setup,
+        frames,
+        observer,
+    )
 }
 
 /// [`preview`] by the VDM pipeline.
@@ -288,7 +298,14 @@ fn vdm_preview(
     };
     let preview = VdmPreview::new(gpu, loaded, &package.query(), relief)?;
     let setup = (None, start.elapsed().as_secs_f64());
-    measure(gpu, &preview, Technique::Vdm.name(), setup, frames, observer)
+    measure(
+        gpu,
+        &preview,
+        Technique::Vdm.name(),
+        setup,
+        frames,
+        observer,
+    )
 }
 
 /// `loaded`'s translucent medium, or the error that its mesostructure is opaque.
@@ -308,7 +325,9 @@ pub fn medium_render_on_cpu(loaded: &LoadedScene) -> Result<Image> {
     let medium = translucent(loaded)?;
     let scene = &loaded.scene;
     let cells = CellRenderer::new(&loaded.shell, medium, scene.transparency);
-    Ok(render_image(&scene.camera, |o, d| cells.radiance(scene, o, d)))
+    Ok(render_image(&scene.camera, |o, d| {
+        cells.radiance(scene, o, d)
+    }))
 }
 
 /// Renders `loaded`'s translucent medium with the translucent-media pipeline on `gpu`; with

@@ -52,7 +52,9 @@ impl From<Error> for ApiError {
             | Error::Package(_) => StatusCode::UNPROCESSABLE_ENTITY,
             Error::MemoryLimit { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             Error::Cancelled => StatusCode::CONFLICT,
-            Error::Gpu(_) | Error::Database(_) => StatusCode::SERVICE_UNAVAILABLE,
+            Error::Gpu(_) | Error::LoopBudget { .. } | Error::Database(_) => {
+                StatusCode::SERVICE_UNAVAILABLE
+            }
             Error::Io { source, .. } => {
                 // The path is the server's business: logged, not answered.
                 tracing::error!("{e}");
