@@ -474,7 +474,13 @@ fn report_transparency_measures_each_setting_against_the_truth() {
         .collect();
     assert_eq!(
         settings,
-        ["scene", "1 sample", "4 samples", "no shadows", "per-view order"],
+        [
+            "scene",
+            "1 sample",
+            "4 samples",
+            "no shadows",
+            "per-view order"
+        ],
         "{report}"
     );
     let psnr = |i: usize| rows[i]["error"]["psnr_db"].as_f64().unwrap();
