@@ -11,7 +11,7 @@ use super::pipeline::{
     view_uniform,
 };
 use super::resources::{GpuMemory, upload_box_bvh};
-use super::target::{DrawState, Target, target_pipeline, time_frames};
+use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
 use super::variant::COMMON;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -145,27 +145,6 @@ enum MediaPipeline {
     },
     /// Per-view order: the cells' faces rasterized and blended.
     PerView(wgpu::RenderPipeline),
-}
-
-/// The first u32 of a mappable buffer, once the submission writing it is done.
-fn read_u32(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<u32> {
-    let slice = buffer.slice(..4);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    gpu.wait()?;
-    rx.recv()
-        .map_err(|_| Error::Gpu("read-back was never mapped".into()))?
-        .map_err(|e| Error::Gpu(format!("reading back: {e}")))?;
-    let value = {
-        let data = slice
-            .get_mapped_range()
-            .map_err(|e| Error::Gpu(format!("reading back: {e}")))?;
-        u32::from_le_bytes([data[0], data[1], data[2], data[3]])
-    };
-    buffer.unmap();
-    Ok(value)
 }
 
 /// A translucent scene ready to render with the real-time pipeline.
@@ -493,7 +472,9 @@ impl<'g> MediumPreview<'g> {
         self.gpu.checked("rendering", || self.submit_frame(true))?;
         let image = self.target.read(self.gpu)?;
         if let MediaPipeline::PerPixel { overflow_read, .. } = &self.pipeline {
-            let pixels = read_u32(self.gpu, overflow_read)?;
+            let pixels = read_mapped(self.gpu, overflow_read, |d| {
+                u32::from_le_bytes([d[0], d[1], d[2], d[3]])
+            })?;
             if pixels > 0 {
                 return Err(Error::LoopBudget {
                     adapter: self.gpu.adapter.name.clone(),

@@ -247,20 +247,8 @@ impl Target {
 
     /// Reads back what [`Target::copy_out`] copied, once the submission holding it is done.
     pub fn read(&self, gpu: &Gpu) -> Result<Image> {
-        let slice = self.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.wait()?;
-        rx.recv()
-            .map_err(|_| Error::Gpu("read-back was never mapped".into()))?
-            .map_err(|e| Error::Gpu(format!("reading the image back: {e}")))?;
-        let mut image = Image::new(self.width, self.height);
-        {
-            let data = slice
-                .get_mapped_range()
-                .map_err(|e| Error::Gpu(format!("reading the image back: {e}")))?;
+        read_mapped(gpu, &self.readback, |data| {
+            let mut image = Image::new(self.width, self.height);
             for (y, row) in data.chunks_exact(self.padded_row as usize).enumerate() {
                 let texels: &[[f32; 4]] =
                     bytemuck::cast_slice(&row[..(self.width * COLOUR_TEXEL) as usize]);
@@ -270,8 +258,29 @@ impl Target {
                     image.rgb[i] = [t[0], t[1], t[2]];
                 }
             }
-        }
-        self.readback.unmap();
-        Ok(image)
+            image
+        })
     }
+}
+
+/// Maps `buffer` (MAP_READ) once the submissions writing it are done, hands its bytes to
+/// `f` and unmaps it.
+pub fn read_mapped<T>(gpu: &Gpu, buffer: &wgpu::Buffer, f: impl FnOnce(&[u8]) -> T) -> Result<T> {
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.wait()?;
+    rx.recv()
+        .map_err(|_| Error::Gpu("read-back was never mapped".into()))?
+        .map_err(|e| Error::Gpu(format!("reading back: {e}")))?;
+    let value = {
+        let data = slice
+            .get_mapped_range()
+            .map_err(|e| Error::Gpu(format!("reading back: {e}")))?;
+        f(&data)
+    };
+    buffer.unmap();
+    Ok(value)
 }
