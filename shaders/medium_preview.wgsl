@@ -13,8 +13,13 @@
 //   view on the CPU, back to front, each fragment integrating its cell and blended "over"
 //   what is behind it (premultiplied). Exact where that order is a visibility order.
 //
-// Shadows (when the scene asks for them) are the transmittance of a ray through the cells
-// towards each light, found through the same BVH. Preceded by `common.wgsl`.
+// Shadows (when the scene asks for them): per light a shadow map built by `cs_shadow_map`
+// before each frame (one invocation per light-space texel, its ray's optical depth through
+// the cells in order; `src/render/medium_shadow_map.rs` is the specification), an opacity
+// map (optical depth at `shadow_slices` depths) or the paper's depth map (where the
+// transmittance falls to ½); or, by the `rays` method and for lights without a map, the
+// transmittance of a ray through the cells towards the light, found through the same BVH.
+// Preceded by `common.wgsl`.
 
 // One tetrahedron.
 struct Cell {
@@ -39,7 +44,7 @@ struct Medium {
     // 0: exact (every voxel), 1: `samples` samples per cell.
     integration: u32,
     samples: u32,
-    // 1 when the scene calls for shadows.
+    // 0: no shadows; 1: rays; 2: opacity maps; 3: depth maps.
     shadows: u32,
     // Mip levels uploaded (1: none but the medium).
     level_count: u32,
@@ -52,8 +57,10 @@ struct Medium {
     // of invocations once they have run 65 535 iterations together). Pixels over it are
     // counted in `overflow` instead of being trusted.
     loop_budget: u32,
-    _pad1: u32,
-    _pad2: u32,
+    // Shadow maps' texels along a side, and values per texel (opacity maps: the stretch in
+    // the shell and the slices).
+    shadow_size: u32,
+    shadow_stride: u32,
     // Per level: xyz its dimensions, w its first voxel in `voxels` and `normals`.
     levels: array<vec4<u32>, 16>,
 }
@@ -69,9 +76,33 @@ struct Medium {
 // Per voxel of every level: xyz the unnormalized outward normal (−∇ opacity).
 @group(0) @binding(7) var<storage, read> normals: array<vec4<f32>>;
 
+// A light's shadow map space (`LightFrame`).
+struct ShadowFrame {
+    // Orthographic: the map's centre; perspective: the light. w: t₀.
+    origin: vec4<f32>,
+    // The unit direction the light travels. w: the depth range (2r).
+    axis: vec4<f32>,
+    // The map's axes, scaled; w: 1 / their squared lengths.
+    u_axis: vec4<f32>,
+    v_axis: vec4<f32>,
+    // 0: no map; 1: orthographic; 2: perspective.
+    kind: u32,
+    // The map's first value in the map buffer.
+    first: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// Per light its map's frame.
+@group(0) @binding(9) var<storage, read> shadow_frames: array<ShadowFrame>;
+
 // Cells composited per batch of the per-pixel list.
 const BATCH: u32 = 16u;
 const FAR: f32 = 3.0e38;
+// `MAX_OPTICAL_DEPTH`, `OPAQUE_EXTINCTION` and `DEPTH_THRESHOLD` of the specification.
+const MAX_OPTICAL_DEPTH: f32 = 13.815510557964274;
+const OPAQUE_EXTINCTION: f32 = 1.0e4;
+const DEPTH_THRESHOLD: f32 = 0.6931471805599453;
 
 // ---- Rays and cells ---------------------------------------------------------------------
 
@@ -377,11 +408,16 @@ fn scattered(ci: u32, level: u32, point: vec3<f32>, t: vec3<f32>, v: i32, to_eye
             continue;
         }
         var visible = 1.0;
-        if medium.shadows == 1u {
+        if medium.shadows > 0u {
             // The object distance that is `shadow_start` voxels towards the light.
             let start = medium.shadow_start / length(texture_direction(ci, inc.dir));
-            if start < inc.distance {
+            let frame = shadow_frames[li];
+            if start >= inc.distance {
+                visible = 1.0;
+            } else if medium.shadows == 1u || frame.kind == 0u {
                 visible = transmittance(level, point, inc.dir, start, inc.distance);
+            } else {
+                visible = map_visibility(frame, point, start);
             }
         }
         if visible > 0.0 {
@@ -458,77 +494,87 @@ fn after(t: f32, cell: u32, last_t: f32, last_cell: u32) -> bool {
     return t > last_t || (t == last_t && cell > last_cell);
 }
 
+// The batch of crossings `next_batch` gathered: `batch_n` of them, sorted.
+var<private> batch_t_in: array<f32, BATCH>;
+var<private> batch_t_out: array<f32, BATCH>;
+var<private> batch_cell: array<u32, BATCH>;
+var<private> batch_n: u32;
+
+// Gathers the BATCH nearest crossings of o + t·d (inv = 1/d), t ∈ [t_min, t_max], after
+// (last_t, last_cell) into `batch_*`, sorted; true when more remain after them.
+fn next_batch(o: vec3<f32>, d: vec3<f32>, inv: vec3<f32>, t_min: f32, t_max: f32, last_t: f32, last_cell: u32) -> bool {
+    let count = arrayLength(&bvh_nodes);
+    var n = 0u;
+    var more = false;
+    var i = 0u;
+    while i < count {
+        steps += 1u;
+        let node = bvh_nodes[i];
+        if node_entry(node, o, inv, t_max) < 0.0 {
+            i = node.skip;
+        } else if node.count == 0u {
+            i += 1u;
+        } else {
+            for (var k = 0u; k < node.count; k++) {
+                steps += 1u;
+                let ci = bvh_cells[node.first + k];
+                let r = clip(ci, o, d, t_min, t_max);
+                var keep = r.x < r.y && after(r.x, ci, last_t, last_cell);
+                if keep && n == BATCH {
+                    // Full: the new crossing replaces the last if it comes before it.
+                    more = true;
+                    keep = after(batch_t_in[n - 1u], batch_cell[n - 1u], r.x, ci);
+                    if keep {
+                        n -= 1u;
+                    }
+                }
+                if keep {
+                    // Insertion into the sorted batch.
+                    var j = n;
+                    while j > 0u && after(batch_t_in[j - 1u], batch_cell[j - 1u], r.x, ci) {
+                        steps += 1u;
+                        batch_t_in[j] = batch_t_in[j - 1u];
+                        batch_t_out[j] = batch_t_out[j - 1u];
+                        batch_cell[j] = batch_cell[j - 1u];
+                        j -= 1u;
+                    }
+                    batch_t_in[j] = r.x;
+                    batch_t_out[j] = r.y;
+                    batch_cell[j] = ci;
+                    n += 1u;
+                }
+            }
+            i = node.skip;
+        }
+    }
+    batch_n = n;
+    return more;
+}
+
 // What the camera ray through the pixel centred at `pixel` gathers: the per-pixel sorted list
 // of its cells, composited front to back in batches.
 fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
     let o = view.eye.xyz;
     let d = camera_ray(pixel);
     let inv = safe_inverse(d);
-    let count = arrayLength(&bvh_nodes);
     gathered_radiance = vec3<f32>(0.0);
     gathered_transmittance = 1.0;
     // The last crossing composited (none yet: before every crossing).
-    var last_t = -1.0;
+    var last_t = -FAR;
     var last_cell = 0u;
     var going = true;
     var more = true;
     while going && more {
         steps += 1u;
-        // The BATCH nearest crossings after the last one, sorted.
-        var t_in: array<f32, BATCH>;
-        var t_out: array<f32, BATCH>;
-        var cell: array<u32, BATCH>;
-        var n = 0u;
-        more = false;
-        var i = 0u;
-        while i < count {
+        more = next_batch(o, d, inv, 0.0, FAR, last_t, last_cell);
+        for (var c = 0u; c < batch_n && going; c++) {
             steps += 1u;
-            let node = bvh_nodes[i];
-            if node_entry(node, o, inv, FAR) < 0.0 {
-                i = node.skip;
-            } else if node.count == 0u {
-                i += 1u;
-            } else {
-                for (var k = 0u; k < node.count; k++) {
-                    steps += 1u;
-                    let ci = bvh_cells[node.first + k];
-                    let r = clip(ci, o, d, 0.0, FAR);
-                    var keep = r.x < r.y && after(r.x, ci, last_t, last_cell);
-                    if keep && n == BATCH {
-                        // Full: the new crossing replaces the last if it comes before it.
-                        more = true;
-                        keep = after(t_in[n - 1u], cell[n - 1u], r.x, ci);
-                        if keep {
-                            n -= 1u;
-                        }
-                    }
-                    if keep {
-                        // Insertion into the sorted batch.
-                        var j = n;
-                        while j > 0u && after(t_in[j - 1u], cell[j - 1u], r.x, ci) {
-                            steps += 1u;
-                            t_in[j] = t_in[j - 1u];
-                            t_out[j] = t_out[j - 1u];
-                            cell[j] = cell[j - 1u];
-                            j -= 1u;
-                        }
-                        t_in[j] = r.x;
-                        t_out[j] = r.y;
-                        cell[j] = ci;
-                        n += 1u;
-                    }
-                }
-                i = node.skip;
-            }
-        }
-        for (var c = 0u; c < n && going; c++) {
-            steps += 1u;
-            let level = level_for(cell[c], t_in[c]);
-            going = integrate(cell[c], level, o, d, vec2<f32>(t_in[c], t_out[c]));
+            let level = level_for(batch_cell[c], batch_t_in[c]);
+            going = integrate(batch_cell[c], level, o, d, vec2<f32>(batch_t_in[c], batch_t_out[c]));
         }
         if more {
-            last_t = t_in[n - 1u];
-            last_cell = cell[n - 1u];
+            last_t = batch_t_in[batch_n - 1u];
+            last_cell = batch_cell[batch_n - 1u];
         }
     }
     return gathered();
@@ -536,8 +582,10 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
 
 // The target, written by `cs_pixels`.
 @group(1) @binding(0) var image: texture_storage_2d<rgba32float, write>;
-// Pixels whose invocation ran out of `loop_budget`.
+// Pixels (and shadow-map texels) whose invocation ran out of `loop_budget`.
 @group(1) @binding(1) var<storage, read_write> overflow: atomic<u32>;
+// Every light's shadow map, as `cs_shadow_map` wrote it.
+@group(1) @binding(2) var<storage, read> shadow_map: array<f32>;
 
 // One invocation per pixel (a compute pass: no quads, no helper invocations).
 @compute @workgroup_size(8, 8)
@@ -592,4 +640,263 @@ fn fs_cell(in: CellOut) -> @location(0) vec4<f32> {
     gathered_transmittance = 1.0;
     integrate(in.cell, level_for(in.cell, r.x), o, d, r);
     return gathered();
+}
+
+// ---- Shadow maps --------------------------------------------------------------------------
+
+// The map being written by `cs_shadow_map`.
+@group(1) @binding(3) var<storage, read_write> shadow_build: array<f32>;
+
+struct MapRay {
+    o: vec3<f32>,
+    d: vec3<f32>,
+}
+
+// The ray of map point (u, v).
+fn map_ray(f: ShadowFrame, u: f32, v: f32) -> MapRay {
+    let across = f.u_axis.xyz * u + f.v_axis.xyz * v;
+    if f.kind == 1u {
+        return MapRay(f.origin.xyz + across, f.axis.xyz);
+    }
+    return MapRay(f.origin.xyz, normalize(f.axis.xyz + across));
+}
+
+// The map point (u, v) and ray parameter t of x, w = 1; w = 0 behind a point light.
+fn map_project(f: ShadowFrame, x: vec3<f32>) -> vec4<f32> {
+    let d = x - f.origin.xyz;
+    let along = dot(d, f.axis.xyz);
+    var scale = 1.0;
+    var t = along;
+    if f.kind == 2u {
+        if along <= 0.0 {
+            return vec4<f32>(0.0);
+        }
+        scale = 1.0 / along;
+        t = length(d);
+    }
+    return vec4<f32>(dot(d, f.u_axis.xyz) * f.u_axis.w * scale, dot(d, f.v_axis.xyz) * f.v_axis.w * scale, t, 1.0);
+}
+
+// The two texels around map coordinate u and the second one's weight (`texel_span`).
+fn texel_span(u: f32, n: u32) -> vec3<f32> {
+    let last = f32(n - 1u);
+    var f = clamp((u + 1.0) * 0.5 * f32(n) - 0.5, 0.0, last);
+    if f != f {
+        f = 0.0;
+    }
+    let i0 = floor(f);
+    return vec3<f32>(i0, min(i0 + 1.0, last), f - i0);
+}
+
+// The optical depth of the opacity-map texel at `at` at ray parameter t
+// (`optical_depth_at`).
+fn optical_depth_at(at: u32, t: f32) -> f32 {
+    let ta = shadow_map[at];
+    let tb = shadow_map[at + 1u];
+    let slices = medium.shadow_stride - 2u;
+    var g = 0.0;
+    if tb > ta {
+        g = clamp((t - ta) / (tb - ta) * f32(slices), 0.0, f32(slices));
+    } else if t > ta {
+        g = f32(slices);
+    }
+    let k = min(u32(floor(g)), slices - 1u);
+    let w = g - f32(k);
+    var lo = 0.0;
+    if k > 0u {
+        lo = shadow_map[at + 1u + k];
+    }
+    return lo * (1.0 - w) + shadow_map[at + 2u + k] * w;
+}
+
+// The fraction of the light of frame f that reaches x, looked up from `start` towards the
+// light (`ShadowMap::visibility`).
+fn map_visibility(f: ShadowFrame, x: vec3<f32>, start: f32) -> f32 {
+    let p = map_project(f, x);
+    if p.w == 0.0 {
+        return 1.0;
+    }
+    let t = p.z - start;
+    let n = medium.shadow_size;
+    let si = texel_span(p.x, n);
+    let sj = texel_span(p.y, n);
+    let stride = medium.shadow_stride;
+    let i = vec2<u32>(u32(si.x), u32(si.y));
+    let j = vec2<u32>(u32(sj.x), u32(sj.y));
+    let w = vec4<f32>((1.0 - si.z) * (1.0 - sj.z), si.z * (1.0 - sj.z), (1.0 - si.z) * sj.z, si.z * sj.z);
+    let at = vec4<u32>(j.x * n + i.x, j.x * n + i.y, j.y * n + i.x, j.y * n + i.y) * stride + f.first;
+    if medium.shadows == 2u {
+        let tau = w.x * optical_depth_at(at.x, t) + w.y * optical_depth_at(at.y, t) + w.z * optical_depth_at(at.z, t) + w.w * optical_depth_at(at.w, t);
+        if tau >= MAX_OPTICAL_DEPTH {
+            return 0.0;
+        }
+        return exp(-tau);
+    }
+    let lit = vec4<f32>(vec4<bool>(t < shadow_map[at.x], t < shadow_map[at.y], t < shadow_map[at.z], t < shadow_map[at.w]));
+    return dot(w, lit);
+}
+
+// Extinction per voxel length of opacity alpha.
+fn extinction(alpha: f32) -> f32 {
+    if alpha >= 1.0 {
+        return OPAQUE_EXTINCTION;
+    }
+    return -log(1.0 - alpha);
+}
+
+// The texel being built: optical depth so far, next slice, depth-map depth, and the
+// opacity map's stretch in the shell.
+var<private> map_tau: f32;
+var<private> map_k: u32;
+var<private> map_depth: f32;
+var<private> map_range: vec2<f32>;
+
+// Ray parameter of opacity-map slice k.
+fn slice_t(k: u32) -> f32 {
+    return map_range.x + (map_range.y - map_range.x) * f32(k + 1u) / f32(medium.shadow_stride - 2u);
+}
+
+// The first entry into and last exit from the cells of o + t·d (inv = 1/d), t ∈ [t_min,
+// t_max]; both FAR where it meets none.
+fn shell_range(o: vec3<f32>, d: vec3<f32>, inv: vec3<f32>, t_min: f32, t_max: f32) -> vec2<f32> {
+    let count = arrayLength(&bvh_nodes);
+    var range = vec2<f32>(FAR, -FAR);
+    var i = 0u;
+    while i < count {
+        steps += 1u;
+        let node = bvh_nodes[i];
+        if node_entry(node, o, inv, t_max) < 0.0 {
+            i = node.skip;
+        } else if node.count == 0u {
+            i += 1u;
+        } else {
+            for (var k = 0u; k < node.count; k++) {
+                steps += 1u;
+                let r = clip(bvh_cells[node.first + k], o, d, t_min, t_max);
+                if r.x < r.y {
+                    range = vec2<f32>(min(range.x, r.x), max(range.y, r.y));
+                }
+            }
+            i = node.skip;
+        }
+    }
+    return select(range, vec2<f32>(FAR), range.x == FAR);
+}
+
+// Records the piece [ta, tb] of optical depth `piece` into the texel at `base`; false once
+// the texel is done.
+fn map_piece(base: u32, ta: f32, tb: f32, piece: f32) -> bool {
+    if medium.shadows == 3u {
+        if map_tau + piece >= DEPTH_THRESHOLD {
+            map_depth = ta + (tb - ta) * ((DEPTH_THRESHOLD - map_tau) / piece);
+            return false;
+        }
+        map_tau += piece;
+        return true;
+    }
+    let slices = medium.shadow_stride - 2u;
+    while map_k < slices && slice_t(map_k) <= tb {
+        steps += 1u;
+        var w = 1.0;
+        if tb > ta {
+            w = clamp((slice_t(map_k) - ta) / (tb - ta), 0.0, 1.0);
+        }
+        shadow_build[base + 2u + map_k] = min(map_tau + piece * w, MAX_OPTICAL_DEPTH);
+        map_k += 1u;
+    }
+    map_tau += piece;
+    return map_tau < MAX_OPTICAL_DEPTH;
+}
+
+// Records the crossing r of cell ci by o + t·d, in level 0 (`optical_depths`); false once
+// the texel is done.
+fn map_crossing(base: u32, ci: u32, o: vec3<f32>, d: vec3<f32>, r: vec2<f32>) -> bool {
+    let a = to_texture(ci, o + d * r.x);
+    let b = to_texture(ci, o + d * r.y);
+    let len = length(b - a);
+    var going = true;
+    if len == 0.0 {
+        return true;
+    }
+    let dt = (r.y - r.x) / len;
+    if medium.integration == 1u {
+        let part = len / f32(medium.samples);
+        for (var i = 0u; i < medium.samples && going; i++) {
+            steps += 1u;
+            let s = (f32(i) + 0.5) * part;
+            let v = voxel_at(0u, a + (b - a) * (s / len));
+            if v >= 0 {
+                let ta = r.x + (s - 0.5 * part) * dt;
+                let tb = r.x + (s + 0.5 * part) * dt;
+                going = map_piece(base, ta, tb, extinction(voxels[v].a) * part);
+            }
+        }
+        return going;
+    }
+    var w = walk_start(a, (b - a) / len, len);
+    while going && walk_next(&w, 0u) {
+        steps += 1u;
+        let piece = extinction(voxels[w.v].a) * (w.s1 - w.s0);
+        going = map_piece(base, r.x + w.s0 * dt, r.x + w.s1 * dt, piece);
+    }
+    return going;
+}
+
+// One invocation per texel (x, y) of light z's map: its ray's optical depth through the
+// cells, in order.
+@compute @workgroup_size(8, 8)
+fn cs_shadow_map(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = medium.shadow_size;
+    if id.x >= n || id.y >= n || id.z >= view.light_count {
+        return;
+    }
+    let f = shadow_frames[id.z];
+    if f.kind == 0u {
+        return;
+    }
+    steps = 0u;
+    let ray = map_ray(f, 2.0 * (f32(id.x) + 0.5) / f32(n) - 1.0, 2.0 * (f32(id.y) + 0.5) / f32(n) - 1.0);
+    let stride = medium.shadow_stride;
+    let base = f.first + (id.y * n + id.x) * stride;
+    let inv = safe_inverse(ray.d);
+    var t0 = f.origin.w;
+    var t1 = t0 + f.axis.w;
+    if medium.shadows == 2u {
+        map_range = shell_range(ray.o, ray.d, inv, t0, t1);
+        shadow_build[base] = map_range.x;
+        shadow_build[base + 1u] = map_range.y;
+        t0 = map_range.x;
+        t1 = map_range.y;
+    }
+    map_tau = 0.0;
+    map_k = 0u;
+    map_depth = FAR;
+    var last_t = -FAR;
+    var last_cell = 0u;
+    var going = true;
+    var more = true;
+    while going && more {
+        steps += 1u;
+        more = next_batch(ray.o, ray.d, inv, t0, t1, last_t, last_cell);
+        for (var c = 0u; c < batch_n && going; c++) {
+            steps += 1u;
+            going = map_crossing(base, batch_cell[c], ray.o, ray.d, vec2<f32>(batch_t_in[c], batch_t_out[c]));
+        }
+        if more {
+            last_t = batch_t_in[batch_n - 1u];
+            last_cell = batch_cell[batch_n - 1u];
+        }
+    }
+    if medium.shadows == 3u {
+        shadow_build[base] = map_depth;
+    } else {
+        let rest = min(map_tau, MAX_OPTICAL_DEPTH);
+        for (var k = map_k; k < stride - 2u; k++) {
+            steps += 1u;
+            shadow_build[base + 2u + k] = rest;
+        }
+    }
+    if medium.loop_budget > 0u && steps >= medium.loop_budget {
+        atomicAdd(&overflow, 1u);
+    }
 }

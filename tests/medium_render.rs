@@ -16,8 +16,10 @@ use mesobake::render::medium_cells::CellRenderer;
 use mesobake::render::medium_truth::MediumTruth;
 use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
-use mesobake::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
-use mesobake::scene::{LoadedScene, Scene};
+use mesobake::scene::transparency::{
+    CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
+};
+use mesobake::scene::{Light, LoadedScene, Scene};
 use mesobake::util::limits::Limits;
 use std::path::Path;
 
@@ -28,6 +30,9 @@ const EXACT: TransparencySettings = TransparencySettings {
     mipmap: false,
     mip_bias: -1.0,
     order: CellOrder::PerPixel,
+    shadows: ShadowMethod::Rays,
+    shadow_map_size: 256,
+    shadow_slices: 32,
 };
 
 /// Exact integration, 16 samples where sampled: the default.
@@ -310,6 +315,77 @@ fn cells_transmit_the_closed_form_on_a_flat_shell_even_along_shared_faces() {
                 (t / exact - 1.0).abs() < 1e-9,
                 "{settings:?} {origin} {d}: {t} against {exact}"
             );
+        }
+    }
+}
+
+/// The shadow maps against the closed form. In a uniform medium on a flat shell the optical
+/// depth towards a directional light grows linearly along each texel's ray, from where the
+/// ray enters the shell, and that entry moves linearly across texels: the opacity map's
+/// interpolation (linear between slices, bilinear across texels) is then exact, and it
+/// returns (1 − α)^ℓ, ℓ the voxels from the point up to the shell's top towards the light,
+/// to 1e-9 relative at every slant. Towards a point light the rays diverge and bilinear
+/// interpolation across them is no longer exact: to 1e-3 relative. The depth map says lit
+/// where that transmittance is above ½ + 0.05, shadowed below ½ − 0.05.
+#[test]
+fn shadow_maps_meet_the_closed_form_in_a_uniform_slab() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = 0.25;
+    let loaded = flat_scene(dir.path(), r#"{ "medium": "absorbing" }"#, h);
+    let medium = loaded.medium.as_ref().unwrap();
+    let alpha = f64::from(ABSORBING_OPACITY);
+    let points: Vec<DVec3> = [(0.1, -0.2), (-0.33, 0.27), (0.41, 0.05)]
+        .iter()
+        .flat_map(|&(x, z)| [0.05, 0.125, 0.2].map(|y| DVec3::new(x, y, z)))
+        .collect();
+    let point_light = [0.4, 3.0, -0.6];
+    let mut lights: Vec<(Light, f64)> = SLANTS
+        .iter()
+        .map(|&d| {
+            let light = Light::Directional {
+                direction: d,
+                irradiance: [1.0; 3],
+            };
+            (light, 1e-9)
+        })
+        .collect();
+    lights.push((
+        Light::Point {
+            position: point_light,
+            intensity: [1.0; 3],
+        },
+        1e-3,
+    ));
+    for (light, tolerance) in lights {
+        let mut scene = loaded.scene.clone();
+        scene.lights = vec![light.clone()];
+        for method in [ShadowMethod::OpacityMap, ShadowMethod::DepthMap] {
+            let settings = TransparencySettings {
+                shadows: method,
+                ..EXACT
+            };
+            let cells = CellRenderer::new(&loaded.shell, medium, settings);
+            let map = cells.shadow_maps(&scene)[0].as_ref().unwrap();
+            for &x in &points {
+                // Unit direction towards the light.
+                let towards = match light {
+                    Light::Directional { direction, .. } => -DVec3::from(direction).normalize(),
+                    _ => (DVec3::from(point_light) - x).normalize(),
+                };
+                let exact = (1.0 - alpha).powf(voxels_across(towards, h) * (h - x.y) / h);
+                let got = map.visibility(x, 0.0);
+                match method {
+                    ShadowMethod::OpacityMap => assert!(
+                        (got / exact - 1.0).abs() < tolerance,
+                        "{light:?} at {x}: {got} against {exact}"
+                    ),
+                    _ if (exact - 0.5).abs() > 0.05 => assert!(
+                        (got - f64::from(u8::from(exact > 0.5))).abs() < 1e-12,
+                        "depth map, {light:?} at {x}: {got} for transmittance {exact}"
+                    ),
+                    _ => {}
+                }
+            }
         }
     }
 }

@@ -2,7 +2,9 @@
 //! tetrahedral cells, each integrated on its own and composited front to back, in one of two
 //! orders ([`CellOrder`]): a per-pixel sorted list gathered from a BVH over the cells in a
 //! compute pass (one invocation per pixel, writing the target), or the cells drawn back to
-//! front in an order sorted per view on the CPU and blended. Its specification is [`crate::render::medium_cells`], which it is tested
+//! front in an order sorted per view on the CPU and blended. Shadows come from shadow maps
+//! built by a compute pass before each frame ([`crate::render::medium_shadow_map`]) or from
+//! shadow rays. Its specification is [`crate::render::medium_cells`], which it is tested
 //! against.
 
 use super::gpu::Gpu;
@@ -18,8 +20,9 @@ use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
 use crate::render::image::Image;
 use crate::render::medium_cells::{Cell, CellRenderer};
+use crate::render::medium_shadow_map::{LightFrame, Projection, light_frames};
 use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
-use crate::scene::transparency::{CellIntegration, CellOrder};
+use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod};
 use crate::scene::{Effect, Scene};
 use crate::surface::shell::Shell;
 use bytemuck::{Pod, Zeroable};
@@ -64,8 +67,54 @@ struct MediumUniform {
     shadow_start: f32,
     min_transmittance: f32,
     loop_budget: u32,
-    _pad: [u32; 2],
+    shadow_size: u32,
+    shadow_stride: u32,
     levels: [[u32; 4]; MAX_LEVELS],
+}
+
+/// The shader's `ShadowFrame`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FrameRecord {
+    origin: [f32; 4],
+    axis: [f32; 4],
+    u_axis: [f32; 4],
+    v_axis: [f32; 4],
+    kind: u32,
+    first: u32,
+    _pad: [u32; 2],
+}
+
+/// Per light its frame record (kind 0 where it has no map), every light's map `values`
+/// floats after the one before, and the total.
+fn frame_records(frames: &[Option<LightFrame>], values: u64) -> (Vec<FrameRecord>, u64) {
+    let mut first = 0u64;
+    let mut records: Vec<FrameRecord> = frames
+        .iter()
+        .map(|frame| {
+            let Some(f) = frame else {
+                return FrameRecord::zeroed();
+            };
+            let record = FrameRecord {
+                origin: vec4(f.origin, f.t0),
+                axis: vec4(f.axis, f.depth),
+                u_axis: vec4(f.u_axis, 1.0 / f.u_axis.length_squared()),
+                v_axis: vec4(f.v_axis, 1.0 / f.v_axis.length_squared()),
+                kind: match f.projection {
+                    Projection::Orthographic => 1,
+                    Projection::Perspective => 2,
+                },
+                first: first as u32,
+                _pad: [0; 2],
+            };
+            first += values;
+            record
+        })
+        .collect();
+    if records.is_empty() {
+        records.push(FrameRecord::zeroed());
+    }
+    (records, first)
 }
 
 fn vec4(v: DVec3, w: f64) -> [f32; 4] {
@@ -135,14 +184,8 @@ fn medium_texels(cells: &CellRenderer) -> Result<MediumTexels> {
 
 /// The pipeline of a cell order.
 enum MediaPipeline {
-    /// Per-pixel lists: the compute pipeline, its bind group 1 (the target and the count of
-    /// pixels over the adapter's loop budget), that count and its read-back buffer.
-    PerPixel {
-        pipeline: wgpu::ComputePipeline,
-        group: wgpu::BindGroup,
-        overflow: wgpu::Buffer,
-        overflow_read: wgpu::Buffer,
-    },
+    /// Per-pixel lists: the compute pipeline.
+    PerPixel(wgpu::ComputePipeline),
     /// Per-view order: the cells' faces rasterized and blended.
     PerView(wgpu::RenderPipeline),
 }
@@ -152,7 +195,17 @@ pub struct MediumPreview<'g> {
     gpu: &'g Gpu,
     cells: CellRenderer<'g>,
     pipeline: MediaPipeline,
+    /// Bind group 0 (the scene) and 1 (the order's outputs and the shadow maps).
     group: wgpu::BindGroup,
+    pass_group: wgpu::BindGroup,
+    /// The shadow maps' build pass and its bind group 1, where a light has a map; texels
+    /// along a map's side.
+    map_build: Option<(wgpu::ComputePipeline, wgpu::BindGroup, u32)>,
+    /// The count of pixels and texels over the adapter's loop budget, and its read-back.
+    overflow: wgpu::Buffer,
+    overflow_read: wgpu::Buffer,
+    /// Light records (the maps' build pass runs over them).
+    lights: u32,
     order_buffer: wgpu::Buffer,
     eye: DVec3,
     target: Target,
@@ -171,8 +224,19 @@ impl<'g> MediumPreview<'g> {
     ) -> Result<MediumPreview<'g>> {
         let settings = scene.transparency;
         let shadows = scene.wants(Effect::Shadows);
-        if let (Some(budget), CellOrder::PerView, true) =
-            (gpu.loop_budget(), settings.order, shadows)
+        let cells = CellRenderer::new(shell, medium, settings);
+        let mesh = cells.cells();
+        let frames = match settings.shadows {
+            ShadowMethod::Rays => vec![None; scene.lights.len()],
+            _ if shadows => light_frames(&cells, scene),
+            _ => vec![None; scene.lights.len()],
+        };
+        let rays = shadows
+            && frames
+                .iter()
+                .zip(&scene.lights)
+                .any(|(f, l)| f.is_none() && !matches!(l, crate::scene::Light::Ambient { .. }));
+        if let (Some(budget), CellOrder::PerView, true) = (gpu.loop_budget(), settings.order, rays)
         {
             // Fragments cannot count what they ran; the per-pixel lists can.
             return Err(Error::LoopBudget {
@@ -182,8 +246,14 @@ impl<'g> MediumPreview<'g> {
                     .into(),
             });
         }
-        let cells = CellRenderer::new(shell, medium, settings);
-        let mesh = cells.cells();
+        let stride = match settings.shadows {
+            // The shell's stretch along the texel's ray, then the slices.
+            ShadowMethod::OpacityMap => settings.shadow_slices + 2,
+            _ => 1,
+        };
+        let map_size = settings.shadow_map_size;
+        let (frame_list, map_values) =
+            frame_records(&frames, u64::from(map_size).pow(2) * u64::from(stride));
         let target = Target::new(gpu, scene.camera.width, scene.camera.height)?;
         let mut records: Vec<CellRecord> = mesh.cells().iter().map(cell_record).collect();
         if records.is_empty() {
@@ -197,11 +267,13 @@ impl<'g> MediumPreview<'g> {
         } = medium_texels(&cells)?;
         let limit = gpu.device.limits().max_storage_buffer_binding_size;
         let voxel_bytes = std::mem::size_of_val(voxels.as_slice()) as u64;
-        if voxel_bytes > limit {
-            return Err(Error::Gpu(format!(
-                "the medium takes {voxel_bytes} bytes per channel buffer; this adapter binds at \
-                 most {limit}"
-            )));
+        let map_bytes = map_values.max(1) * 4;
+        for (what, bytes) in [("the medium", voxel_bytes), ("the shadow maps", map_bytes)] {
+            if bytes > limit {
+                return Err(Error::Gpu(format!(
+                    "{what} take {bytes} bytes in one buffer; this adapter binds at most {limit}"
+                )));
+            }
         }
         let camera = &scene.camera;
         let eye = DVec3::from(camera.eye);
@@ -219,14 +291,20 @@ impl<'g> MediumPreview<'g> {
             height: camera.height,
             integration: u32::from(settings.integration == CellIntegration::Samples),
             samples: settings.samples,
-            shadows: u32::from(shadows),
+            shadows: match settings.shadows {
+                _ if !shadows => 0,
+                ShadowMethod::Rays => 1,
+                ShadowMethod::OpacityMap => 2,
+                ShadowMethod::DepthMap => 3,
+            },
             level_count: levels.len() as u32,
             mip_bias: settings.mip_bias as f32,
             light_step: DEFAULT_LIGHT_STEP as f32,
             shadow_start: SHADOW_START as f32,
             min_transmittance: MIN_TRANSMITTANCE as f32,
             loop_budget: gpu.loop_budget().unwrap_or(0),
-            _pad: [0; 2],
+            shadow_size: map_size,
+            shadow_stride: stride,
             levels: level_table,
         };
         let view: ViewUniform = view_uniform(scene, mesh.cells().iter().flat_map(|c| c.corners));
@@ -240,10 +318,10 @@ impl<'g> MediumPreview<'g> {
                 + std::mem::size_of_val(order.as_slice())) as u64
                 + bvh.bytes,
             environment: 0,
-            targets: target.bytes(),
+            targets: target.bytes() + map_bytes,
         };
         let d = &gpu.device;
-        let (pipeline, group, order_buffer) = gpu.checked("building the media pipeline", || {
+        let built = gpu.checked("building the media pipeline", || {
             let buffer = |label: &str, contents: &[u8], usage| {
                 d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(label),
@@ -264,6 +342,7 @@ impl<'g> MediumPreview<'g> {
                     bytemuck::cast_slice(&order),
                     s | wgpu::BufferUsages::COPY_DST,
                 ),
+                buffer("shadow frames", bytemuck::cast_slice(&frame_list), s),
             ];
             let [
                 view_b,
@@ -273,6 +352,7 @@ impl<'g> MediumPreview<'g> {
                 voxels_b,
                 normals_b,
                 order_b,
+                frames_b,
             ] = &own;
             let bound = [
                 view_b,
@@ -284,6 +364,7 @@ impl<'g> MediumPreview<'g> {
                 voxels_b,
                 normals_b,
                 order_b,
+                frames_b,
             ];
             let all = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
             let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..bound.len() as u32)
@@ -320,78 +401,96 @@ impl<'g> MediumPreview<'g> {
                 label: Some("media preview"),
                 source: wgpu::ShaderSource::Wgsl(source().into()),
             });
-            let pipeline = match settings.order {
-                CellOrder::PerPixel => {
-                    let compute = wgpu::ShaderStages::COMPUTE;
-                    let image_layout =
+            let maps = d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("shadow maps"),
+                size: map_bytes,
+                usage: s,
+                mapped_at_creation: false,
+            });
+            let overflow = d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("loop budget overflow"),
+                size: 4,
+                usage: s | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let overflow_read = d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("loop budget overflow read-back"),
+                size: 4,
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            let compute = wgpu::ShaderStages::COMPUTE;
+            // Bind group 1 of one pass: its layout, its group and the pipeline layout over
+            // groups 0 and 1.
+            let pass_group =
+                |label: &str, entries: &[(wgpu::BindGroupLayoutEntry, wgpu::BindingResource)]| {
+                    let pass_layout =
                         d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                            label: Some("media image"),
-                            entries: &[
-                                wgpu::BindGroupLayoutEntry {
-                                    binding: 0,
-                                    visibility: compute,
-                                    ty: wgpu::BindingType::StorageTexture {
-                                        access: wgpu::StorageTextureAccess::WriteOnly,
-                                        format: wgpu::TextureFormat::Rgba32Float,
-                                        view_dimension: wgpu::TextureViewDimension::D2,
-                                    },
-                                    count: None,
-                                },
-                                layout_entry(1, compute, storage_read_write()),
-                            ],
+                            label: Some(label),
+                            entries: &entries.iter().map(|e| e.0).collect::<Vec<_>>(),
                         });
-                    let overflow = d.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("loop budget overflow"),
-                        size: 4,
-                        usage: s | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    });
-                    let overflow_read = d.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("loop budget overflow read-back"),
-                        size: 4,
-                        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                        mapped_at_creation: false,
-                    });
-                    let image = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("media image"),
-                        layout: &image_layout,
-                        entries: &[
-                            wgpu::BindGroupEntry {
-                                binding: 0,
-                                resource: wgpu::BindingResource::TextureView(target.colour_view()),
-                            },
-                            wgpu::BindGroupEntry {
-                                binding: 1,
-                                resource: overflow.as_entire_binding(),
-                            },
-                        ],
+                    let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some(label),
+                        layout: &pass_layout,
+                        entries: &entries
+                            .iter()
+                            .map(|(e, r)| wgpu::BindGroupEntry {
+                                binding: e.binding,
+                                resource: r.clone(),
+                            })
+                            .collect::<Vec<_>>(),
                     });
                     let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("media per-pixel lists"),
-                        bind_group_layouts: &[Some(&layout), Some(&image_layout)],
+                        label: Some(label),
+                        bind_group_layouts: &[Some(&layout), Some(&pass_layout)],
                         immediate_size: 0,
                     });
-                    let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some("media per-pixel lists"),
-                        layout: Some(&layout),
-                        module: &module,
-                        entry_point: Some("cs_pixels"),
-                        compilation_options: Default::default(),
-                        cache: None,
-                    });
-                    MediaPipeline::PerPixel {
-                        pipeline,
-                        group: image,
-                        overflow,
-                        overflow_read,
-                    }
+                    (layout, group)
+                };
+            let compute_pipeline = |label: &str, layout: &wgpu::PipelineLayout, entry: &str| {
+                d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(label),
+                    layout: Some(layout),
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            };
+            let read_maps = (layout_entry(2, all, storage()), maps.as_entire_binding());
+            let (pipeline, pass) = match settings.order {
+                CellOrder::PerPixel => {
+                    let image = wgpu::BindGroupLayoutEntry {
+                        binding: 0,
+                        visibility: compute,
+                        ty: wgpu::BindingType::StorageTexture {
+                            access: wgpu::StorageTextureAccess::WriteOnly,
+                            format: wgpu::TextureFormat::Rgba32Float,
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                        },
+                        count: None,
+                    };
+                    let label = "media per-pixel lists";
+                    let (layout, group) = pass_group(
+                        label,
+                        &[
+                            (
+                                image,
+                                wgpu::BindingResource::TextureView(target.colour_view()),
+                            ),
+                            (
+                                layout_entry(1, compute, storage_read_write()),
+                                overflow.as_entire_binding(),
+                            ),
+                            read_maps,
+                        ],
+                    );
+                    let pipeline = compute_pipeline(label, &layout, "cs_pixels");
+                    (MediaPipeline::PerPixel(pipeline), group)
                 }
                 CellOrder::PerView => {
-                    let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some("media per-view order"),
-                        bind_group_layouts: &[Some(&layout)],
-                        immediate_size: 0,
-                    });
+                    let label = "media per-view order";
+                    let (layout, group) = pass_group(label, &[read_maps]);
                     // Back to front, premultiplied: dst = src + (1 − src α) · dst.
                     let state = DrawState {
                         entry_points: ["vs_cell", "fs_cell"],
@@ -399,18 +498,53 @@ impl<'g> MediumPreview<'g> {
                         depth_tested: false,
                         blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
                     };
-                    let label = "media per-view order";
-                    MediaPipeline::PerView(target_pipeline(d, label, &layout, &module, &[], state))
+                    let pipeline = target_pipeline(d, label, &layout, &module, &[], state);
+                    (MediaPipeline::PerView(pipeline), group)
                 }
             };
-            let [.., order_buffer] = own;
-            (pipeline, group, order_buffer)
+            let map_build = (map_values > 0).then(|| {
+                let label = "media shadow maps";
+                let (layout, group) = pass_group(
+                    label,
+                    &[
+                        (
+                            layout_entry(1, compute, storage_read_write()),
+                            overflow.as_entire_binding(),
+                        ),
+                        (
+                            layout_entry(3, compute, storage_read_write()),
+                            maps.as_entire_binding(),
+                        ),
+                    ],
+                );
+                (
+                    compute_pipeline(label, &layout, "cs_shadow_map"),
+                    group,
+                    map_size,
+                )
+            });
+            let [.., order_buffer, _] = own;
+            (
+                pipeline,
+                group,
+                pass,
+                map_build,
+                overflow,
+                overflow_read,
+                order_buffer,
+            )
         })?;
+        let (pipeline, group, pass_group, map_build, overflow, overflow_read, order_buffer) = built;
         Ok(MediumPreview {
             gpu,
             cells,
             pipeline,
             group,
+            pass_group,
+            map_build,
+            overflow,
+            overflow_read,
+            lights: frame_list.len() as u32,
             order_buffer,
             eye,
             target,
@@ -423,25 +557,22 @@ impl<'g> MediumPreview<'g> {
     /// read-back buffer) and submits it.
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&self.overflow, 0, None);
+        if let Some((pipeline, group, size)) = &self.map_build {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.set_bind_group(1, group, &[]);
+            pass.dispatch_workgroups(size.div_ceil(8), size.div_ceil(8), self.lights);
+        }
         match &self.pipeline {
-            MediaPipeline::PerPixel {
-                pipeline,
-                group,
-                overflow,
-                overflow_read,
-            } => {
-                encoder.clear_buffer(overflow, 0, None);
-                {
-                    let mut pass = encoder.begin_compute_pass(&Default::default());
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(0, &self.group, &[]);
-                    pass.set_bind_group(1, group, &[]);
-                    let (w, h) = self.target.size();
-                    pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
-                }
-                if read_back {
-                    encoder.copy_buffer_to_buffer(overflow, 0, overflow_read, 0, 4);
-                }
+            MediaPipeline::PerPixel(pipeline) => {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &self.group, &[]);
+                pass.set_bind_group(1, &self.pass_group, &[]);
+                let (w, h) = self.target.size();
+                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
             }
             MediaPipeline::PerView(pipeline) => {
                 let order = self.cells.cells().view_order(self.eye).order;
@@ -451,10 +582,12 @@ impl<'g> MediumPreview<'g> {
                 let mut pass = self.target.pass(&mut encoder, "media per-view order");
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &self.group, &[]);
+                pass.set_bind_group(1, &self.pass_group, &[]);
                 pass.draw(0..12, 0..order.len() as u32);
             }
         }
         if read_back {
+            encoder.copy_buffer_to_buffer(&self.overflow, 0, &self.overflow_read, 0, 4);
             self.target.copy_out(&mut encoder);
         }
         self.gpu.queue.submit([encoder.finish()]);
@@ -471,20 +604,18 @@ impl<'g> MediumPreview<'g> {
     pub fn render(&self) -> Result<Image> {
         self.gpu.checked("rendering", || self.submit_frame(true))?;
         let image = self.target.read(self.gpu)?;
-        if let MediaPipeline::PerPixel { overflow_read, .. } = &self.pipeline {
-            let pixels = read_mapped(self.gpu, overflow_read, |d| {
-                u32::from_le_bytes([d[0], d[1], d[2], d[3]])
-            })?;
-            if pixels > 0 {
-                return Err(Error::LoopBudget {
-                    adapter: self.gpu.adapter.name.clone(),
-                    budget: self.gpu.loop_budget().unwrap_or(0),
-                    what: format!(
-                        "{pixels} pixels needed more (shadow rays through the cells, a large \
-                         medium)"
-                    ),
-                });
-            }
+        let over = read_mapped(self.gpu, &self.overflow_read, |d| {
+            u32::from_le_bytes([d[0], d[1], d[2], d[3]])
+        })?;
+        if over > 0 {
+            return Err(Error::LoopBudget {
+                adapter: self.gpu.adapter.name.clone(),
+                budget: self.gpu.loop_budget().unwrap_or(0),
+                what: format!(
+                    "{over} pixels or shadow-map texels needed more (shadow rays through the \
+                     cells, a large medium)"
+                ),
+            });
         }
         Ok(image)
     }

@@ -65,13 +65,13 @@ pub fn shade(
     to_eye: DVec3,
     mut visible: impl FnMut(&Incident) -> bool,
 ) -> DVec3 {
-    shade_transmitted(lights, material, p, Some(n), albedo, to_eye, |inc| {
+    shade_transmitted(lights, material, p, Some(n), albedo, to_eye, |_, inc| {
         f64::from(u8::from(visible(inc)))
     })
 }
 
-/// [`shade`] with fractional visibility: `transmittance` says which fraction of an incident
-/// light reaches the point. A point without a normal (`None`: a translucent medium where
+/// [`shade`] with fractional visibility: `transmittance(light index, incident)` says which
+/// fraction of an incident light reaches the point. A point without a normal (`None`: a translucent medium where
 /// its opacity does not vary) scatters every light as a surface facing it would.
 pub fn shade_transmitted(
     lights: &[Light],
@@ -80,12 +80,12 @@ pub fn shade_transmitted(
     n: Option<DVec3>,
     albedo: DVec3,
     to_eye: DVec3,
-    mut transmittance: impl FnMut(&Incident) -> f64,
+    mut transmittance: impl FnMut(usize, &Incident) -> f64,
 ) -> DVec3 {
     let mut out = DVec3::ZERO;
     let specular = DVec3::from(material.specular);
     let s = material.shininess;
-    for light in lights {
+    for (index, light) in lights.iter().enumerate() {
         if let Light::Ambient { radiance } = light {
             out += albedo * DVec3::from(*radiance);
             continue;
@@ -98,7 +98,7 @@ pub fn shade_transmitted(
         if cos <= 0.0 {
             continue;
         }
-        let visible = transmittance(&inc);
+        let visible = transmittance(index, &inc);
         if visible <= 0.0 {
             continue;
         }

@@ -25,13 +25,15 @@
 //!    opacity-aware mip-map ([`Medium::coarser`]) nearest to log₂ of its pixel's footprint
 //!    in voxels, plus a bias.
 //! 5. **Light.** Each sample is shaded with the scene's lights; with shadows, each light's
-//!    visibility is the transmittance of a ray through the cells towards it, integrated the
-//!    same way (the CPU stand-in for a deep shadow map: the paper's single shadow map keeps
-//!    the nearest opaque depth only).
+//!    visibility is looked up in its shadow map ([`ShadowMethod::OpacityMap`](crate::scene::transparency::ShadowMethod),
+//!    [`ShadowMethod::DepthMap`](crate::scene::transparency::ShadowMethod): [`super::medium_shadow_map`], built once per renderer) or
+//!    is the transmittance of a ray through the cells towards it, integrated the same way
+//!    ([`ShadowMethod::Rays`](crate::scene::transparency::ShadowMethod), and lights without a map).
 
 use super::accel::BoxBvh;
 use super::cell_order::{ViewOrder, face_neighbours, far_first};
 use super::lighting::shade_transmitted;
+use super::medium_shadow_map::{OPAQUE_EXTINCTION, ShadowMap, build_maps};
 use super::medium_truth::{DEFAULT_LIGHT_STEP, Gathered, SHADOW_START, integrate_voxel};
 use crate::mesostructure::medium::Medium;
 use crate::scene::transparency::{CellIntegration, TransparencySettings};
@@ -39,6 +41,7 @@ use crate::scene::{Effect, Scene};
 use crate::surface::shell::{PrismPoint, Shell};
 use glam::{DAffine3, DMat3, DVec3};
 use std::ops::ControlFlow;
+use std::sync::OnceLock;
 
 /// One tetrahedron of the shell.
 #[derive(Clone, Debug)]
@@ -250,6 +253,8 @@ pub struct CellRenderer<'a> {
     /// The mip-map's coarser levels (level l at l − 1), where the settings ask for it.
     coarser: Vec<Medium>,
     settings: TransparencySettings,
+    /// The lights' shadow maps, built on first use.
+    shadow_maps: OnceLock<Vec<Option<ShadowMap>>>,
 }
 
 impl<'a> CellRenderer<'a> {
@@ -269,7 +274,14 @@ impl<'a> CellRenderer<'a> {
             medium,
             coarser,
             settings,
+            shadow_maps: OnceLock::new(),
         }
+    }
+
+    /// The shadow maps of `scene`'s lights, per light (`None` where a light has none), built
+    /// on the first call: a renderer serves one scene's lights.
+    pub fn shadow_maps(&self, scene: &Scene) -> &[Option<ShadowMap>] {
+        self.shadow_maps.get_or_init(|| build_maps(self, scene))
     }
 
     /// The cells.
@@ -367,6 +379,60 @@ impl<'a> CellRenderer<'a> {
         }
     }
 
+    /// Visits the optical depth along `origin + t·dir` (unit `dir`), t ∈ [`t_min`, `t_max`],
+    /// through the cells in mip level 0, in order: `f(t_a, t_b, τ)` per piece of constant
+    /// medium (a voxel's stretch, or a sample's share of its crossing), τ = σ·ℓ with
+    /// σ = −ln(1 − α) per voxel length ([`OPAQUE_EXTINCTION`] for α = 1). Stops when `f`
+    /// breaks.
+    pub fn optical_depths(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+        mut f: impl FnMut(f64, f64, f64) -> ControlFlow<()>,
+    ) -> ControlFlow<()> {
+        let medium = self.medium;
+        let extinction = |v: usize| {
+            let alpha = medium.opacity(v);
+            if alpha >= 1.0 {
+                OPAQUE_EXTINCTION
+            } else {
+                -(1.0 - alpha).ln()
+            }
+        };
+        for c in self.cells.crossings(origin, dir, t_min, t_max) {
+            let cell = &self.cells.cells[c.cell];
+            let a = cell.to_texture.transform_point3(origin + dir * c.t_in);
+            let b = cell.to_texture.transform_point3(origin + dir * c.t_out);
+            let len = (b - a).length();
+            if len == 0.0 {
+                continue;
+            }
+            let dt = (c.t_out - c.t_in) / len;
+            let t = |s: f64| c.t_in + s * dt;
+            match self.settings.integration {
+                CellIntegration::Samples => {
+                    let n = self.settings.samples;
+                    let part = len / f64::from(n);
+                    for i in 0..n {
+                        let s = (f64::from(i) + 0.5) * part;
+                        if let Some(v) = medium.voxel_at(a + (b - a) * (s / len)) {
+                            let (s0, s1) = (s - 0.5 * part, s + 0.5 * part);
+                            f(t(s0), t(s1), extinction(v) * part)?;
+                        }
+                    }
+                }
+                CellIntegration::Exact => {
+                    medium.walk(a, (b - a) / len, len, |v, s0, s1| {
+                        f(t(s0), t(s1), extinction(v) * (s1 - s0))
+                    })?;
+                }
+            }
+        }
+        ControlFlow::Continue(())
+    }
+
     /// Transmittance through the cells along `origin + t·dir` (unit `dir`), t ∈ [`t_min`,
     /// `t_max`], integrated like the camera rays.
     pub fn transmittance(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> f64 {
@@ -392,6 +458,11 @@ impl<'a> CellRenderer<'a> {
     /// shadow rays read the level its pixel's footprint calls for.
     pub fn gather(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Gathered {
         let shadows = scene.wants(Effect::Shadows);
+        let maps = if shadows {
+            self.shadow_maps(scene)
+        } else {
+            &[]
+        };
         let camera = &scene.camera;
         let pixel_angle =
             2.0 * (camera.fov_y_degrees.to_radians() / 2.0).tan() / f64::from(camera.height);
@@ -414,7 +485,7 @@ impl<'a> CellRenderer<'a> {
                     normal,
                     medium.colour(v),
                     -dir,
-                    |inc| {
+                    |light, inc| {
                         if !shadows {
                             return 1.0;
                         }
@@ -423,6 +494,9 @@ impl<'a> CellRenderer<'a> {
                         let start = SHADOW_START / along.length();
                         if start >= inc.distance {
                             return 1.0;
+                        }
+                        if let Some(Some(map)) = maps.get(light) {
+                            return map.visibility(point, start);
                         }
                         self.transmittance_in(level, point, inc.direction, start, inc.distance)
                     },

@@ -189,7 +189,7 @@ impl<'a> MediumTruth<'a> {
                         normal,
                         self.medium.colour(v),
                         -dir,
-                        |inc| {
+                        |_, inc| {
                             if !shadows {
                                 return 1.0;
                             }

@@ -12,6 +12,7 @@ pub mod gdm_renderer;
 pub mod image;
 pub mod lighting;
 pub mod medium_cells;
+pub mod medium_shadow_map;
 pub mod medium_truth;
 pub mod path_tracer;
 pub mod prism_map;

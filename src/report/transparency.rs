@@ -2,8 +2,8 @@
 //! and buys on a translucent scene. Every row renders the scene with the cells
 //! ([`CellRenderer`]) and compares the image with the ground truth ([`MediumTruth`]) of the
 //! scene as it is: the scene's own settings, each sample count per cell, exact integration,
-//! (where the scene has shadows) the same without them, and the real-time pipeline's other
-//! cell order. With frames to time and an adapter, each row also renders with the WGSL
+//! (where the scene has shadows) each shadow method and shadow-map resolution and the same
+//! without shadows, and the real-time pipeline's other cell order. With frames to time and an adapter, each row also renders with the WGSL
 //! pipeline ([`MediumPreview`]): its mean frame time, and its image against the truth and
 //! against its CPU twin. The time to find and order every pixel's cells (the per-pixel
 //! sorted lists) on the CPU, and to sort the cells once for the view, are measured on their
@@ -20,7 +20,7 @@ use crate::render::render_image;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
-use crate::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
+use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod, TransparencySettings};
 use crate::scene::{Effect, LoadedScene};
 use glam::DVec3;
 use serde::Serialize;
@@ -113,6 +113,37 @@ pub fn transparency_report(
     let shadows = loaded.scene.wants(Effect::Shadows);
     if shadows {
         add("no shadows".into(), base, false);
+        let opacity = |size, slices| TransparencySettings {
+            shadows: ShadowMethod::OpacityMap,
+            shadow_map_size: size,
+            shadow_slices: slices,
+            ..base
+        };
+        let methods = [
+            (
+                "shadow rays",
+                TransparencySettings {
+                    shadows: ShadowMethod::Rays,
+                    ..base
+                },
+            ),
+            (
+                "opacity map",
+                opacity(base.shadow_map_size, base.shadow_slices),
+            ),
+            ("coarse opacity map", opacity(128, 8)),
+            ("fine opacity map", opacity(512, 64)),
+            (
+                "depth map",
+                TransparencySettings {
+                    shadows: ShadowMethod::DepthMap,
+                    ..base
+                },
+            ),
+        ];
+        for (label, s) in methods {
+            add(label.into(), s, true);
+        }
     }
     let other_order = match base.order {
         CellOrder::PerPixel => ("per-view order", CellOrder::PerView),
@@ -185,7 +216,7 @@ pub fn transparency_report(
         rows.push(TransparencyRow {
             setting,
             transparency,
-            shadows,
+            shadows: shaded.wants(Effect::Shadows),
             cpu_s,
             error: compare(&truth, &image)?,
             frame_s,
@@ -221,7 +252,7 @@ pub fn markdown(report: &TransparencyReport) -> String {
         vec![
             r.setting.clone(),
             integration,
-            if r.shadows { "yes" } else { "no" }.to_owned(),
+            shadow_setting(r),
             format!("{:.2}", r.error.psnr_db),
             format!("{:.4}", r.error.flip_mean),
             format!("{:.3}", 100.0 * r.error.mask_disagreement),
@@ -273,6 +304,19 @@ pub fn markdown(report: &TransparencyReport) -> String {
             cells,
         )
     )
+}
+
+/// A row's shadows: `no`, `rays`, or the map's method and resolution.
+fn shadow_setting(r: &TransparencyRow) -> String {
+    let t = &r.transparency;
+    match (r.shadows, t.shadows) {
+        (false, _) => "no".into(),
+        (true, ShadowMethod::Rays) => "rays".into(),
+        (true, ShadowMethod::OpacityMap) => {
+            format!("opacity map {}² × {}", t.shadow_map_size, t.shadow_slices)
+        }
+        (true, ShadowMethod::DepthMap) => format!("depth map {}²", t.shadow_map_size),
+    }
 }
 
 /// `value` with `digits` decimals, or a dash.

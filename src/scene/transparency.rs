@@ -35,6 +35,25 @@ pub enum CellOrder {
     PerView,
 }
 
+/// How the real-time algorithm finds what of each light reaches a point in the medium
+/// ([`crate::render::medium_shadow_map`]), where the scene calls for shadows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ShadowMethod {
+    /// A ray through the cells towards the light from every sample, integrated like the
+    /// camera rays: the reference the maps are measured against.
+    Rays,
+    /// An opacity (deep) shadow map per light, rebuilt every frame: optical depth at
+    /// `shadow_slices` depths per light-space texel, read with bilinear × linear-in-depth
+    /// interpolation. Volumetric shadows.
+    #[default]
+    OpacityMap,
+    /// The paper's shadow map: per light-space texel one depth, where the light's
+    /// transmittance falls to ½; read with a 2 × 2 percentage-closer filter. Shadows are
+    /// all or nothing per texel.
+    DepthMap,
+}
+
 /// The real-time algorithm's knobs.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -51,7 +70,22 @@ pub struct TransparencySettings {
     pub mip_bias: f64,
     /// How the real-time pipeline orders the cells.
     pub order: CellOrder,
+    /// How shadows are found (where the scene asks for them).
+    pub shadows: ShadowMethod,
+    /// Texels along each side of a shadow map.
+    pub shadow_map_size: u32,
+    /// Depths per texel at which an opacity map stores the optical depth.
+    pub shadow_slices: u32,
 }
+
+/// Largest shadow map side.
+pub const MAX_SHADOW_MAP_SIZE: u32 = 4096;
+
+/// Most depths per opacity-map texel.
+pub const MAX_SHADOW_SLICES: u32 = 256;
+
+/// Most values one light's opacity map holds (texels × slices), refused before allocating.
+pub const MAX_SHADOW_MAP_VALUES: u64 = 1 << 24;
 
 /// Largest mip level bias either way.
 pub const MAX_MIP_BIAS: f64 = 8.0;
@@ -69,6 +103,9 @@ impl Default for TransparencySettings {
             mipmap: false,
             mip_bias: -1.0,
             order: CellOrder::PerPixel,
+            shadows: ShadowMethod::OpacityMap,
+            shadow_map_size: 256,
+            shadow_slices: 32,
         }
     }
 }
@@ -87,8 +124,37 @@ impl TransparencySettings {
         }
     }
 
-    /// Checks the sample count and the bias.
+    /// The shadow method's name as scenes write it.
+    pub fn shadows_name(&self) -> &'static str {
+        match self.shadows {
+            ShadowMethod::Rays => "rays",
+            ShadowMethod::OpacityMap => "opacity-map",
+            ShadowMethod::DepthMap => "depth-map",
+        }
+    }
+
+    /// Checks the sample count, the bias and the shadow maps' sizes.
     pub fn validate(&self) -> Result<()> {
+        if !(1..=MAX_SHADOW_MAP_SIZE).contains(&self.shadow_map_size) {
+            return Err(Error::Scene(format!(
+                "transparency: shadow_map_size must be 1 to {MAX_SHADOW_MAP_SIZE}, got {}",
+                self.shadow_map_size
+            )));
+        }
+        if !(1..=MAX_SHADOW_SLICES).contains(&self.shadow_slices) {
+            return Err(Error::Scene(format!(
+                "transparency: shadow_slices must be 1 to {MAX_SHADOW_SLICES}, got {}",
+                self.shadow_slices
+            )));
+        }
+        let values = u64::from(self.shadow_map_size).pow(2) * u64::from(self.shadow_slices);
+        if self.shadows == ShadowMethod::OpacityMap && values > MAX_SHADOW_MAP_VALUES {
+            return Err(Error::Scene(format!(
+                "transparency: an opacity map of {0}² texels × {1} slices holds {values} values \
+                 per light; at most {MAX_SHADOW_MAP_VALUES}",
+                self.shadow_map_size, self.shadow_slices
+            )));
+        }
         if self.mip_bias.is_nan() || self.mip_bias.abs() > MAX_MIP_BIAS {
             return Err(Error::Scene(format!(
                 "transparency: mip_bias must be within ±{MAX_MIP_BIAS}, got {}",
