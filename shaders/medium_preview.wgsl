@@ -16,8 +16,8 @@
 // Shadows (when the scene asks for them): per light a shadow map built by `cs_shadow_map`
 // before each frame (one invocation per light-space texel, its ray's optical depth through
 // the cells in order; `src/render/medium_shadow_map.rs` is the specification), an opacity
-// map (optical depth at `shadow_slices` depths) or the paper's depth map (where the
-// transmittance falls to ½); or, by the `rays` method and for lights without a map, the
+// map (the depths where the light's transmittance passes `shadow_levels` fixed levels) or
+// the paper's depth map (where it falls to ½); or, by the `rays` method and for lights without a map, the
 // transmittance of a ray through the cells towards the light, found through the same BVH.
 // Preceded by `common.wgsl`.
 
@@ -44,7 +44,7 @@ struct Medium {
     // 0: exact (every voxel), 1: `samples` samples per cell.
     integration: u32,
     samples: u32,
-    // 0: no shadows; 1: rays; 2: opacity maps; 3: depth maps.
+    // 0: no shadows; 1: rays; 2: deep maps; 3: depth maps.
     shadows: u32,
     // Mip levels uploaded (1: none but the medium).
     level_count: u32,
@@ -57,8 +57,8 @@ struct Medium {
     // of invocations once they have run 65 535 iterations together). Pixels over it are
     // counted in `overflow` instead of being trusted.
     loop_budget: u32,
-    // Shadow maps' texels along a side, and values per texel (opacity maps: the stretch in
-    // the shell and the slices).
+    // Shadow maps' texels along a side, and values per texel (deep maps: t_a, t_e, τ_e and
+    // the levels' depths).
     shadow_size: u32,
     shadow_stride: u32,
     // Per level: xyz its dimensions, w its first voxel in `voxels` and `normals`.
@@ -688,25 +688,60 @@ fn texel_span(u: f32, n: u32) -> vec3<f32> {
     return vec3<f32>(i0, min(i0 + 1.0, last), f - i0);
 }
 
-// The optical depth of the opacity-map texel at `at` at ray parameter t
-// (`optical_depth_at`).
-fn optical_depth_at(at: u32, t: f32) -> f32 {
+// Optical depth of deep-map level k (`level_depth`).
+fn level_depth(k: u32) -> f32 {
+    let levels = medium.shadow_stride - 3u;
+    if k + 1u >= levels {
+        return MAX_OPTICAL_DEPTH;
+    }
+    return -log(1.0 - f32(k + 1u) / f32(levels));
+}
+
+// The optical depth of the deep-map texel at `at` at ray parameter t
+// (`deep_optical_depth`): the polyline through its knots.
+fn deep_optical_depth(at: u32, t: f32) -> f32 {
     let ta = shadow_map[at];
-    let tb = shadow_map[at + 1u];
-    let slices = medium.shadow_stride - 2u;
-    var g = 0.0;
-    if tb > ta {
-        g = clamp((t - ta) / (tb - ta) * f32(slices), 0.0, f32(slices));
-    } else if t > ta {
-        g = f32(slices);
+    let levels = medium.shadow_stride - 3u;
+    if !(t > ta) {
+        return 0.0;
     }
-    let k = min(u32(floor(g)), slices - 1u);
-    let w = g - f32(k);
-    var lo = 0.0;
+    // Levels reached by t (binary search over the nondecreasing depths).
+    var lo = 0u;
+    var hi = levels;
+    while lo < hi {
+        steps += 1u;
+        let mid = (lo + hi) / 2u;
+        if shadow_map[at + 3u + mid] <= t {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    let k = lo;
+    if k == levels {
+        return MAX_OPTICAL_DEPTH;
+    }
+    var t0 = ta;
+    var tau0 = 0.0;
     if k > 0u {
-        lo = shadow_map[at + 1u + k];
+        t0 = shadow_map[at + 3u + k - 1u];
+        tau0 = level_depth(k - 1u);
     }
-    return lo * (1.0 - w) + shadow_map[at + 2u + k] * w;
+    var t1 = shadow_map[at + 3u + k];
+    var tau1 = level_depth(k);
+    if t1 >= FAR {
+        t1 = shadow_map[at + 1u];
+        tau1 = shadow_map[at + 2u];
+    }
+    if t >= t1 || t1 <= t0 {
+        return tau1;
+    }
+    return tau0 + (tau1 - tau0) * (t - t0) / (t1 - t0);
+}
+
+// exp(−τ), 0 from MAX_OPTICAL_DEPTH.
+fn transmittance_of(tau: f32) -> f32 {
+    return select(exp(-tau), 0.0, tau >= MAX_OPTICAL_DEPTH);
 }
 
 // The fraction of the light of frame f that reaches x, looked up from `start` towards the
@@ -726,11 +761,8 @@ fn map_visibility(f: ShadowFrame, x: vec3<f32>, start: f32) -> f32 {
     let w = vec4<f32>((1.0 - si.z) * (1.0 - sj.z), si.z * (1.0 - sj.z), (1.0 - si.z) * sj.z, si.z * sj.z);
     let at = vec4<u32>(j.x * n + i.x, j.x * n + i.y, j.y * n + i.x, j.y * n + i.y) * stride + f.first;
     if medium.shadows == 2u {
-        let tau = w.x * optical_depth_at(at.x, t) + w.y * optical_depth_at(at.y, t) + w.z * optical_depth_at(at.z, t) + w.w * optical_depth_at(at.w, t);
-        if tau >= MAX_OPTICAL_DEPTH {
-            return 0.0;
-        }
-        return exp(-tau);
+        let tau = vec4<f32>(deep_optical_depth(at.x, t), deep_optical_depth(at.y, t), deep_optical_depth(at.z, t), deep_optical_depth(at.w, t));
+        return dot(w, vec4<f32>(transmittance_of(tau.x), transmittance_of(tau.y), transmittance_of(tau.z), transmittance_of(tau.w)));
     }
     let lit = vec4<f32>(vec4<bool>(t < shadow_map[at.x], t < shadow_map[at.y], t < shadow_map[at.z], t < shadow_map[at.w]));
     return dot(w, lit);
@@ -744,44 +776,13 @@ fn extinction(alpha: f32) -> f32 {
     return -log(1.0 - alpha);
 }
 
-// The texel being built: optical depth so far, next slice, depth-map depth, and the
-// opacity map's stretch in the shell.
+// The texel being built: optical depth so far, next level, where the medium starts and
+// ends (deep map), the depth-map depth.
 var<private> map_tau: f32;
 var<private> map_k: u32;
+var<private> map_first: f32;
+var<private> map_end: f32;
 var<private> map_depth: f32;
-var<private> map_range: vec2<f32>;
-
-// Ray parameter of opacity-map slice k.
-fn slice_t(k: u32) -> f32 {
-    return map_range.x + (map_range.y - map_range.x) * f32(k + 1u) / f32(medium.shadow_stride - 2u);
-}
-
-// The first entry into and last exit from the cells of o + t·d (inv = 1/d), t ∈ [t_min,
-// t_max]; both FAR where it meets none.
-fn shell_range(o: vec3<f32>, d: vec3<f32>, inv: vec3<f32>, t_min: f32, t_max: f32) -> vec2<f32> {
-    let count = arrayLength(&bvh_nodes);
-    var range = vec2<f32>(FAR, -FAR);
-    var i = 0u;
-    while i < count {
-        steps += 1u;
-        let node = bvh_nodes[i];
-        if node_entry(node, o, inv, t_max) < 0.0 {
-            i = node.skip;
-        } else if node.count == 0u {
-            i += 1u;
-        } else {
-            for (var k = 0u; k < node.count; k++) {
-                steps += 1u;
-                let r = clip(bvh_cells[node.first + k], o, d, t_min, t_max);
-                if r.x < r.y {
-                    range = vec2<f32>(min(range.x, r.x), max(range.y, r.y));
-                }
-            }
-            i = node.skip;
-        }
-    }
-    return select(range, vec2<f32>(FAR), range.x == FAR);
-}
 
 // Records the piece [ta, tb] of optical depth `piece` into the texel at `base`; false once
 // the texel is done.
@@ -794,18 +795,24 @@ fn map_piece(base: u32, ta: f32, tb: f32, piece: f32) -> bool {
         map_tau += piece;
         return true;
     }
-    let slices = medium.shadow_stride - 2u;
-    while map_k < slices && slice_t(map_k) <= tb {
+    if piece <= 0.0 {
+        return true;
+    }
+    map_first = min(map_first, ta);
+    let levels = medium.shadow_stride - 3u;
+    while map_k < levels && map_tau + piece >= level_depth(map_k) {
         steps += 1u;
-        var w = 1.0;
-        if tb > ta {
-            w = clamp((slice_t(map_k) - ta) / (tb - ta), 0.0, 1.0);
-        }
-        shadow_build[base + 2u + map_k] = min(map_tau + piece * w, MAX_OPTICAL_DEPTH);
+        shadow_build[base + 3u + map_k] = ta + (tb - ta) * ((level_depth(map_k) - map_tau) / piece);
         map_k += 1u;
     }
     map_tau += piece;
-    return map_tau < MAX_OPTICAL_DEPTH;
+    map_end = tb;
+    if map_k == levels {
+        map_end = shadow_build[base + 3u + levels - 1u];
+        map_tau = MAX_OPTICAL_DEPTH;
+        return false;
+    }
+    return true;
 }
 
 // Records the crossing r of cell ci by o + t·d, in level 0 (`optical_depths`); false once
@@ -859,18 +866,19 @@ fn cs_shadow_map(@builtin(global_invocation_id) id: vec3<u32>) {
     let stride = medium.shadow_stride;
     let base = f.first + (id.y * n + id.x) * stride;
     let inv = safe_inverse(ray.d);
-    var t0 = f.origin.w;
-    var t1 = t0 + f.axis.w;
-    if medium.shadows == 2u {
-        map_range = shell_range(ray.o, ray.d, inv, t0, t1);
-        shadow_build[base] = map_range.x;
-        shadow_build[base + 1u] = map_range.y;
-        t0 = map_range.x;
-        t1 = map_range.y;
-    }
+    let t0 = f.origin.w;
+    let t1 = t0 + f.axis.w;
     map_tau = 0.0;
     map_k = 0u;
+    map_first = FAR;
+    map_end = FAR;
     map_depth = FAR;
+    if medium.shadows == 2u {
+        for (var k = 0u; k < stride - 3u; k++) {
+            steps += 1u;
+            shadow_build[base + 3u + k] = FAR;
+        }
+    }
     var last_t = -FAR;
     var last_cell = 0u;
     var going = true;
@@ -890,11 +898,9 @@ fn cs_shadow_map(@builtin(global_invocation_id) id: vec3<u32>) {
     if medium.shadows == 3u {
         shadow_build[base] = map_depth;
     } else {
-        let rest = min(map_tau, MAX_OPTICAL_DEPTH);
-        for (var k = map_k; k < stride - 2u; k++) {
-            steps += 1u;
-            shadow_build[base + 2u + k] = rest;
-        }
+        shadow_build[base] = map_first;
+        shadow_build[base + 1u] = map_end;
+        shadow_build[base + 2u] = map_tau;
     }
     if medium.loop_budget > 0u && steps >= medium.loop_budget {
         atomicAdd(&overflow, 1u);

@@ -175,17 +175,17 @@ fn shadow_rays_render_right_or_are_refused() {
 }
 
 /// The shadowed fur scene with shadow maps, built by the shader's own pass each frame: the
-/// opacity map (the default) and the paper's depth map, each against the CPU specification
-/// building the same map; and the per-view order with the opacity map.
+/// deep map (the default) and the paper's depth map, each against the CPU specification
+/// building the same map; and the per-view order with the deep map.
 #[test]
 fn shadow_maps_render_what_the_specification_renders() {
     let Some(gpu) = gpu() else { return };
     let cases = [
-        ("opacity map", ShadowMethod::OpacityMap, CellOrder::PerPixel),
+        ("deep map", ShadowMethod::DeepMap, CellOrder::PerPixel),
         ("depth map", ShadowMethod::DepthMap, CellOrder::PerPixel),
         (
-            "opacity map, per view",
-            ShadowMethod::OpacityMap,
+            "deep map, per view",
+            ShadowMethod::DeepMap,
             CellOrder::PerView,
         ),
     ];
@@ -242,7 +242,7 @@ fn empty_and_opaque_media_agree_with_the_specification() {
         );
         for shadows in [
             ShadowMethod::Rays,
-            ShadowMethod::OpacityMap,
+            ShadowMethod::DeepMap,
             ShadowMethod::DepthMap,
         ] {
             let mut scene = Scene::from_json(&json).unwrap();
@@ -317,7 +317,7 @@ fn the_preview_command_renders_translucent_scenes() {
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(json["technique"], "transparency", "{json}");
     assert!(json["hit_pixels"].as_u64().unwrap() > 48 * 48 / 4, "{json}");
-    // Shadows by the default opacity map: within the software driver's loop budget.
+    // Shadows by the default deep map: within the software driver's loop budget.
     assert_eq!(json["renderer"], "gpu", "{json}");
     assert!(json["preview"]["mean_frame_seconds"].as_f64().unwrap() > 0.0);
     common::each_fails_with(&[(

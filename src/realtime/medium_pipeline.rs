@@ -247,8 +247,8 @@ impl<'g> MediumPreview<'g> {
             });
         }
         let stride = match settings.shadows {
-            // The shell's stretch along the texel's ray, then the slices.
-            ShadowMethod::OpacityMap => settings.shadow_slices + 2,
+            // t_a, t_e and τ_e, then the levels' depths.
+            ShadowMethod::DeepMap => settings.shadow_levels + 3,
             _ => 1,
         };
         let map_size = settings.shadow_map_size;
@@ -294,7 +294,7 @@ impl<'g> MediumPreview<'g> {
             shadows: match settings.shadows {
                 _ if !shadows => 0,
                 ShadowMethod::Rays => 1,
-                ShadowMethod::OpacityMap => 2,
+                ShadowMethod::DeepMap => 2,
                 ShadowMethod::DepthMap => 3,
             },
             level_count: levels.len() as u32,

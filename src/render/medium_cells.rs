@@ -25,7 +25,7 @@
 //!    opacity-aware mip-map ([`Medium::coarser`]) nearest to log₂ of its pixel's footprint
 //!    in voxels, plus a bias.
 //! 5. **Light.** Each sample is shaded with the scene's lights; with shadows, each light's
-//!    visibility is looked up in its shadow map ([`ShadowMethod::OpacityMap`](crate::scene::transparency::ShadowMethod),
+//!    visibility is looked up in its shadow map ([`ShadowMethod::DeepMap`](crate::scene::transparency::ShadowMethod),
 //!    [`ShadowMethod::DepthMap`](crate::scene::transparency::ShadowMethod): [`super::medium_shadow_map`], built once per renderer) or
 //!    is the transmittance of a ray through the cells towards it, integrated the same way
 //!    ([`ShadowMethod::Rays`](crate::scene::transparency::ShadowMethod), and lights without a map).

@@ -14,20 +14,25 @@
 //!    so animated meshes and media need nothing precomputed): the optical depth τ(t), exact
 //!    and piecewise linear along the ray (each voxel piece adds σ·ℓ, σ = −ln(1 − α) per voxel
 //!    length, [`OPAQUE_EXTINCTION`] where α = 1), in mip level 0.
-//!    - **Opacity map** (Kim and Neumann's opacity shadow maps, with optical depth rather
-//!      than opacity so that it interpolates linearly, and the slices per texel over the
-//!      stretch its ray spends in the shell rather than over the whole sphere: a thin shell
-//!      would otherwise fall between two slices): the ray's first entry into the cells t_a
-//!      and last exit t_b, and τ at K depths t_k = t_a + (t_b − t_a)·(k + 1)/K, k < K
-//!      (τ(t_a) = 0), capped at [`MAX_OPTICAL_DEPTH`]. A texel whose ray meets no cell has
-//!      t_a = t_b = +∞ and τ = 0.
+//!    - **Deep map** (after Lokovic and Veach's deep shadow maps, with knots at fixed
+//!      levels instead of a compressed curve): K transmittance levels T_k = 1 − (k + 1)/K,
+//!      k < K − 1, and the last at [`MAX_OPTICAL_DEPTH`] (blocked); per texel the depth t_k
+//!      where τ reaches each level (+∞ where it never does), the depth t_a where τ starts
+//!      to grow (the first medium), and t_e, τ_e where the last medium ends and what τ
+//!      totals there. τ(t) is the polyline through (t_a, 0), the reached (t_k, τ_k) and
+//!      (t_e, τ_e), constant after it: exact at steps (an opaque surface puts every level
+//!      at one depth) and wherever the medium between two knots is uniform, and it spends no
+//!      knots on empty space. (Slices at fixed depths, as in Kim and Neumann's opacity
+//!      shadow maps, smeared each opaque surface over a slice: samples just in front of it
+//!      fell into its shadow; measured in docs/BENCHMARKS.md.)
 //!    - **Depth map** (the paper's shadow map): the first t where τ reaches
 //!      [`DEPTH_THRESHOLD`] (transmittance ½), or none.
 //! 3. **Lookup** of a point x lit from a light: its map coordinates (u, v, t), with t moved
 //!    towards the light by the same start as the shadow rays ([`SHADOW_START`] voxels), then
-//!    bilinear over the four nearest texel centres (clamped at the edges): of τ, linear
-//!    between the slices, giving exp(−τ) (0 from [`MAX_OPTICAL_DEPTH`]); or of the depth
-//!    test t < depth (percentage-closer filtering).
+//!    bilinear over the four nearest texel centres (clamped at the edges): of each texel's
+//!    transmittance exp(−τ(t)) (0 from [`MAX_OPTICAL_DEPTH`]; averaging transmittance, not
+//!    optical depth, lets half a texel's worth of light past a strand's edge); or of the
+//!    depth test t < depth (percentage-closer filtering).
 //!
 //! [`SHADOW_START`]: super::medium_truth::SHADOW_START
 
@@ -161,8 +166,9 @@ pub struct ShadowMap {
     pub frame: LightFrame,
     /// Texels along a side.
     pub size: u32,
-    /// Values per texel: t_a, t_b and K optical depths (opacity map) or one depth (depth
-    /// map, +∞ where the light is never blocked), texel (i, j) at (j·size + i)·stride.
+    /// Values per texel: t_a, t_e, τ_e and the K levels' depths (deep map) or one depth
+    /// (depth map, +∞ where the light is never blocked), texel (i, j) at
+    /// (j·size + i)·stride.
     pub values: Vec<f64>,
     method: ShadowMethod,
     stride: usize,
@@ -175,7 +181,7 @@ impl ShadowMap {
         let settings = cells.settings();
         let size = settings.shadow_map_size;
         let stride = match method {
-            ShadowMethod::OpacityMap => settings.shadow_slices as usize + 2,
+            ShadowMethod::DeepMap => settings.shadow_levels as usize + 3,
             _ => 1,
         };
         let n = size as usize;
@@ -188,7 +194,7 @@ impl ShadowMap {
                     let (o, d) = frame.ray(texel_centre(i, size), texel_centre(j, size));
                     let (t0, t1) = (frame.t0, frame.t0 + frame.depth);
                     match method {
-                        ShadowMethod::OpacityMap => opacity_texel(cells, o, d, (t0, t1), texel),
+                        ShadowMethod::DeepMap => deep_texel(cells, o, d, (t0, t1), texel),
                         _ => texel[0] = depth_texel(cells, o, d, t0, t1),
                     }
                 }
@@ -223,23 +229,25 @@ impl ShadowMap {
             &self.values[at..at + self.stride]
         };
         match self.method {
-            ShadowMethod::OpacityMap => {
-                let tau: f64 = corners
-                    .iter()
-                    .map(|&(i, j, w)| w * optical_depth_at(texel(i, j), t))
-                    .sum();
-                if tau >= MAX_OPTICAL_DEPTH {
-                    0.0
-                } else {
-                    (-tau).exp()
-                }
-            }
+            ShadowMethod::DeepMap => corners
+                .iter()
+                .map(|&(i, j, w)| w * transmittance(deep_optical_depth(texel(i, j), t)))
+                .sum(),
             _ => corners
                 .iter()
                 .filter(|&&(i, j, _)| t < texel(i, j)[0])
                 .map(|c| c.2)
                 .sum(),
         }
+    }
+}
+
+/// exp(−τ), 0 from [`MAX_OPTICAL_DEPTH`].
+fn transmittance(tau: f64) -> f64 {
+    if tau >= MAX_OPTICAL_DEPTH {
+        0.0
+    } else {
+        (-tau).exp()
     }
 }
 
@@ -259,65 +267,72 @@ fn texel_span(u: f64, size: u32) -> (usize, usize, f64) {
     (i0 as usize, i1 as usize, f - i0)
 }
 
-/// An opacity-map texel's optical depth at ray parameter `t`: linear between its nodes,
-/// node 0 at t_a (τ = 0), node k + 1 at slice k; 0 before t_a, the last slice's after t_b.
-fn optical_depth_at(texel: &[f64], t: f64) -> f64 {
-    let (ta, tb, slices) = (texel[0], texel[1], &texel[2..]);
-    let k_max = slices.len() as f64;
-    let g = if tb > ta {
-        ((t - ta) / (tb - ta) * k_max).clamp(0.0, k_max)
-    } else if t > ta {
-        k_max
+/// Optical depth of deep-map level `k` of `levels`: −ln(1 − (k + 1)/K), the last
+/// [`MAX_OPTICAL_DEPTH`].
+pub fn level_depth(k: usize, levels: usize) -> f64 {
+    if k + 1 >= levels {
+        MAX_OPTICAL_DEPTH
     } else {
-        0.0
-    };
-    slice_depth(slices, g)
+        -(1.0 - (k + 1) as f64 / levels as f64).ln()
+    }
 }
 
-/// Optical depth at slice coordinate `g` ∈ [0, K] (node 0, where it is 0; node k + 1 the
-/// value of slice k), linear between nodes.
-fn slice_depth(values: &[f64], g: f64) -> f64 {
-    let node = |k: usize| if k == 0 { 0.0 } else { values[k - 1] };
-    let k = (g.floor() as usize).min(values.len() - 1);
-    let w = g - k as f64;
-    node(k) * (1.0 - w) + node(k + 1) * w
+/// A deep-map texel's optical depth at ray parameter `t`: the polyline through its knots.
+fn deep_optical_depth(texel: &[f64], t: f64) -> f64 {
+    let (ta, te, tau_e, depths) = (texel[0], texel[1], texel[2], &texel[3..]);
+    let levels = depths.len();
+    if !(t > ta) {
+        return 0.0;
+    }
+    // Levels reached by t.
+    let k = depths.partition_point(|&d| d <= t);
+    if k == levels {
+        return MAX_OPTICAL_DEPTH;
+    }
+    let (t0, tau0) = if k == 0 {
+        (ta, 0.0)
+    } else {
+        (depths[k - 1], level_depth(k - 1, levels))
+    };
+    let (t1, tau1) = if depths[k].is_finite() {
+        (depths[k], level_depth(k, levels))
+    } else {
+        (te, tau_e)
+    };
+    if t >= t1 || t1 <= t0 {
+        tau1
+    } else {
+        tau0 + (tau1 - tau0) * (t - t0) / (t1 - t0)
+    }
 }
 
-/// Fills an opacity-map texel: the stretch of `o + t·d`, t ∈ `range`, in the cells, and the
-/// optical depth at each of its slices.
-fn opacity_texel(cells: &CellRenderer, o: DVec3, d: DVec3, range: (f64, f64), out: &mut [f64]) {
-    let crossings = cells.cells().crossings(o, d, range.0, range.1);
-    out.fill(0.0);
-    let Some(entry) = crossings.first() else {
-        out[..2].fill(f64::INFINITY);
-        return;
-    };
-    let first = entry.t_in;
-    let last = crossings.iter().map(|c| c.t_out).fold(first, f64::max);
-    out[0] = first;
-    out[1] = last;
-    let out = &mut out[2..];
-    let slices = out.len();
-    let slice_t = |k: usize| first + (last - first) * (k + 1) as f64 / slices as f64;
-    let (mut tau, mut k) = (0.0, 0);
-    let _ = cells.optical_depths(o, d, first, last, |ta, tb, piece| {
-        while k < slices && slice_t(k) <= tb {
-            let w = if tb > ta {
-                ((slice_t(k) - ta) / (tb - ta)).clamp(0.0, 1.0)
-            } else {
-                1.0
-            };
-            out[k] = (tau + piece * w).min(MAX_OPTICAL_DEPTH);
+/// Fills a deep-map texel from the ray `o + t·d`, t ∈ `range`: t_a, t_e, τ_e and the
+/// levels' depths.
+fn deep_texel(cells: &CellRenderer, o: DVec3, d: DVec3, range: (f64, f64), out: &mut [f64]) {
+    let levels = out.len() - 3;
+    out.fill(f64::INFINITY);
+    let (mut first, mut end, mut tau, mut k) = (f64::INFINITY, f64::INFINITY, 0.0, 0);
+    let _ = cells.optical_depths(o, d, range.0, range.1, |ta, tb, piece| {
+        if piece <= 0.0 {
+            return ControlFlow::Continue(());
+        }
+        first = first.min(ta);
+        while k < levels && tau + piece >= level_depth(k, levels) {
+            out[3 + k] = ta + (tb - ta) * ((level_depth(k, levels) - tau) / piece);
             k += 1;
         }
         tau += piece;
-        if tau >= MAX_OPTICAL_DEPTH {
+        end = tb;
+        if k == levels {
+            (end, tau) = (out[3 + levels - 1], MAX_OPTICAL_DEPTH);
             ControlFlow::Break(())
         } else {
             ControlFlow::Continue(())
         }
     });
-    out[k..].fill(tau.min(MAX_OPTICAL_DEPTH));
+    out[0] = first;
+    out[1] = end;
+    out[2] = tau;
 }
 
 /// A depth-map texel: where the optical depth along `o + t·d`, t ∈ [`t0`, `t1`], reaches
@@ -426,19 +441,37 @@ mod tests {
         assert!(LightFrame::new(&inside, centre, 1.5).is_none());
     }
 
+    /// A texel whose optical depth rises uniformly from 1 to 3 (τ 0 → 0.6), steps at 5 to
+    /// the blocked level, with four levels (T ¾, ½, ¼, blocked).
     #[test]
-    fn slices_interpolate_linearly_from_zero() {
-        let values = [1.0, 3.0, 3.0];
-        assert_eq!(slice_depth(&values, 0.0), 0.0);
-        assert!((slice_depth(&values, 0.5) - 0.5).abs() < 1e-15);
-        assert!((slice_depth(&values, 1.25) - 1.5).abs() < 1e-15);
-        assert_eq!(slice_depth(&values, 3.0), 3.0);
-        // Slices over the texel's own stretch [1, 3].
-        let texel = [1.0, 3.0, 1.0, 3.0, 3.0];
-        assert_eq!(optical_depth_at(&texel, 0.5), 0.0);
-        assert!((optical_depth_at(&texel, 2.0) - 2.0).abs() < 1e-15);
-        assert_eq!(optical_depth_at(&texel, 9.0), 3.0);
-        let empty = [f64::INFINITY, f64::INFINITY, 0.0, 0.0];
-        assert_eq!(optical_depth_at(&empty, 1e300), 0.0);
+    fn deep_texels_interpolate_between_their_knots() {
+        let levels = 4;
+        let tau = |k| level_depth(k, levels);
+        assert!((tau(0) - (4.0f64 / 3.0).ln()).abs() < 1e-15);
+        assert_eq!(tau(3), MAX_OPTICAL_DEPTH);
+        // Rising 0.3 per unit from t = 1: level 0 (0.2877) at 1 + 0.2877/0.3.
+        let t0 = 1.0 + tau(0) / 0.3;
+        let texel = [1.0, 5.0, MAX_OPTICAL_DEPTH, t0, 5.0, 5.0, 5.0];
+        assert_eq!(deep_optical_depth(&texel, 0.5), 0.0);
+        assert!((deep_optical_depth(&texel, 1.5) - 0.15).abs() < 1e-12);
+        let mid = (t0 + 5.0) / 2.0;
+        let expected = (tau(0) + tau(1)) / 2.0;
+        assert!((deep_optical_depth(&texel, mid) - expected).abs() < 1e-12);
+        assert_eq!(deep_optical_depth(&texel, 5.0), MAX_OPTICAL_DEPTH);
+        // Never blocked: after the last level reached, on to (t_e, τ_e), then constant.
+        let fog = [
+            1.0,
+            3.0,
+            0.5,
+            t0,
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::INFINITY,
+        ];
+        let at = (t0 + 3.0) / 2.0;
+        assert!((deep_optical_depth(&fog, at) - (tau(0) + 0.5) / 2.0).abs() < 1e-12);
+        assert_eq!(deep_optical_depth(&fog, 9.0), 0.5);
+        let empty = [f64::INFINITY; 7];
+        assert_eq!(deep_optical_depth(&empty, 1e300), 0.0);
     }
 }

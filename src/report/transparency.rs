@@ -113,10 +113,10 @@ pub fn transparency_report(
     let shadows = loaded.scene.wants(Effect::Shadows);
     if shadows {
         add("no shadows".into(), base, false);
-        let opacity = |size, slices| TransparencySettings {
-            shadows: ShadowMethod::OpacityMap,
+        let deep = |size, levels| TransparencySettings {
+            shadows: ShadowMethod::DeepMap,
             shadow_map_size: size,
-            shadow_slices: slices,
+            shadow_levels: levels,
             ..base
         };
         let methods = [
@@ -127,12 +127,9 @@ pub fn transparency_report(
                     ..base
                 },
             ),
-            (
-                "opacity map",
-                opacity(base.shadow_map_size, base.shadow_slices),
-            ),
-            ("coarse opacity map", opacity(128, 8)),
-            ("fine opacity map", opacity(512, 64)),
+            ("deep map", deep(base.shadow_map_size, base.shadow_levels)),
+            ("coarse deep map", deep(128, 8)),
+            ("fine deep map", deep(1024, 16)),
             (
                 "depth map",
                 TransparencySettings {
@@ -312,8 +309,8 @@ fn shadow_setting(r: &TransparencyRow) -> String {
     match (r.shadows, t.shadows) {
         (false, _) => "no".into(),
         (true, ShadowMethod::Rays) => "rays".into(),
-        (true, ShadowMethod::OpacityMap) => {
-            format!("opacity map {}² × {}", t.shadow_map_size, t.shadow_slices)
+        (true, ShadowMethod::DeepMap) => {
+            format!("deep map {}² × {}", t.shadow_map_size, t.shadow_levels)
         }
         (true, ShadowMethod::DepthMap) => format!("depth map {}²", t.shadow_map_size),
     }

@@ -43,11 +43,12 @@ pub enum ShadowMethod {
     /// A ray through the cells towards the light from every sample, integrated like the
     /// camera rays: the reference the maps are measured against.
     Rays,
-    /// An opacity (deep) shadow map per light, rebuilt every frame: optical depth at
-    /// `shadow_slices` depths per light-space texel, read with bilinear × linear-in-depth
-    /// interpolation. Volumetric shadows.
+    /// A deep shadow map per light, rebuilt every frame: per light-space texel, the depths
+    /// at which the light's transmittance falls through `shadow_levels` fixed levels (steps
+    /// such as an opaque surface kept exact), read linearly in depth and bilinearly across
+    /// texels. Volumetric shadows.
     #[default]
-    OpacityMap,
+    DeepMap,
     /// The paper's shadow map: per light-space texel one depth, where the light's
     /// transmittance falls to ½; read with a 2 × 2 percentage-closer filter. Shadows are
     /// all or nothing per texel.
@@ -74,18 +75,18 @@ pub struct TransparencySettings {
     pub shadows: ShadowMethod,
     /// Texels along each side of a shadow map.
     pub shadow_map_size: u32,
-    /// Depths per texel at which an opacity map stores the optical depth.
-    pub shadow_slices: u32,
+    /// Transmittance levels whose depths a deep-map texel stores.
+    pub shadow_levels: u32,
 }
 
 /// Largest shadow map side.
 pub const MAX_SHADOW_MAP_SIZE: u32 = 4096;
 
-/// Most depths per opacity-map texel.
-pub const MAX_SHADOW_SLICES: u32 = 256;
+/// Most levels per deep-map texel.
+pub const MAX_SHADOW_LEVELS: u32 = 256;
 
-/// Most values one light's opacity map holds (texels × slices), refused before allocating.
-pub const MAX_SHADOW_MAP_VALUES: u64 = 1 << 24;
+/// Most values one light's deep map holds (texels × levels), refused before allocating.
+pub const MAX_SHADOW_MAP_VALUES: u64 = 1 << 25;
 
 /// Largest mip level bias either way.
 pub const MAX_MIP_BIAS: f64 = 8.0;
@@ -103,9 +104,9 @@ impl Default for TransparencySettings {
             mipmap: false,
             mip_bias: -1.0,
             order: CellOrder::PerPixel,
-            shadows: ShadowMethod::OpacityMap,
+            shadows: ShadowMethod::DeepMap,
             shadow_map_size: 256,
-            shadow_slices: 32,
+            shadow_levels: 32,
         }
     }
 }
@@ -128,7 +129,7 @@ impl TransparencySettings {
     pub fn shadows_name(&self) -> &'static str {
         match self.shadows {
             ShadowMethod::Rays => "rays",
-            ShadowMethod::OpacityMap => "opacity-map",
+            ShadowMethod::DeepMap => "deep-map",
             ShadowMethod::DepthMap => "depth-map",
         }
     }
@@ -141,18 +142,18 @@ impl TransparencySettings {
                 self.shadow_map_size
             )));
         }
-        if !(1..=MAX_SHADOW_SLICES).contains(&self.shadow_slices) {
+        if !(1..=MAX_SHADOW_LEVELS).contains(&self.shadow_levels) {
             return Err(Error::Scene(format!(
-                "transparency: shadow_slices must be 1 to {MAX_SHADOW_SLICES}, got {}",
-                self.shadow_slices
+                "transparency: shadow_levels must be 1 to {MAX_SHADOW_LEVELS}, got {}",
+                self.shadow_levels
             )));
         }
-        let values = u64::from(self.shadow_map_size).pow(2) * u64::from(self.shadow_slices);
-        if self.shadows == ShadowMethod::OpacityMap && values > MAX_SHADOW_MAP_VALUES {
+        let values = u64::from(self.shadow_map_size).pow(2) * u64::from(self.shadow_levels);
+        if self.shadows == ShadowMethod::DeepMap && values > MAX_SHADOW_MAP_VALUES {
             return Err(Error::Scene(format!(
-                "transparency: an opacity map of {0}² texels × {1} slices holds {values} values \
+                "transparency: a deep map of {0}² texels × {1} levels holds {values} values \
                  per light; at most {MAX_SHADOW_MAP_VALUES}",
-                self.shadow_map_size, self.shadow_slices
+                self.shadow_map_size, self.shadow_levels
             )));
         }
         if self.mip_bias.is_nan() || self.mip_bias.abs() > MAX_MIP_BIAS {
