@@ -97,7 +97,7 @@ struct ShadowFrame {
 @group(0) @binding(9) var<storage, read> shadow_frames: array<ShadowFrame>;
 
 // Cells composited per batch of the per-pixel list.
-const BATCH: u32 = 16u;
+const BATCH: u32 = 32u;
 const FAR: f32 = 3.0e38;
 // `MAX_OPTICAL_DEPTH`, `OPAQUE_EXTINCTION` and `DEPTH_THRESHOLD` of the specification.
 const MAX_OPTICAL_DEPTH: f32 = 13.815510557964274;
@@ -582,8 +582,8 @@ fn gather_pixel(pixel: vec2<f32>) -> vec4<f32> {
 
 // The target, written by `cs_pixels`.
 @group(1) @binding(0) var image: texture_storage_2d<rgba32float, write>;
-// Pixels (and shadow-map texels) whose invocation ran out of `loop_budget`.
-@group(1) @binding(1) var<storage, read_write> overflow: atomic<u32>;
+// Pixels (0) and shadow-map texels (1) whose invocation ran out of `loop_budget`.
+@group(1) @binding(1) var<storage, read_write> overflow: array<atomic<u32>, 2>;
 // Every light's shadow map, as `cs_shadow_map` wrote it.
 @group(1) @binding(2) var<storage, read> shadow_map: array<f32>;
 
@@ -596,7 +596,7 @@ fn cs_pixels(@builtin(global_invocation_id) id: vec3<u32>) {
     steps = 0u;
     let value = gather_pixel(vec2<f32>(id.xy) + 0.5);
     if medium.loop_budget > 0u && steps >= medium.loop_budget {
-        atomicAdd(&overflow, 1u);
+        atomicAdd(&overflow[0], 1u);
     }
     textureStore(image, vec2<i32>(id.xy), value);
 }
@@ -903,6 +903,6 @@ fn cs_shadow_map(@builtin(global_invocation_id) id: vec3<u32>) {
         shadow_build[base + 2u] = map_tau;
     }
     if medium.loop_budget > 0u && steps >= medium.loop_budget {
-        atomicAdd(&overflow, 1u);
+        atomicAdd(&overflow[1], 1u);
     }
 }

@@ -409,13 +409,13 @@ impl<'g> MediumPreview<'g> {
             });
             let overflow = d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("loop budget overflow"),
-                size: 4,
+                size: 8,
                 usage: s | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
             let overflow_read = d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("loop budget overflow read-back"),
-                size: 4,
+                size: 8,
                 usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
                 mapped_at_creation: false,
             });
@@ -587,7 +587,7 @@ impl<'g> MediumPreview<'g> {
             }
         }
         if read_back {
-            encoder.copy_buffer_to_buffer(&self.overflow, 0, &self.overflow_read, 0, 4);
+            encoder.copy_buffer_to_buffer(&self.overflow, 0, &self.overflow_read, 0, 8);
             self.target.copy_out(&mut encoder);
         }
         self.gpu.queue.submit([encoder.finish()]);
@@ -604,16 +604,16 @@ impl<'g> MediumPreview<'g> {
     pub fn render(&self) -> Result<Image> {
         self.gpu.checked("rendering", || self.submit_frame(true))?;
         let image = self.target.read(self.gpu)?;
-        let over = read_mapped(self.gpu, &self.overflow_read, |d| {
-            u32::from_le_bytes([d[0], d[1], d[2], d[3]])
+        let [pixels, texels] = read_mapped(self.gpu, &self.overflow_read, |d| {
+            [0, 4].map(|i| u32::from_le_bytes([d[i], d[i + 1], d[i + 2], d[i + 3]]))
         })?;
-        if over > 0 {
+        if pixels + texels > 0 {
             return Err(Error::LoopBudget {
                 adapter: self.gpu.adapter.name.clone(),
                 budget: self.gpu.loop_budget().unwrap_or(0),
                 what: format!(
-                    "{over} pixels or shadow-map texels needed more (shadow rays through the \
-                     cells, a large medium)"
+                    "{pixels} pixels and {texels} shadow-map texels needed more (rays crossing \
+                     many cells, shadow rays through the cells, a large medium)"
                 ),
             });
         }
