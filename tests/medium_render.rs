@@ -358,7 +358,7 @@ fn shadow_maps_meet_the_closed_form_in_a_uniform_slab() {
     ));
     for (light, tolerance) in lights {
         let mut scene = loaded.scene.clone();
-        scene.lights = vec![light.clone()];
+        scene.lights = vec![light];
         for method in [ShadowMethod::DeepMap, ShadowMethod::DepthMap] {
             let settings = TransparencySettings {
                 shadows: method,

@@ -281,7 +281,7 @@ pub fn level_depth(k: usize, levels: usize) -> f64 {
 fn deep_optical_depth(texel: &[f64], t: f64) -> f64 {
     let (ta, te, tau_e, depths) = (texel[0], texel[1], texel[2], &texel[3..]);
     let levels = depths.len();
-    if !(t > ta) {
+    if t.is_nan() || t <= ta {
         return 0.0;
     }
     // Levels reached by t.
