@@ -20,10 +20,10 @@ use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
 use crate::render::image::Image;
 use crate::render::medium_cells::{Cell, CellRenderer};
-use crate::render::medium_shadow_map::{LightFrame, Projection, light_frames};
+use crate::render::medium_shadow_map::{LightFrame, Projection, map_frames};
 use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
 use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod};
-use crate::scene::{Effect, Scene};
+use crate::scene::{Effect, Light, Scene};
 use crate::surface::shell::Shell;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
@@ -226,16 +226,15 @@ impl<'g> MediumPreview<'g> {
         let shadows = scene.wants(Effect::Shadows);
         let cells = CellRenderer::new(shell, medium, settings);
         let mesh = cells.cells();
-        let frames = match settings.shadows {
-            ShadowMethod::Rays => vec![None; scene.lights.len()],
-            _ if shadows => light_frames(&cells, scene),
-            _ => vec![None; scene.lights.len()],
+        let frames = if shadows {
+            map_frames(&cells, scene)
+        } else {
+            vec![None; scene.lights.len()]
         };
+        // Whether some light's shadows are traced as rays.
         let rays = shadows
-            && frames
-                .iter()
-                .zip(&scene.lights)
-                .any(|(f, l)| f.is_none() && !matches!(l, crate::scene::Light::Ambient { .. }));
+            && (frames.iter().zip(&scene.lights))
+                .any(|(f, l)| f.is_none() && !matches!(l, Light::Ambient { .. }));
         if let (Some(budget), CellOrder::PerView, true) = (gpu.loop_budget(), settings.order, rays)
         {
             // Fragments cannot count what they ran; the per-pixel lists can.

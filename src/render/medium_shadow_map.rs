@@ -176,7 +176,7 @@ pub struct ShadowMap {
 
 impl ShadowMap {
     /// Builds the map of `method` (not [`ShadowMethod::Rays`]) of the light seen through
-    /// `frame`, with the settings' size and slices, through `cells`.
+    /// `frame`, with the settings' size and levels, through `cells`.
     pub fn build(cells: &CellRenderer, frame: LightFrame, method: ShadowMethod) -> ShadowMap {
         let settings = cells.settings();
         let size = settings.shadow_map_size;
@@ -355,23 +355,20 @@ fn depth_texel(cells: &CellRenderer, o: DVec3, d: DVec3, t0: f64, t1: f64) -> f6
 /// a point light inside the bounding sphere, or shadows by [`ShadowMethod::Rays`]).
 pub fn build_maps(cells: &CellRenderer, scene: &Scene) -> Vec<Option<ShadowMap>> {
     let method = cells.settings().shadows;
-    let frames = light_frames(cells, scene);
-    frames
+    map_frames(cells, scene)
         .into_iter()
-        .map(|frame| {
-            frame
-                .filter(|_| method != ShadowMethod::Rays)
-                .map(|f| ShadowMap::build(cells, f, method))
-        })
+        .map(|frame| frame.map(|f| ShadowMap::build(cells, f, method)))
         .collect()
 }
 
-/// Every light's frame over the cells' bounding sphere (`None` where it has none).
-pub fn light_frames(cells: &CellRenderer, scene: &Scene) -> Vec<Option<LightFrame>> {
+/// Every light's map frame over the cells' bounding sphere (`None` where it has no map:
+/// ambient, a point light inside the sphere, or shadows by [`ShadowMethod::Rays`]).
+pub fn map_frames(cells: &CellRenderer, scene: &Scene) -> Vec<Option<LightFrame>> {
     let bounds = cells.cells().bounds();
     let Some((lo, hi)) = bounds
         .into_iter()
         .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+        .filter(|_| cells.settings().shadows != ShadowMethod::Rays)
     else {
         return vec![None; scene.lights.len()];
     };
