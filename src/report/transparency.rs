@@ -35,8 +35,10 @@ pub struct TransparencyRow {
     pub transparency: TransparencySettings,
     /// Whether the row shades shadows.
     pub shadows: bool,
-    /// The CPU render's seconds.
+    /// The CPU render's seconds, building the shadow maps included.
     pub cpu_s: f64,
+    /// Of those, the seconds building the shadow maps (none without maps).
+    pub shadow_map_s: Option<f64>,
     /// The render against the truth.
     pub error: Comparison,
     /// The WGSL pipeline's mean seconds per frame (none without an adapter or frames).
@@ -190,8 +192,14 @@ pub fn transparency_report(
         if !shadows {
             shaded.effects.retain(|&e| e != Effect::Shadows);
         }
+        let map_s = std::cell::Cell::new(None);
         let (image, cpu_s) = timed(&|| {
             let r = CellRenderer::new(&loaded.shell, medium, transparency);
+            if shaded.wants(Effect::Shadows) && transparency.shadows != ShadowMethod::Rays {
+                let start = Instant::now();
+                r.shadow_maps(&shaded);
+                map_s.set(Some(start.elapsed().as_secs_f64()));
+            }
             render_image(&shaded.camera, |o, d| r.radiance(&shaded, o, d))
         });
         let (mut frame_s, mut realtime_error, mut realtime_vs_cpu) = (None, None, None);
@@ -215,6 +223,7 @@ pub fn transparency_report(
             transparency,
             shadows: shaded.wants(Effect::Shadows),
             cpu_s,
+            shadow_map_s: map_s.get(),
             error: compare(&truth, &image)?,
             frame_s,
             realtime_error,
@@ -254,6 +263,7 @@ pub fn markdown(report: &TransparencyReport) -> String {
             format!("{:.4}", r.error.flip_mean),
             format!("{:.3}", 100.0 * r.error.mask_disagreement),
             format!("{:.3}", r.cpu_s),
+            optional(r.shadow_map_s, 3),
             r.transparency.order_name().to_owned(),
             optional(r.frame_s.map(|s| s * 1e3), 1),
             optional(r.realtime_error.as_ref().map(|c| c.psnr_db), 2),
@@ -292,6 +302,7 @@ pub fn markdown(report: &TransparencyReport) -> String {
                 "FLIP",
                 "mask %",
                 "CPU s",
+                "of which maps s",
                 "WGSL order",
                 "frame ms",
                 "WGSL PSNR dB",
