@@ -328,6 +328,34 @@ impl<'a> CellRenderer<'a> {
         }
     }
 
+    /// The crossing `c` of `origin + t·dir` in the texture of mip level `level`: its ends
+    /// and length (in that level's voxels).
+    fn segment(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        c: &Crossing,
+        level: usize,
+    ) -> (DVec3, DVec3, f64) {
+        let cell = &self.cells.cells[c.cell];
+        let texel = 0.5f64.powi(level as i32);
+        let a = cell.to_texture.transform_point3(origin + dir * c.t_in) * texel;
+        let b = cell.to_texture.transform_point3(origin + dir * c.t_out) * texel;
+        (a, b, (b - a).length())
+    }
+
+    /// The settings' samples along the texture segment from `a` to `b` (of non-zero length):
+    /// the midpoints of equal parts, as (distance from `a`, texture point).
+    fn sample_points(&self, a: DVec3, b: DVec3) -> impl Iterator<Item = (f64, DVec3)> {
+        let n = self.settings.samples;
+        let len = (b - a).length();
+        let part = len / f64::from(n);
+        (0..n).map(move |i| {
+            let s = (f64::from(i) + 0.5) * part;
+            (s, a + (b - a) * (s / len))
+        })
+    }
+
     /// Integrates the crossing `c` of `origin + t·dir` in mip level `level`: `light(t,
     /// texture point, voxel)` gives the light scattered at each sample or piece (texture
     /// points and voxels of that level).
@@ -340,12 +368,8 @@ impl<'a> CellRenderer<'a> {
         out: &mut Gathered,
         mut light: impl FnMut(f64, DVec3, usize) -> DVec3,
     ) -> ControlFlow<()> {
-        let cell = &self.cells.cells[c.cell];
         let medium = self.level(level);
-        let texel = 0.5f64.powi(level as i32);
-        let a = cell.to_texture.transform_point3(origin + dir * c.t_in) * texel;
-        let b = cell.to_texture.transform_point3(origin + dir * c.t_out) * texel;
-        let len = (b - a).length();
+        let (a, b, len) = self.segment(origin, dir, c, level);
         if len == 0.0 {
             return ControlFlow::Continue(());
         }
@@ -353,11 +377,8 @@ impl<'a> CellRenderer<'a> {
         let dt = (c.t_out - c.t_in) / len;
         match self.settings.integration {
             CellIntegration::Samples => {
-                let n = self.settings.samples;
-                let part = len / f64::from(n);
-                for i in 0..n {
-                    let s = (f64::from(i) + 0.5) * part;
-                    let texture = a + (b - a) * (s / len);
+                let part = len / f64::from(self.settings.samples);
+                for (s, texture) in self.sample_points(a, b) {
                     let Some(v) = medium.voxel_at(texture) else {
                         continue;
                     };
@@ -402,10 +423,7 @@ impl<'a> CellRenderer<'a> {
             }
         };
         for c in self.cells.crossings(origin, dir, t_min, t_max) {
-            let cell = &self.cells.cells[c.cell];
-            let a = cell.to_texture.transform_point3(origin + dir * c.t_in);
-            let b = cell.to_texture.transform_point3(origin + dir * c.t_out);
-            let len = (b - a).length();
+            let (a, b, len) = self.segment(origin, dir, &c, 0);
             if len == 0.0 {
                 continue;
             }
@@ -413,11 +431,9 @@ impl<'a> CellRenderer<'a> {
             let t = |s: f64| c.t_in + s * dt;
             match self.settings.integration {
                 CellIntegration::Samples => {
-                    let n = self.settings.samples;
-                    let part = len / f64::from(n);
-                    for i in 0..n {
-                        let s = (f64::from(i) + 0.5) * part;
-                        if let Some(v) = medium.voxel_at(a + (b - a) * (s / len)) {
+                    let part = len / f64::from(self.settings.samples);
+                    for (s, texture) in self.sample_points(a, b) {
+                        if let Some(v) = medium.voxel_at(texture) {
                             let (s0, s1) = (s - 0.5 * part, s + 0.5 * part);
                             f(t(s0), t(s1), extinction(v) * part)?;
                         }
