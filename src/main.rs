@@ -32,6 +32,9 @@ struct Cli {
 enum Command {
     /// Write a built-in procedural sample as a volume (.mbvol) or an OBJ tile.
     Sample(sample::SampleArgs),
+    /// Import a translucent medium from a raw RGBA voxel file (8-bit or f32 channels) as a
+    /// volume (.mbvol version 2: albedo and opacity; opaque voxels solid).
+    Import(sample::ImportArgs),
     /// Bake the GDM of a volume or OBJ tile and write it as .npy (float32, shape
     /// (X, Y, Z, Nθ, Nφ), voxel units, escapes +inf, inside 0).
     Gdm(gdm::GdmArgs),
@@ -103,6 +106,7 @@ fn run(cli: Cli) -> Result<()> {
     };
     match cli.command {
         Command::Sample(args) => sample::sample(args, &limits),
+        Command::Import(args) => sample::import(args, &limits),
         Command::Gdm(args) => gdm::gdm(args, &limits),
         Command::Vdm(args) => vdm::vdm(args, &limits),
         Command::Relief(args) => vdm::relief(args, &limits),

@@ -1,10 +1,12 @@
-//! `mesobake sample` (a built-in sample as a volume or an OBJ tile) and `mesobake demo` (a
-//! sample baked end to end with a flat preview).
+//! `mesobake sample` (a built-in sample as a volume or an OBJ tile), `mesobake import` (a
+//! translucent medium from a raw RGBA file) and `mesobake demo` (a sample baked end to end
+//! with a flat preview).
 
 use super::output::Progress;
 use clap::ValueEnum;
 use mesobake::bake::gdm;
 use mesobake::grid::{Dims, DirectionGrid};
+use mesobake::mesostructure::raw_medium::{self, RawFormat};
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
 use mesobake::render::flat_preview;
@@ -63,6 +65,34 @@ pub fn sample(args: SampleArgs, limits: &Limits) -> Result<()> {
             write_atomic(&out, mesh.to_obj(&comment).as_bytes())
         }
     }
+}
+
+/// Options of `mesobake import`.
+#[derive(clap::Args)]
+pub struct ImportArgs {
+    /// Raw RGBA voxels: x fastest, then y, then z; RGB sRGB-encoded, A the opacity per voxel
+    /// length.
+    raw: PathBuf,
+    /// Grid X×Y×Z of the file.
+    #[arg(long)]
+    res: Dims,
+    /// How each channel is stored.
+    #[arg(long, value_enum, default_value_t = RawFormat::Rgba8)]
+    format: RawFormat,
+    /// Output volume (.mbvol, version 2).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Reads the raw medium (its size checked before it is read) and writes it as a volume.
+pub fn import(args: ImportArgs, limits: &Limits) -> Result<()> {
+    let len = std::fs::metadata(&args.raw)
+        .map_err(|e| Error::io(&args.raw, e))?
+        .len();
+    raw_medium::check_size(len, args.res, args.format, limits)?;
+    let bytes = std::fs::read(&args.raw).map_err(|e| Error::io(&args.raw, e))?;
+    let volume = raw_medium::medium_from_raw(&bytes, args.res, args.format, limits)?;
+    volume_format::write(&volume, &args.out)
 }
 
 /// Options of `mesobake demo`.
