@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::succeeds;
+use common::{gpu, succeeds};
 use mesobake::Error;
 use mesobake::grid::Dims;
 use mesobake::mesostructure::volume::Volume;
@@ -24,18 +24,6 @@ use mesobake::scene::transparency::{
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake::util::limits::Limits;
 use std::path::Path;
-
-/// The adapter, or `None` (loudly) where there is none and MESOBAKE_SKIP_GPU_TESTS=1.
-fn gpu() -> Option<Gpu> {
-    match Gpu::open(None) {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
-            eprintln!("SKIPPED: no GPU adapter ({e}) and MESOBAKE_SKIP_GPU_TESTS=1");
-            None
-        }
-        Err(e) => panic!("{e} (set MESOBAKE_SKIP_GPU_TESTS=1 to skip the GPU tests)"),
-    }
-}
 
 /// The shipped torus-fur scene at `side`² pixels with a `base` segment grid (its own
 /// [96, 48] if `None`), with `edit` applied.
@@ -94,21 +82,8 @@ fn assert_agrees(c: &Comparison, label: &str) {
 fn the_media_shader_passes_nagas_validation() {
     // Without an adapter too: the WGSL the pipeline compiles is valid.
     let source = mesobake::realtime::medium_pipeline::source();
-    let module = naga::front::wgsl::parse_str(&source)
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{e:?}"));
-    let entry_points: Vec<&str> = module
-        .entry_points
-        .iter()
-        .map(|e| e.name.as_str())
-        .collect();
     assert_eq!(
-        entry_points,
+        common::naga_entry_points(&source),
         ["cs_pixels", "vs_cell", "fs_cell", "cs_shadow_map"]
     );
 }

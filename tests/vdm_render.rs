@@ -4,9 +4,8 @@
 
 mod common;
 
-use common::{each_fails_with, succeeds};
+use common::{each_fails_with, gpu, succeeds};
 use mesobake::bake::vdm::bend::Bend;
-use mesobake::realtime::gpu::Gpu;
 use mesobake::realtime::vdm_pipeline::VdmPreview;
 use mesobake::render::image::{Comparison, Image, compare};
 use mesobake::render::render_image;
@@ -421,37 +420,11 @@ fn a_closed_height_field_scene_bakes_and_renders_by_vdm_and_an_open_one_by_gdm()
     ]);
 }
 
-/// Whether GPU tests run here; panics with the reason when no adapter exists and skipping
-/// was not asked for (as in `tests/preview.rs`).
-fn gpu() -> Option<Gpu> {
-    match Gpu::open(None) {
-        Ok(gpu) => Some(gpu),
-        Err(e) if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
-            eprintln!("SKIPPED: no GPU adapter ({e}) and MESOBAKE_SKIP_GPU_TESTS=1");
-            None
-        }
-        Err(e) => panic!("{e} (set MESOBAKE_SKIP_GPU_TESTS=1 to skip the GPU tests)"),
-    }
-}
-
 #[test]
 fn the_vdm_shader_passes_nagas_validation() {
     // Without an adapter too: the WGSL the pipeline compiles is valid.
     let source = mesobake::realtime::vdm_pipeline::source();
-    let module = naga::front::wgsl::parse_str(&source)
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{e:?}"));
-    let entry_points: Vec<&str> = module
-        .entry_points
-        .iter()
-        .map(|e| e.name.as_str())
-        .collect();
-    assert_eq!(entry_points, ["vs_main", "fs_main"]);
+    assert_eq!(common::naga_entry_points(&source), ["vs_main", "fs_main"]);
 }
 
 #[test]

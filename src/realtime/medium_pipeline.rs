@@ -9,8 +9,8 @@
 
 use super::gpu::Gpu;
 use super::pipeline::{
-    LightRecord, ViewUniform, layout_entry, light_records, storage, storage_read_write, uniform,
-    view_uniform,
+    LightRecord, ViewUniform, bind_group, layout_entry, light_records, storage, storage_read_write,
+    uniform, view_uniform,
 };
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
@@ -366,36 +366,20 @@ impl<'g> MediumPreview<'g> {
                 frames_b,
             ];
             let all = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
-            let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..bound.len() as u32)
-                .map(|b| {
-                    layout_entry(
-                        b,
-                        all,
-                        if b == 0 || b == 5 {
-                            uniform()
-                        } else {
-                            storage()
-                        },
+            let entries: Vec<_> = (bound.iter().enumerate())
+                .map(|(b, buffer)| {
+                    let kind = if b == 0 || b == 5 {
+                        uniform()
+                    } else {
+                        storage()
+                    };
+                    (
+                        layout_entry(b as u32, all, kind),
+                        buffer.as_entire_binding(),
                     )
                 })
                 .collect();
-            let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("media"),
-                entries: &entries,
-            });
-            let bindings: Vec<wgpu::BindGroupEntry> = bound
-                .iter()
-                .enumerate()
-                .map(|(b, buffer)| wgpu::BindGroupEntry {
-                    binding: b as u32,
-                    resource: buffer.as_entire_binding(),
-                })
-                .collect();
-            let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("media"),
-                layout: &layout,
-                entries: &bindings,
-            });
+            let (layout, group) = bind_group(d, "media", &entries);
             let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("media preview"),
                 source: wgpu::ShaderSource::Wgsl(source().into()),
@@ -423,22 +407,7 @@ impl<'g> MediumPreview<'g> {
             // groups 0 and 1.
             let pass_group =
                 |label: &str, entries: &[(wgpu::BindGroupLayoutEntry, wgpu::BindingResource)]| {
-                    let pass_layout =
-                        d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                            label: Some(label),
-                            entries: &entries.iter().map(|e| e.0).collect::<Vec<_>>(),
-                        });
-                    let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some(label),
-                        layout: &pass_layout,
-                        entries: &entries
-                            .iter()
-                            .map(|(e, r)| wgpu::BindGroupEntry {
-                                binding: e.binding,
-                                resource: r.clone(),
-                            })
-                            .collect::<Vec<_>>(),
-                    });
+                    let (pass_layout, group) = bind_group(d, label, entries);
                     let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                         label: Some(label),
                         bind_group_layouts: &[Some(&layout), Some(&pass_layout)],

@@ -135,6 +135,30 @@ pub struct Preview<'g> {
     memory: GpuMemory,
 }
 
+/// A bind group layout over `entries` and the bind group binding each entry's resource.
+pub(super) fn bind_group(
+    d: &wgpu::Device,
+    label: &str,
+    entries: &[(wgpu::BindGroupLayoutEntry, wgpu::BindingResource)],
+) -> (wgpu::BindGroupLayout, wgpu::BindGroup) {
+    let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries.iter().map(|e| e.0).collect::<Vec<_>>(),
+    });
+    let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &layout,
+        entries: &entries
+            .iter()
+            .map(|(e, resource)| wgpu::BindGroupEntry {
+                binding: e.binding,
+                resource: resource.clone(),
+            })
+            .collect::<Vec<_>>(),
+    });
+    (layout, group)
+}
+
 pub(super) fn layout_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,

@@ -5,7 +5,8 @@
 
 use super::gpu::Gpu;
 use super::pipeline::{
-    LightRecord, ViewUniform, layout_entry, light_records, storage, uniform, view_uniform,
+    LightRecord, ViewUniform, bind_group, layout_entry, light_records, storage, uniform,
+    view_uniform,
 };
 use super::resources::GpuMemory;
 use super::target::{Target, time_frames, triangle_pipeline};
@@ -206,28 +207,15 @@ impl<'g> VdmPreview<'g> {
                 (frag, storage()),
                 (frag, storage()),
             ];
-            let entries: Vec<wgpu::BindGroupLayoutEntry> = kinds
-                .into_iter()
-                .enumerate()
-                .map(|(b, (stages, kind))| layout_entry(b as u32, stages, kind))
-                .collect();
-            let layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("vdm"),
-                entries: &entries,
-            });
-            let bindings: Vec<wgpu::BindGroupEntry> = buffers
-                .iter()
-                .enumerate()
-                .map(|(b, buffer)| wgpu::BindGroupEntry {
-                    binding: b as u32,
-                    resource: buffer.as_entire_binding(),
+            let entries: Vec<_> = (kinds.into_iter().zip(&buffers).enumerate())
+                .map(|(b, ((stages, kind), buffer))| {
+                    (
+                        layout_entry(b as u32, stages, kind),
+                        buffer.as_entire_binding(),
+                    )
                 })
                 .collect();
-            let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vdm"),
-                layout: &layout,
-                entries: &bindings,
-            });
+            let (layout, group) = bind_group(d, "vdm", &entries);
             let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("vdm preview"),
                 source: wgpu::ShaderSource::Wgsl(source().into()),

@@ -50,3 +50,29 @@ pub fn small_scene(dir: &std::path::Path) -> std::path::PathBuf {
     std::fs::write(&path, scene.to_string()).unwrap();
     path
 }
+
+/// The adapter, or `None` (loudly) where there is none and MESOBAKE_SKIP_GPU_TESTS=1.
+pub fn gpu() -> Option<mesobake::realtime::gpu::Gpu> {
+    match mesobake::realtime::gpu::Gpu::open(None) {
+        Ok(gpu) => Some(gpu),
+        Err(e) if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
+            eprintln!("SKIPPED: no GPU adapter ({e}) and MESOBAKE_SKIP_GPU_TESTS=1");
+            None
+        }
+        Err(e) => panic!("{e} (set MESOBAKE_SKIP_GPU_TESTS=1 to skip the GPU tests)"),
+    }
+}
+
+/// Validates WGSL `source` with naga (every validation, every capability) and returns its
+/// entry points' names.
+pub fn naga_entry_points(source: &str) -> Vec<String> {
+    let module = naga::front::wgsl::parse_str(source)
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(source)));
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&module)
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    module.entry_points.iter().map(|e| e.name.clone()).collect()
+}
