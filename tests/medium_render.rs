@@ -4,6 +4,7 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
+use mesobake::compress::quantize::Quantization;
 use mesobake::grid::Dims;
 use mesobake::mesostructure::media::ABSORBING_OPACITY;
 use mesobake::mesostructure::medium::Medium;
@@ -33,6 +34,7 @@ const EXACT: TransparencySettings = TransparencySettings {
     shadows: ShadowMethod::Rays,
     shadow_map_size: 256,
     shadow_levels: 32,
+    quantization: Quantization::F16,
 };
 
 /// Exact integration, 16 samples where sampled: the default but for shadows by rays (the

@@ -953,3 +953,156 @@ async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeli
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
+    use mesobake::package::AnyPackage;
+    use mesobake::render::image::{Image, compare};
+    use mesobake::scene::preview::render_on_cpu;
+    use mesobake::scene::{LoadedScene, Scene};
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
+        return;
+    }
+    let scene = json!({
+        "base_mesh": { "builtin": { "torus": { "segments": [16, 8] } } },
+        "mesostructure": { "medium": "fur" },
+        "resolution": [16, 16, 8],
+        "shell": { "thickness": 0.15, "tiles_per_uv": [8, 4] },
+        "camera": { "eye": [0, 2, 2.5], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 48, "height": 48 },
+        "lights": [{ "directional": { "direction": [-0.4, -1, -0.5], "irradiance": [2.5, 2.5, 2.5] } }],
+        "effects": ["silhouettes", "shadows"],
+        "transparency": { "mipmap": true }
+    });
+    let dir = tempfile::tempdir().unwrap();
+    for url in database_urls(dir.path(), "medium_jobs").await {
+        let data = tempfile::tempdir().unwrap();
+        let s = TestServer::start(&url, data.path(), 1 << 24).await;
+        // The GDM codec's options do not apply; asking a GDM of a medium is refused by name.
+        let (status, refused) = submit(&s, &json!({ "scene": scene, "codec": "paper-svd" })).await;
+        assert_eq!(status, 422, "{refused}");
+        let e = refused["error"].as_str().unwrap();
+        assert!(
+            e.contains("the scene's technique is transparency"),
+            "{refused}"
+        );
+        let mut gdm = scene.clone();
+        gdm["technique"] = json!("gdm");
+        let (status, refused) = submit(&s, &json!({ "scene": gdm })).await;
+        assert_eq!(status, 422, "{refused}");
+        assert!(
+            refused["error"]
+                .as_str()
+                .unwrap()
+                .contains("translucent medium"),
+            "{refused}"
+        );
+
+        // auto chose the transparency technique; the plan bakes the medium and its mip-map.
+        let (status, queued) = submit(&s, &json!({ "scene": scene })).await;
+        assert_eq!(status, 202, "{queued}");
+        let plan = &queued["plan"];
+        assert_eq!(plan["technique"]["technique"], "transparency", "{queued}");
+        assert_eq!(
+            plan["stages"],
+            json!(["load", "medium_mips", "encode", "store"])
+        );
+        let skipped: Vec<&str> = plan["skipped"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|k| k["stage"].as_str().unwrap())
+            .collect();
+        for stage in ["bake_gdm", "occupancy", "compress", "bake_rtv"] {
+            assert!(skipped.contains(&stage), "{stage}: {plan}");
+        }
+        // An animated surface: another base mesh, shell and camera bake nothing new.
+        let mut animated = scene.clone();
+        animated["base_mesh"] =
+            json!({ "builtin": { "torus": { "major_radius": 1.2, "segments": [20, 10] } } });
+        animated["shell"]["thickness"] = json!(0.12);
+        animated["camera"]["eye"] = json!([0, 3, 1]);
+        let (status, same) = submit(&s, &json!({ "scene": animated })).await;
+        assert_eq!((status, &same["id"]), (200, &queued["id"]), "{same}");
+        // What the package holds does change it.
+        for (key, value) in [
+            ("transparency", json!({ "mipmap": false })),
+            (
+                "transparency",
+                json!({ "mipmap": true, "quantization": "f32" }),
+            ),
+            ("mesostructure", json!({ "medium": "clouds" })),
+        ] {
+            let mut other = scene.clone();
+            other[key] = value;
+            let (status, job) = submit(&s, &json!({ "scene": other })).await;
+            assert_eq!(status, 202, "{key}: {job}");
+            assert_ne!(job["id"], queued["id"], "{key}");
+        }
+
+        let id = queued["id"].as_str().unwrap().to_owned();
+        let stop = Arc::new(AtomicBool::new(false));
+        spawn_workers(&s.state, 1, &stop);
+        let done = wait_for(&s, &id, |j| j["state"] == "succeeded").await;
+        assert!(done["timings"].get("bake_gdm").is_none(), "{done}");
+        let digest = done["package_digest"].as_str().unwrap();
+        let manifest: Value = reqwest::get(s.url(&format!("/api/v1/packages/{digest}/manifest")))
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        assert_eq!(manifest["format"], "mesobake-medium-package", "{manifest}");
+        let levels = manifest["medium"]["levels"].as_array().unwrap();
+        assert_eq!(levels.len(), 4, "16×16×8 halves to 2×2×1: {manifest}");
+        let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        let package = AnyPackage::parse(bytes.to_vec()).unwrap();
+        assert!(matches!(package, AnyPackage::Medium(_)));
+
+        // Both surfaces preview from that one package, as its CPU specification renders them.
+        for shown_scene in [&scene, &animated] {
+            let r = reqwest::Client::new()
+                .post(s.url("/api/v1/preview"))
+                .json(&json!({ "scene": shown_scene }))
+                .send()
+                .await
+                .unwrap();
+            let (status, technique) =
+                (r.status(), r.headers().get("x-mesobake-technique").cloned());
+            let png = r.bytes().await.unwrap();
+            assert_eq!(status, 200, "{}", String::from_utf8_lossy(&png));
+            assert_eq!(technique.unwrap(), "transparency");
+            let shown = data.path().join("preview.png");
+            std::fs::write(&shown, &png).unwrap();
+            let loaded = LoadedScene::load(
+                Scene::from_json(&shown_scene.to_string()).unwrap(),
+                dir.path(),
+                &Limits::default(),
+            )
+            .unwrap();
+            let expected = render_on_cpu(&loaded, &package).unwrap();
+            let c = compare(&expected, &Image::read(&shown).unwrap()).unwrap();
+            assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
+            assert!(expected.hits() > 48 * 48 / 10);
+        }
+        let jobs: Value = reqwest::get(s.url("/api/v1/jobs"))
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        let succeeded = jobs
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|j| j["state"] == "succeeded")
+            .count();
+        assert_eq!(succeeded, 1, "the previews baked nothing more: {jobs}");
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}

@@ -139,8 +139,12 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
                 wgsl_vs_cpu: None,
                 refused: None,
             };
-            let rendered = MediumPreview::new(&gpu, &scene, &loaded.shell, &medium)
-                .and_then(|p| Ok((p.render()?, p)));
+            let rendered = MediumPreview::new(
+                &gpu,
+                &scene,
+                CellRenderer::new(&loaded.shell, &medium, scene.transparency),
+            )
+            .and_then(|p| Ok((p.render()?, p)));
             match rendered {
                 Ok((image, preview)) => {
                     row.gpu_seconds = Some(preview.time_frames(frames, &())?);

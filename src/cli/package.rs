@@ -109,7 +109,7 @@ fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
             "technique": baked.plan.technique.technique,
             "gdm": match &baked.payload {
                 ScenePayload::Gdm(payload) => payload_summary(payload),
-                ScenePayload::Vdm { .. } => serde_json::Value::Null,
+                _ => serde_json::Value::Null,
             },
             "vdm": match &baked.payload {
                 ScenePayload::Vdm { rank, mvm_rank, quantization, accuracy } => serde_json::json!({
@@ -118,7 +118,15 @@ fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
                     "quantization": quantization,
                     "accuracy": accuracy,
                 }),
-                ScenePayload::Gdm(_) => serde_json::Value::Null,
+                _ => serde_json::Value::Null,
+            },
+            "medium": match &baked.payload {
+                ScenePayload::Medium { levels, quantization, accuracy } => serde_json::json!({
+                    "levels": levels,
+                    "quantization": quantization,
+                    "accuracy": accuracy,
+                }),
+                _ => serde_json::Value::Null,
             },
             "gi": baked.gi,
         }));

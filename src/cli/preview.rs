@@ -5,7 +5,7 @@ use super::output::{Progress, print_json};
 use mesobake::Result;
 use mesobake::package::AnyPackage;
 use mesobake::render::quality::Quality;
-use mesobake::scene::package::{check_input, check_package_input, scene_package};
+use mesobake::scene::package::{check_any_package_input, scene_package};
 use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake::scene::render::load_scene;
 use mesobake::util::limits::Limits;
@@ -21,7 +21,7 @@ pub struct PreviewArgs {
     /// Output image (.png or .exr).
     #[arg(long)]
     out: PathBuf,
-    /// Render from this package (GDM or VDM; a GDM package's grid must be the scene's, and
+    /// Render from this package (GDM, VDM or medium; a GDM package's grid must be the scene's, and
     /// it must have been baked from the scene's mesostructure unless --force) instead of
     /// baking one. The package's kind picks the pipeline.
     #[arg(long)]
@@ -82,48 +82,27 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     }
     let load_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    // Translucent media render without a package: the pipeline reads the medium itself.
-    let package = if loaded.medium.is_some() {
-        if package.is_some() || codec.is_chosen() {
-            return Err(mesobake::Error::InvalidParameter(
-                "the scene's mesostructure is a translucent medium, which the real-time \
-                 pipeline renders without a package; --package, --gdm-codec, --rank and \
-                 --quant do not apply"
-                    .into(),
-            ));
-        }
-        None
-    } else if let Some(path) = &package {
+    let package = if let Some(path) = &package {
         let package = AnyPackage::read(path, limits)?;
         if !force {
             let dir = scene.parent().unwrap_or(Path::new("."));
-            let checked = match &package {
-                AnyPackage::Gdm(p) => check_package_input(p, &loaded.scene, dir),
-                AnyPackage::Vdm(p) => check_input(&p.manifest().input, &loaded.scene, dir),
-            };
-            checked.map_err(|e| e.context(path.display()))?;
+            check_any_package_input(&package, &loaded.scene, dir)
+                .map_err(|e| e.context(path.display()))?;
         }
-        Some(package)
+        package
     } else {
         let progress = Progress::new("baking the package");
         let dir = scene.parent().unwrap_or(Path::new("."));
         let p = scene_package(&loaded, dir, codec.scene_params(), limits, &progress)?;
         progress.finish();
-        Some(p)
+        p
     };
     let package_s = start.elapsed().as_secs_f64();
     let device = PreviewDevice::open(adapter.as_deref(), fallback)?;
     let progress = Progress::new("rendering");
-    let rendered = match &package {
-        Some(package) => device.render(&loaded, package, frames, &progress),
-        None => device.render_medium(&loaded, frames, &progress),
-    };
+    let rendered = device.render(&loaded, &package, frames, &progress);
     progress.finish();
-    let technique = match &package {
-        Some(AnyPackage::Gdm(_)) => "gdm",
-        Some(AnyPackage::Vdm(_)) => "vdm",
-        None => "transparency",
-    };
+    let technique = package.technique().name();
     let (image, outcome) = rendered?;
     image.write(&out)?;
     let on = match (&outcome.gpu, &outcome.fallback_reason) {

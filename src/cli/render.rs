@@ -6,7 +6,7 @@ use mesobake::package::AnyPackage;
 use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render::quality::Quality;
-use mesobake::scene::package::{check_input, check_package_input};
+use mesobake::scene::package::check_any_package_input;
 use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
 use mesobake::scene::technique::Technique;
 use mesobake::util::limits::Limits;
@@ -71,25 +71,17 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     }
     let load_s = start.elapsed().as_secs_f64();
     let dir = scene.parent().unwrap_or(Path::new("."));
-    if package.is_some()
-        && matches!(
-            method,
-            Some(RenderMethod::Truth | RenderMethod::Explicit | RenderMethod::Cells)
-        )
-    {
+    if package.is_some() && matches!(method, Some(RenderMethod::Truth | RenderMethod::Explicit)) {
         return Err(Error::InvalidParameter(
-            "--package only applies to --method gdm and vdm".into(),
+            "--package only applies to --method gdm, vdm and cells".into(),
         ));
     }
     let package = package
         .map(|path| -> Result<AnyPackage> {
             let package = AnyPackage::read(&path, limits)?;
             if !force {
-                let checked = match &package {
-                    AnyPackage::Gdm(p) => check_package_input(p, &loaded.scene, dir),
-                    AnyPackage::Vdm(p) => check_input(&p.manifest().input, &loaded.scene, dir),
-                };
-                checked.map_err(|e| e.context(path.display()))?;
+                check_any_package_input(&package, &loaded.scene, dir)
+                    .map_err(|e| e.context(path.display()))?;
             }
             Ok(package)
         })
@@ -98,15 +90,17 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         (Some(method), _) => method,
         (None, Some(AnyPackage::Gdm(_))) => RenderMethod::Gdm,
         (None, Some(AnyPackage::Vdm(_))) => RenderMethod::Vdm,
-        (None, None) if loaded.medium.is_some() => RenderMethod::Cells,
+        (None, Some(AnyPackage::Medium(_))) => RenderMethod::Cells,
         (None, None) => match loaded.technique().technique {
             Technique::Vdm => RenderMethod::Vdm,
+            Technique::Transparency => RenderMethod::Cells,
             Technique::Gdm | Technique::Auto => RenderMethod::Gdm,
         },
     };
     let source = match &package {
         Some(AnyPackage::Gdm(p)) => MapSource::Package(p),
         Some(AnyPackage::Vdm(p)) => MapSource::VdmPackage(p),
+        Some(AnyPackage::Medium(p)) => MapSource::MediumPackage(p),
         None => MapSource::Bake,
     };
     let progress = Progress::new(match (method, &source) {

@@ -143,6 +143,18 @@ impl MaterialVolume {
         }
     }
 
+    /// From stored parts (a medium package's level): per-voxel linear albedo and
+    /// unnormalized outward normals, x fastest, `dims.voxel_count()` each.
+    pub fn from_parts(dims: Dims, albedo: Vec<Vec3>, normal: Vec<Vec3>) -> Self {
+        debug_assert!(albedo.len() == normal.len() && normal.len() == dims.voxel_count() as usize);
+        MaterialVolume {
+            dims,
+            albedo: Some(albedo),
+            default_albedo: DVec3::ZERO,
+            normal,
+        }
+    }
+
     /// The grid.
     pub fn dims(&self) -> Dims {
         self.dims

@@ -16,7 +16,7 @@
 
 use crate::grid::{Dims, Wrap};
 use crate::mesostructure::material::{MaterialVolume, linear_albedo};
-use crate::mesostructure::volume::Volume;
+use crate::mesostructure::volume::{Occupancy, Volume};
 use glam::{DVec3, Vec3};
 use std::ops::ControlFlow;
 
@@ -45,6 +45,17 @@ impl Medium {
         Medium::new(dims, opacity, albedo, default_albedo)
     }
 
+    /// The opaque medium of an occupancy grid: α = 1 in its solid voxels, 0 elsewhere, in
+    /// `default_albedo`.
+    pub fn from_occupancy(solid: &Occupancy, default_albedo: DVec3) -> Medium {
+        let dims = solid.dims();
+        let opacity = (0..dims.z)
+            .flat_map(|k| (0..dims.y).flat_map(move |j| (0..dims.x).map(move |i| (i, j, k))))
+            .map(|(i, j, k)| f32::from(u8::from(solid.get(i, j, k))))
+            .collect();
+        Medium::new(dims, opacity, None, default_albedo)
+    }
+
     fn new(dims: Dims, opacity: Vec<f32>, albedo: Option<Vec<Vec3>>, default: DVec3) -> Medium {
         let material = MaterialVolume::from_opacity(dims, &opacity, albedo, default);
         Medium {
@@ -53,6 +64,29 @@ impl Medium {
             opacity,
             material,
         }
+    }
+
+    /// A medium from stored parts (a medium package's level): per voxel (x fastest) linear
+    /// colour and opacity, and the unnormalized outward normal.
+    pub fn from_parts(dims: Dims, voxels: &[[f32; 4]], normals: &[[f32; 3]]) -> Medium {
+        let albedo = voxels.iter().map(|v| Vec3::new(v[0], v[1], v[2])).collect();
+        let normal = normals.iter().map(|n| Vec3::from(*n)).collect();
+        Medium {
+            dims,
+            wrap: [Wrap::new(dims.x), Wrap::new(dims.y)],
+            opacity: voxels.iter().map(|v| v[3]).collect(),
+            material: MaterialVolume::from_parts(dims, albedo, normal),
+        }
+    }
+
+    /// The medium and the coarser levels of its opacity-aware mip-map
+    /// ([`Medium::coarser`]), level 0 first.
+    pub fn mip_chain(self) -> Vec<Medium> {
+        let mut levels = vec![self];
+        while let Some(next) = levels.last().and_then(Medium::coarser) {
+            levels.push(next);
+        }
+        levels
     }
 
     /// The next level of the paper's opacity-aware mip-map, or `None` where a side is odd or
@@ -222,9 +256,9 @@ impl Medium {
 pub fn translucent_refusal(what: &str) -> String {
     format!(
         "the mesostructure is a translucent medium, and {what} represents opaque mesostructure \
-         only; translucent media render with `mesobake render --method cells` (the real-time \
-         algorithm) or `--method truth`; their preview, packages and server jobs are not built \
-         yet"
+         only; translucent media are rendered by the transparency technique (a scene's \
+         `technique` auto or transparency; `mesobake render --method cells` or `--method \
+         truth`)"
     )
 }
 

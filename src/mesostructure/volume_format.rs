@@ -196,6 +196,19 @@ pub fn decode(bytes: &[u8], limits: &Limits) -> Result<Volume> {
     }
 }
 
+/// Whether the `.mbvol` file at `path` holds an opacity channel (a translucent medium), from
+/// its validated header alone.
+pub fn has_opacity(path: &Path, limits: &Limits) -> Result<bool> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut header = vec![0u8; HEADER_BYTES.min(len as usize)];
+    file.read_exact(&mut header)
+        .map_err(|e| Error::io(path, e))?;
+    let (_, channels, _) = parse_header(&header, len, limits)?;
+    Ok(channels & CHANNEL_OPACITY != 0)
+}
+
 /// Reads a `.mbvol` file, checking its header and size against the limit before reading the
 /// payload.
 pub fn read(path: &Path, limits: &Limits) -> Result<Volume> {

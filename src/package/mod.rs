@@ -8,6 +8,7 @@
 pub mod bake;
 pub mod exr_export;
 pub mod gi;
+pub mod medium;
 pub mod vdm;
 
 pub use mesobake_package::{OCCUPANCY_SECTION, container, ktx2, manifest};
@@ -45,15 +46,21 @@ pub enum AnyPackage {
     Gdm(Package),
     /// A VDM package (`mesobake-vdm-package`).
     Vdm(vdm::VdmPackage),
+    /// A translucent medium's package (`mesobake-medium-package`).
+    Medium(medium::MediumPackage),
 }
 
 impl AnyPackage {
     /// Validates `bytes` as the kind of package its manifest names.
     pub fn parse(bytes: Vec<u8>) -> Result<AnyPackage> {
-        if container::format(&bytes)? == mesobake_package::vdm::VDM_FORMAT_NAME {
-            Ok(AnyPackage::Vdm(vdm::VdmPackage::parse(bytes)?))
-        } else {
-            Ok(AnyPackage::Gdm(Package::parse(bytes)?))
+        match container::format(&bytes)?.as_str() {
+            mesobake_package::vdm::VDM_FORMAT_NAME => {
+                Ok(AnyPackage::Vdm(vdm::VdmPackage::parse(bytes)?))
+            }
+            mesobake_package::medium::MEDIUM_FORMAT_NAME => {
+                Ok(AnyPackage::Medium(medium::MediumPackage::parse(bytes)?))
+            }
+            _ => Ok(AnyPackage::Gdm(Package::parse(bytes)?)),
         }
     }
 
@@ -68,6 +75,7 @@ impl AnyPackage {
         match self {
             AnyPackage::Gdm(p) => serde_json::to_value(p.manifest()),
             AnyPackage::Vdm(p) => serde_json::to_value(p.manifest()),
+            AnyPackage::Medium(p) => serde_json::to_value(p.manifest()),
         }
         .expect("manifests serialize")
     }
@@ -77,6 +85,17 @@ impl AnyPackage {
         match self {
             AnyPackage::Gdm(p) => &p.manifest().input,
             AnyPackage::Vdm(p) => &p.manifest().input,
+            AnyPackage::Medium(p) => &p.manifest().input,
+        }
+    }
+
+    /// The technique whose renderers read the package: `gdm`, `vdm` or `transparency`.
+    pub fn technique(&self) -> crate::scene::technique::Technique {
+        use crate::scene::technique::Technique;
+        match self {
+            AnyPackage::Gdm(_) => Technique::Gdm,
+            AnyPackage::Vdm(_) => Technique::Vdm,
+            AnyPackage::Medium(_) => Technique::Transparency,
         }
     }
 }

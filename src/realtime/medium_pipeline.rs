@@ -17,14 +17,12 @@ use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames
 use super::variant::COMMON;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
-use crate::mesostructure::medium::Medium;
 use crate::render::image::Image;
 use crate::render::medium_cells::{Cell, CellRenderer};
 use crate::render::medium_shadow_map::{LightFrame, Projection, map_frames};
 use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
 use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod};
 use crate::scene::{Effect, Light, Scene};
-use crate::surface::shell::Shell;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 use std::time::Instant;
@@ -213,18 +211,12 @@ pub struct MediumPreview<'g> {
 }
 
 impl<'g> MediumPreview<'g> {
-    /// Cuts `shell` into cells for `medium`, uploads them, their BVH and the medium (with
-    /// its mip-map where `scene`'s transparency settings ask for it), and builds the
-    /// pipeline of the settings' cell order for `scene`'s camera, lights and effects.
-    pub fn new(
-        gpu: &'g Gpu,
-        scene: &Scene,
-        shell: &Shell,
-        medium: &'g Medium,
-    ) -> Result<MediumPreview<'g>> {
+    /// Uploads the cells of `cells`, their BVH and its medium's levels, and builds the
+    /// pipeline of `scene`'s cell order for its camera, lights and effects (`cells` was
+    /// made with `scene`'s transparency settings).
+    pub fn new(gpu: &'g Gpu, scene: &Scene, cells: CellRenderer<'g>) -> Result<MediumPreview<'g>> {
         let settings = scene.transparency;
         let shadows = scene.wants(Effect::Shadows);
-        let cells = CellRenderer::new(shell, medium, settings);
         let mesh = cells.cells();
         let frames = if shadows {
             map_frames(&cells, scene)

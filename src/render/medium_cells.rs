@@ -40,6 +40,7 @@ use crate::scene::transparency::{CellIntegration, TransparencySettings};
 use crate::scene::{Effect, Scene};
 use crate::surface::shell::{PrismPoint, Shell};
 use glam::{DAffine3, DMat3, DVec3};
+use std::borrow::Cow;
 use std::ops::ControlFlow;
 use std::sync::OnceLock;
 
@@ -251,7 +252,7 @@ pub struct CellRenderer<'a> {
     cells: CellMesh,
     medium: &'a Medium,
     /// The mip-map's coarser levels (level l at l − 1), where the settings ask for it.
-    coarser: Vec<Medium>,
+    coarser: Cow<'a, [Medium]>,
     settings: TransparencySettings,
     /// The lights' shadow maps, built on first use.
     shadow_maps: OnceLock<Vec<Option<ShadowMap>>>,
@@ -261,14 +262,35 @@ impl<'a> CellRenderer<'a> {
     /// Splits `shell` into cells for `medium`, integrated as `settings` says (building the
     /// mip-map if they ask for it).
     pub fn new(shell: &Shell, medium: &'a Medium, settings: TransparencySettings) -> Self {
-        let d = medium.dims();
-        let scale = DVec3::new(f64::from(d.x), f64::from(d.y), f64::from(d.z));
         let mut coarser: Vec<Medium> = Vec::new();
         if settings.mipmap {
             while let Some(next) = coarser.last().unwrap_or(medium).coarser() {
                 coarser.push(next);
             }
         }
+        Self::build(shell, medium, Cow::Owned(coarser), settings)
+    }
+
+    /// [`CellRenderer::new`] over a medium's mip chain already built (a medium package's
+    /// levels, level 0 first); the coarser levels are read only where `settings` ask for
+    /// the mip-map.
+    pub fn with_levels(
+        shell: &Shell,
+        levels: &'a [Medium],
+        settings: TransparencySettings,
+    ) -> Self {
+        let coarser = if settings.mipmap { &levels[1..] } else { &[] };
+        Self::build(shell, &levels[0], Cow::Borrowed(coarser), settings)
+    }
+
+    fn build(
+        shell: &Shell,
+        medium: &'a Medium,
+        coarser: Cow<'a, [Medium]>,
+        settings: TransparencySettings,
+    ) -> Self {
+        let d = medium.dims();
+        let scale = DVec3::new(f64::from(d.x), f64::from(d.y), f64::from(d.z));
         CellRenderer {
             cells: CellMesh::new(shell, scale),
             medium,
@@ -296,7 +318,7 @@ impl<'a> CellRenderer<'a> {
 
     /// The medium and, where the settings ask for the mip-map, its coarser levels.
     pub fn levels(&self) -> impl Iterator<Item = &Medium> {
-        std::iter::once(self.medium).chain(&self.coarser)
+        std::iter::once(self.medium).chain(self.coarser.iter())
     }
 
     /// Mip-map level `level` of the medium (0: the medium itself).

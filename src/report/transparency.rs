@@ -3,14 +3,20 @@
 //! ([`CellRenderer`]) and compares the image with the ground truth ([`MediumTruth`]) of the
 //! scene as it is: the scene's own settings, each sample count per cell, exact integration,
 //! (where the scene has shadows) each shadow method and shadow-map resolution and the same
-//! without shadows, and the real-time pipeline's other cell order. With frames to time and an adapter, each row also renders with the WGSL
+//! without shadows, the real-time pipeline's other cell order, and the medium package's
+//! other number formats. Every row renders what its medium package delivers (the medium,
+//! its mip-map where the row filters, quantized as the row says). With frames to time and an adapter, each row also renders with the WGSL
 //! pipeline ([`MediumPreview`]): its mean frame time, and its image against the truth and
 //! against its CPU twin. The time to find and order every pixel's cells (the per-pixel
 //! sorted lists) on the CPU, and to sort the cells once for the view, are measured on their
 //! own.
 
 use crate::bake::gdm::BakeObserver;
+use crate::compress::quantize::Quantization;
 use crate::error::{Error, Result};
+use crate::mesostructure::medium::Medium;
+use crate::package::manifest::InputInfo;
+use crate::package::medium::{self as medium_package, MediumPackage};
 use crate::realtime::gpu::Gpu;
 use crate::realtime::medium_pipeline::MediumPreview;
 use crate::render::image::{Comparison, Image, compare};
@@ -35,6 +41,8 @@ pub struct TransparencyRow {
     pub transparency: TransparencySettings,
     /// Whether the row shades shadows.
     pub shadows: bool,
+    /// Bytes of the row's medium package.
+    pub package_bytes: usize,
     /// The CPU render's seconds, building the shadow maps included.
     pub cpu_s: f64,
     /// Of those, the seconds building the shadow maps (none without maps).
@@ -156,6 +164,13 @@ pub fn transparency_report(
         },
         true,
     );
+    for q in Quantization::ALL {
+        let s = TransparencySettings {
+            quantization: q,
+            ..base
+        };
+        add(format!("package {q}"), s, true);
+    }
     let gpu = if frames > 0 {
         Gpu::open(None).ok()
     } else {
@@ -193,8 +208,9 @@ pub fn transparency_report(
             shaded.effects.retain(|&e| e != Effect::Shadows);
         }
         let map_s = std::cell::Cell::new(None);
+        let (levels, package_bytes) = packaged(medium, transparency)?;
         let (image, cpu_s) = timed(&|| {
-            let r = CellRenderer::new(&loaded.shell, medium, transparency);
+            let r = CellRenderer::with_levels(&loaded.shell, &levels, transparency);
             if shaded.wants(Effect::Shadows) && transparency.shadows != ShadowMethod::Rays {
                 let start = Instant::now();
                 r.shadow_maps(&shaded);
@@ -205,8 +221,12 @@ pub fn transparency_report(
         let (mut frame_s, mut realtime_error, mut realtime_vs_cpu) = (None, None, None);
         if let Some(gpu) = &gpu {
             shaded.transparency = transparency;
-            let rendered = MediumPreview::new(gpu, &shaded, &loaded.shell, medium)
-                .and_then(|p| Ok((p.render()?, p)));
+            let rendered = MediumPreview::new(
+                gpu,
+                &shaded,
+                CellRenderer::with_levels(&loaded.shell, &levels, transparency),
+            )
+            .and_then(|p| Ok((p.render()?, p)));
             match rendered {
                 Ok((realtime, preview)) => {
                     frame_s = Some(preview.time_frames(frames, &())?);
@@ -222,6 +242,7 @@ pub fn transparency_report(
             setting,
             transparency,
             shadows: shaded.wants(Effect::Shadows),
+            package_bytes,
             cpu_s,
             shadow_map_s: map_s.get(),
             error: compare(&truth, &image)?,
@@ -248,6 +269,26 @@ pub fn transparency_report(
     })
 }
 
+/// The levels `medium`'s package for `settings` delivers (its mip-map where they filter,
+/// quantized as they say), and the package's bytes.
+fn packaged(medium: &Medium, settings: TransparencySettings) -> Result<(Vec<Medium>, usize)> {
+    let chain = match settings.mipmap {
+        true => medium.clone().mip_chain(),
+        false => vec![medium.clone()],
+    };
+    let input = InputInfo {
+        kind: "medium".into(),
+        bytes: 0,
+        blake3: blake3::hash(&[]).to_hex().to_string(),
+    };
+    let package =
+        MediumPackage::parse(medium_package::encode(input, &chain, settings.quantization))?;
+    Ok((
+        medium_package::levels(&package, settings)?,
+        package.bytes().len(),
+    ))
+}
+
 /// The report as Markdown: the truth's and the ordering's times above one table.
 pub fn markdown(report: &TransparencyReport) -> String {
     let cells = report.rows.iter().map(|r| {
@@ -259,6 +300,11 @@ pub fn markdown(report: &TransparencyReport) -> String {
             r.setting.clone(),
             integration,
             shadow_setting(r),
+            format!(
+                "{} {:.2} MB",
+                r.transparency.quantization,
+                r.package_bytes as f64 / 1e6
+            ),
             format!("{:.2}", r.error.psnr_db),
             format!("{:.4}", r.error.flip_mean),
             format!("{:.3}", 100.0 * r.error.mask_disagreement),
@@ -298,6 +344,7 @@ pub fn markdown(report: &TransparencyReport) -> String {
                 "setting",
                 "integration",
                 "shadows",
+                "package",
                 "PSNR dB",
                 "FLIP",
                 "mask %",

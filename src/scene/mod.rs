@@ -373,6 +373,10 @@ pub enum Effect {
     /// The material's specular lobe under the environment light: a view-dependent RTV
     /// (without it, the RTV is Lambertian and view-independent).
     EnvironmentGloss,
+    /// The mesostructure as a semi-transparent 3D texture: its opacity channel, or α = 1 in
+    /// its solid voxels, rendered by the translucent-media pipeline (implied by a translucent
+    /// mesostructure).
+    Transparency,
 }
 
 impl Scene {
@@ -570,8 +574,9 @@ impl LoadedScene {
         let default_albedo = DVec3::from(scene.material.albedo);
         let mut height_field = None;
         let mut medium = None;
+        let as_medium = technique::is_translucent(&scene);
         let mut volume_input = |volume: Volume| {
-            if volume.opacity().is_some() {
+            if volume.opacity().is_some() || as_medium {
                 medium = Some(Medium::from_volume(&volume, default_albedo));
             }
             let material = MaterialVolume::from_volume(&volume, default_albedo);
@@ -624,6 +629,11 @@ impl LoadedScene {
                 (Mesostructure::Mesh(Box::new(caster)), material)
             }
         };
+        if as_medium && medium.is_none() {
+            // A mesh tile or a height field: its voxels whose centres are inside, α = 1.
+            let solid = mesostructure.caster().centres_inside();
+            medium = Some(Medium::from_occupancy(solid, default_albedo));
+        }
         let environment = match &scene.environment {
             Some(source) if scene.wants(Effect::EnvironmentLighting) => Some(match source {
                 EnvironmentSource::Sky(sky) => {
@@ -654,6 +664,7 @@ impl LoadedScene {
     /// What the technique's choice needs to know of the scene's surface.
     pub fn surface(&self) -> technique::Surface {
         technique::Surface::of(&self.base_report, &self.shell)
+            .with_translucent_file(self.medium.is_some())
     }
 
     /// Refuses a translucent mesostructure for `what`, which only represents opaque ones.

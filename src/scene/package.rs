@@ -22,6 +22,7 @@ use crate::package::bake::{PackageParams, StageSeconds, compress_gdm};
 use crate::package::gi::GiPayload;
 use crate::package::manifest::{BakeInfo, GdmCodec};
 use crate::package::manifest::{GiInfo, InputInfo};
+use crate::package::medium as medium_package;
 use crate::package::vdm as vdm_package;
 use crate::package::{AnyPackage, GdmPayload, Package};
 use crate::scene::gi::{prt_matrices, rtv_params};
@@ -29,6 +30,7 @@ use crate::scene::plan::{Plan, plan};
 use crate::scene::technique::{self, Technique, TechniqueChoice};
 use crate::scene::{Effect, LoadedScene, MesostructureSource, Scene};
 use crate::util::limits::Limits;
+use mesobake_package::medium::MediumAccuracy;
 use mesobake_package::vdm::VdmAccuracy;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -82,6 +84,15 @@ pub enum ScenePayload {
         /// Measured against the bake.
         accuracy: VdmAccuracy,
     },
+    /// A medium package's levels.
+    Medium {
+        /// Grids of the levels stored, level 0 first.
+        levels: Vec<[u32; 3]>,
+        /// Number format of the textures.
+        quantization: Quantization,
+        /// The stored values' error.
+        accuracy: MediumAccuracy,
+    },
 }
 
 /// A scene's package and what making it took.
@@ -99,13 +110,18 @@ pub struct ScenePackage {
 }
 
 /// Checks that `params` apply to a package for `technique`: a VDM package is made as the
-/// scene's `vdm` settings say, so GDM package parameters other than the defaults are an
-/// error.
+/// scene's `vdm` settings say, a medium package as its `transparency` settings say, so GDM
+/// package parameters other than the defaults are an error.
 pub fn check_params(technique: &TechniqueChoice, params: ScenePackageParams) -> Result<()> {
-    if technique.technique == Technique::Vdm && params != ScenePackageParams::default() {
+    let settings = match technique.technique {
+        Technique::Vdm => "vdm",
+        Technique::Transparency => "transparency",
+        _ => return Ok(()),
+    };
+    if params != ScenePackageParams::default() {
         return Err(Error::InvalidParameter(format!(
-            "the scene's technique is vdm ({}): its package is made as the scene's `vdm` \
-             settings say, and the GDM codec, rank and quantization do not apply",
+            "the scene's technique is {settings} ({}): its package is made as the scene's \
+             `{settings}` settings say, and the GDM codec, rank and quantization do not apply",
             technique.reason
         )));
     }
@@ -141,8 +157,10 @@ fn bake_technique_package(
     check_params(&technique, params)?;
     let plan = plan(scene, params.codec, technique);
     let input = input_identity(scene, scene_dir)?;
-    if plan.technique.technique == Technique::Vdm {
-        return bake_vdm_package(loaded, input, plan, limits, observer);
+    match plan.technique.technique {
+        Technique::Vdm => return bake_vdm_package(loaded, input, plan, limits, observer),
+        Technique::Transparency => return bake_medium_package(loaded, input, plan, observer),
+        _ => {}
     }
     let mut seconds = Vec::new();
     let (dims, dirs) = (scene.dims()?, scene.dirs()?);
@@ -281,6 +299,48 @@ fn bake_vdm_package(
     })
 }
 
+/// The medium package of `loaded`'s translucent medium, identified by `input`, as `plan`
+/// says.
+fn bake_medium_package(
+    loaded: &LoadedScene,
+    input: InputInfo,
+    plan: Plan,
+    observer: &dyn BakeObserver,
+) -> Result<ScenePackage> {
+    let medium = loaded
+        .medium
+        .clone()
+        .expect("the transparency technique loads a medium");
+    let mut seconds = Vec::new();
+    let levels = if plan.runs("medium_mips") {
+        let start = Instant::now();
+        observer.stage("medium_mips");
+        let chain = medium.mip_chain();
+        seconds.push(("medium_mips".to_owned(), start.elapsed().as_secs_f64()));
+        chain
+    } else {
+        vec![medium]
+    };
+    let start = Instant::now();
+    observer.stage("encode");
+    let q = loaded.scene.transparency.quantization;
+    let bytes = medium_package::encode(input, &levels, q);
+    seconds.push(("encode".to_owned(), start.elapsed().as_secs_f64()));
+    let parsed = medium_package::MediumPackage::parse(bytes.clone())?;
+    let info = &parsed.manifest().medium;
+    Ok(ScenePackage {
+        bytes,
+        payload: ScenePayload::Medium {
+            levels: info.levels.iter().map(|l| l.res).collect(),
+            quantization: q,
+            accuracy: info.accuracy,
+        },
+        plan,
+        seconds,
+        gi: None,
+    })
+}
+
 /// [`bake_scene_package`], parsed.
 pub fn scene_package(
     loaded: &LoadedScene,
@@ -316,6 +376,35 @@ pub fn gdm_scene_package(
 pub fn check_package_input(package: &Package, scene: &Scene, scene_dir: &Path) -> Result<()> {
     package.check_grid(scene.dims()?)?;
     check_input(&package.manifest().input, scene, scene_dir)
+}
+
+/// Checks that a package of any kind was baked from `scene`'s mesostructure, as
+/// [`check_package_input`] (a GDM package) and [`check_input`] say; a medium package's level
+/// 0 must also be the scene's grid.
+pub fn check_any_package_input(
+    package: &AnyPackage,
+    scene: &Scene,
+    scene_dir: &Path,
+) -> Result<()> {
+    match package {
+        AnyPackage::Gdm(p) => check_package_input(p, scene, scene_dir),
+        AnyPackage::Vdm(p) => check_input(&p.manifest().input, scene, scene_dir),
+        AnyPackage::Medium(p) => {
+            let res = p.manifest().medium.levels[0].res;
+            if res != scene.resolution {
+                return Err(Error::Scene(format!(
+                    "the package holds a {}x{}x{} medium but the scene's resolution is {}x{}x{}",
+                    res[0],
+                    res[1],
+                    res[2],
+                    scene.resolution[0],
+                    scene.resolution[1],
+                    scene.resolution[2]
+                )));
+            }
+            check_input(&p.manifest().input, scene, scene_dir)
+        }
+    }
 }
 
 /// Checks that a package's recorded input identity `found` is that of `scene`'s

@@ -36,7 +36,9 @@ impl Plan {
 }
 
 /// The stages of `scene`'s package for `technique`, with `codec` for a GDM: `load` first and
-/// `encode` last. A VDM package: `bake_vdm`, `compress_vdm`, and none of the GDM's stages. A
+/// `encode` last. A translucent medium's package (the `transparency` technique): `load`
+/// makes the medium (colour, opacity and normals), `medium_mips` its mip-map where the scene
+/// filters, `encode` quantizes and writes them; no GDM, VDM or RTV stage. A VDM package: `bake_vdm`, `compress_vdm`, and none of the GDM's stages. A
 /// GDM package: `bake_gdm`, `compress` for `paper-svd`, `occupancy` for the occupancy codec;
 /// `bake_prt`, `bake_rtv` (after `bake_gdm`, which it needs), `compress_rtv` with environment
 /// lighting; a height field's `bake_vdm` is listed as skipped. Parts of stages the scene does
@@ -50,6 +52,37 @@ pub fn plan(scene: &Scene, codec: GdmCodec, technique: TechniqueChoice) -> Plan 
             reason: reason.into(),
         })
     };
+    if technique.technique == Technique::Transparency {
+        let why = format!(
+            "the technique is transparency ({}): the medium is rendered from its voxels, with \
+             no precomputed visibility",
+            technique.reason
+        );
+        for stage in ["bake_gdm", "occupancy", "compress"] {
+            skip(stage, &why);
+        }
+        if is_height_field(scene) {
+            skip("bake_vdm", &why);
+        }
+        // Scene validation refuses environment lighting with transparency.
+        for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
+            skip(stage, "the scene calls for no environment_lighting");
+        }
+        if scene.transparency.mipmap {
+            stages.push("medium_mips");
+        } else {
+            skip(
+                "medium_mips",
+                "the scene's transparency.mipmap is off: its renderers read level 0 only",
+            );
+        }
+        stages.push("encode");
+        return Plan {
+            technique,
+            stages: stages.into_iter().map(String::from).collect(),
+            skipped,
+        };
+    }
     if technique.technique == Technique::Vdm {
         stages.extend(["bake_vdm", "compress_vdm"]);
         let why = format!("the technique is vdm ({})", technique.reason);

@@ -1,12 +1,13 @@
 //! Scene → image with the real-time pipeline (`mesobake preview`, the server's previews):
 //! renders a scene with its package ([`crate::scene::package`]) on the GPU and optionally
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
-//! The package's kind picks the pipeline: the GDM's or the VDM's.
+//! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's.
 
 use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
+use crate::package::medium as medium_package;
 use crate::package::vdm::{VdmPackage, height_field};
 use crate::package::{AnyPackage, Package};
 use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
@@ -105,23 +106,6 @@ impl PreviewDevice {
         )
     }
 
-    /// Renders `loaded`'s translucent medium with the translucent-media pipeline (no
-    /// package: it reads the medium itself), or on the CPU its specification,
-    /// [`CellRenderer`]; frames are timed as [`PreviewDevice::render`] times them.
-    pub fn render_medium(
-        &self,
-        loaded: &LoadedScene,
-        frames: u32,
-        observer: &dyn BakeObserver,
-    ) -> Result<(Image, PreviewOutcome)> {
-        self.run(
-            |gpu| medium_preview(gpu, loaded, frames, observer),
-            || medium_render_on_cpu(loaded),
-            frames,
-            observer,
-        )
-    }
-
     /// Renders with `on_gpu`, or with `on_cpu` (timing `frames` more of them) where there is
     /// no adapter or the adapter cut the pipeline's loops short ([`Error::LoopBudget`]).
     fn run(
@@ -181,9 +165,15 @@ pub struct PreviewOutcome {
 
 /// The real-time pipeline's CPU twin, the specification the WGSL follows: the GDM software
 /// renderer on a GDM package ([`gdm_render_on_cpu`]), the VDM software renderer on a VDM
-/// package.
+/// package, the cells renderer on a medium package's levels.
 pub fn render_on_cpu(loaded: &LoadedScene, package: &AnyPackage) -> Result<Image> {
     match package {
+        AnyPackage::Medium(p) => {
+            let settings = loaded.scene.transparency;
+            let levels = medium_package::levels(p, settings)?;
+            let cells = CellRenderer::with_levels(&loaded.shell, &levels, settings);
+            Ok(cells_image(loaded, &cells))
+        }
         AnyPackage::Gdm(p) => gdm_render_on_cpu(loaded, p),
         AnyPackage::Vdm(p) => {
             let field = height_field(p)?;
@@ -228,8 +218,7 @@ pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Imag
 pub struct PreviewReport {
     /// The adapter.
     pub adapter: AdapterDescription,
-    /// The pipeline: `gdm` or `vdm` (the package's technique), or `transparency` (the
-    /// translucent-media pipeline, which needs no package).
+    /// The pipeline: the package's technique, `gdm`, `vdm` or `transparency`.
     pub technique: &'static str,
     /// The GDM shader variant the scene's effects chose (none for the VDM and media
     /// pipelines, which have one each).
@@ -258,6 +247,12 @@ pub fn preview(
     match package {
         AnyPackage::Gdm(package) => gdm_preview(gpu, loaded, package, frames, observer),
         AnyPackage::Vdm(package) => vdm_preview(gpu, loaded, package, frames, observer),
+        AnyPackage::Medium(package) => {
+            let settings = loaded.scene.transparency;
+            let levels = medium_package::levels(package, settings)?;
+            let cells = CellRenderer::with_levels(&loaded.shell, &levels, settings);
+            cells_preview(gpu, loaded, cells, frames, observer)
+        }
     }
 }
 
@@ -319,29 +314,54 @@ fn translucent(loaded: &LoadedScene) -> Result<&Medium> {
     })
 }
 
-/// The translucent-media pipeline's CPU twin: [`CellRenderer`] with the scene's
+/// The cells renderer over `loaded`'s own medium (no package), with the scene's
 /// transparency settings.
-pub fn medium_render_on_cpu(loaded: &LoadedScene) -> Result<Image> {
+fn scene_cells(loaded: &LoadedScene) -> Result<CellRenderer<'_>> {
     let medium = translucent(loaded)?;
-    let scene = &loaded.scene;
-    let cells = CellRenderer::new(&loaded.shell, medium, scene.transparency);
-    Ok(render_image(&scene.camera, |o, d| {
-        cells.radiance(scene, o, d)
-    }))
+    Ok(CellRenderer::new(
+        &loaded.shell,
+        medium,
+        loaded.scene.transparency,
+    ))
 }
 
-/// Renders `loaded`'s translucent medium with the translucent-media pipeline on `gpu`; with
-/// `frames` > 0, also times that many frames.
+/// The image `cells` renders of `loaded`'s scene.
+fn cells_image(loaded: &LoadedScene, cells: &CellRenderer) -> Image {
+    let scene = &loaded.scene;
+    render_image(&scene.camera, |o, d| cells.radiance(scene, o, d))
+}
+
+/// The translucent-media pipeline's CPU twin on `loaded`'s own medium (no package):
+/// [`CellRenderer`] with the scene's transparency settings.
+pub fn medium_render_on_cpu(loaded: &LoadedScene) -> Result<Image> {
+    Ok(cells_image(loaded, &scene_cells(loaded)?))
+}
+
+/// Renders `loaded`'s own translucent medium (no package) with the translucent-media
+/// pipeline on `gpu`; with `frames` > 0, also times that many frames.
 pub fn medium_preview(
     gpu: &Gpu,
     loaded: &LoadedScene,
     frames: u32,
     observer: &dyn BakeObserver,
 ) -> Result<(Image, PreviewReport)> {
+    cells_preview(gpu, loaded, scene_cells(loaded)?, frames, observer)
+}
+
+/// Renders what `cells` holds of `loaded` with the translucent-media pipeline on `gpu`; with
+/// `frames` > 0, also times that many frames.
+fn cells_preview(
+    gpu: &Gpu,
+    loaded: &LoadedScene,
+    cells: CellRenderer,
+    frames: u32,
+    observer: &dyn BakeObserver,
+) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
-    let preview = MediumPreview::new(gpu, &loaded.scene, &loaded.shell, translucent(loaded)?)?;
+    let preview = MediumPreview::new(gpu, &loaded.scene, cells)?;
     let setup = (None, start.elapsed().as_secs_f64());
-    measure(gpu, &preview, "transparency", setup, frames, observer)
+    let technique = Technique::Transparency.name();
+    measure(gpu, &preview, technique, setup, frames, observer)
 }
 
 /// What a preview measures of a real-time pipeline.

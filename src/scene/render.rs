@@ -6,6 +6,7 @@ use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
 use crate::package::Package;
+use crate::package::medium::{self as medium_package, MediumPackage};
 use crate::package::vdm::VdmPackage;
 use crate::render::explicit::ExplicitRenderer;
 use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
@@ -107,6 +108,8 @@ pub enum MapSource<'a> {
     Bake,
     /// This GDM package (its grid must match the scene's resolution).
     Package(&'a Package),
+    /// This medium package (of the scene's translucent medium; method cells).
+    MediumPackage(&'a MediumPackage),
     /// This VDM package (of the scene's height field).
     VdmPackage(&'a VdmPackage),
 }
@@ -156,7 +159,14 @@ pub fn render_substituted(
     let environment = scene.wants(Effect::EnvironmentLighting);
     let mut gi_report = None;
     if let Some(medium) = &loaded.medium {
-        return render_medium(loaded, medium, method, observer);
+        return render_medium(loaded, medium, method, source, observer);
+    }
+    if let MapSource::MediumPackage(_) = source {
+        return Err(Error::InvalidParameter(
+            "a medium package (mesobake-medium-package) renders translucent scenes (the \
+             transparency technique); this scene's mesostructure is opaque"
+                .into(),
+        ));
     }
     let image = match method {
         RenderMethod::Truth if environment => {
@@ -204,7 +214,7 @@ pub fn render_substituted(
                         },
                     )
                 }
-                MapSource::Package(_) => {
+                MapSource::Package(_) | MapSource::MediumPackage(_) => {
                     return Err(Error::InvalidParameter(
                         "method vdm renders a VDM package (mesobake-vdm-package), and this is a \
                          GDM package (mesobake-package)"
@@ -253,7 +263,7 @@ pub fn render_substituted(
                     }
                     &raw_lookup
                 }
-                MapSource::VdmPackage(_) => {
+                MapSource::VdmPackage(_) | MapSource::MediumPackage(_) => {
                     return Err(Error::InvalidParameter(
                         "method gdm renders a GDM package (mesobake-package), and this is a VDM \
                          package (mesobake-vdm-package)"
@@ -309,12 +319,26 @@ fn render_medium(
     loaded: &LoadedScene,
     medium: &Medium,
     method: RenderMethod,
+    source: MapSource,
     observer: &dyn BakeObserver,
 ) -> Result<Rendered> {
     let scene = &loaded.scene;
     if !matches!(method, RenderMethod::Truth | RenderMethod::Cells) {
         loaded.check_opaque(&format!("the {} renderer", method.name()))?;
     }
+    let levels = match source {
+        MapSource::MediumPackage(p) if method == RenderMethod::Cells => {
+            Some(medium_package::levels(p, scene.transparency)?)
+        }
+        MapSource::Bake => None,
+        _ => {
+            return Err(Error::InvalidParameter(
+                "a translucent scene renders with method truth (from the scene) or cells (from \
+                 the scene or its medium package, mesobake-medium-package)"
+                    .into(),
+            ));
+        }
+    };
     if scene.wants(Effect::EnvironmentLighting) {
         return Err(Error::InvalidParameter(
             "environment lighting of translucent media is not rendered yet: light them with \
@@ -329,7 +353,10 @@ fn render_medium(
         truth = MediumTruth::new(&loaded.shell, medium);
         &|o, d| truth.radiance(scene, o, d)
     } else {
-        cells = CellRenderer::new(&loaded.shell, medium, scene.transparency);
+        cells = match &levels {
+            Some(levels) => CellRenderer::with_levels(&loaded.shell, levels, scene.transparency),
+            None => CellRenderer::new(&loaded.shell, medium, scene.transparency),
+        };
         &|o, d| cells.radiance(scene, o, d)
     };
     observer.stage("rendering");

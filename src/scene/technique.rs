@@ -1,7 +1,11 @@
-//! Which technique renders a scene's mesostructure: the generalized displacement map (GDM)
-//! or the view-dependent displacement map (VDM). A scene names one, or `auto`; [`choose`]
-//! resolves `auto` and records why, and the plan ([`super::plan`]) bakes only that
-//! technique's stages.
+//! Which technique renders a scene's mesostructure: the generalized displacement map (GDM),
+//! the view-dependent displacement map (VDM), or semi-transparent 3D textures
+//! (`transparency`). A scene names one, or `auto`; [`choose`] resolves `auto` and records
+//! why, and the plan ([`super::plan`]) bakes only that technique's stages.
+//!
+//! A translucent mesostructure (a built-in `medium`, a volume with an opacity channel) or
+//! the `transparency` effect (any mesostructure as a medium, opaque voxels α = 1) is
+//! rendered by `transparency` only: `auto` picks it, and naming `gdm` or `vdm` is an error.
 //!
 //! `auto` picks VDM where it applies and is the cheaper technique: a height-field
 //! mesostructure (VDM represents nothing else), on a closed base surface (at an open
@@ -29,6 +33,9 @@ pub enum Technique {
     Gdm,
     /// The view-dependent displacement map: height fields only.
     Vdm,
+    /// Semi-transparent 3D textures: the mesostructure as a translucent medium, rendered
+    /// through the shell's cells with no precomputed visibility.
+    Transparency,
 }
 
 impl Technique {
@@ -43,6 +50,7 @@ impl Technique {
             Technique::Auto => "auto",
             Technique::Gdm => "gdm",
             Technique::Vdm => "vdm",
+            Technique::Transparency => "transparency",
         }
     }
 }
@@ -50,7 +58,7 @@ impl Technique {
 /// The technique chosen for a scene (never `auto`) and why.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct TechniqueChoice {
-    /// `gdm` or `vdm`.
+    /// `gdm`, `vdm` or `transparency`.
     pub technique: Technique,
     /// Why: the scene named it, or what decided `auto`.
     pub reason: String,
@@ -74,6 +82,9 @@ pub struct Surface {
     /// The relief's depth in tiles on the shell ([`super::vdm::relief_depth`]); none where the
     /// shell has no area to map a relief onto.
     pub relief_depth: Option<f64>,
+    /// Whether the mesostructure's file is a translucent medium (a volume with an opacity
+    /// channel), which the scene's text does not tell.
+    pub translucent_file: bool,
 }
 
 impl Surface {
@@ -82,6 +93,15 @@ impl Surface {
         Surface {
             boundary_edges: base.boundary_edges,
             relief_depth: super::vdm::relief_depth(shell).ok(),
+            translucent_file: false,
+        }
+    }
+
+    /// This surface, with a mesostructure file that is (or is not) a translucent medium.
+    pub fn with_translucent_file(self, translucent_file: bool) -> Surface {
+        Surface {
+            translucent_file,
+            ..self
         }
     }
 
@@ -99,9 +119,13 @@ impl Surface {
 }
 
 /// Checks that a scene whose technique is `choice` can bake it on `surface`: a VDM's grid
-/// must hold the relief's depth; neither technique represents a translucent medium.
+/// must hold the relief's depth; neither the GDM nor the VDM represents a translucent
+/// medium.
 pub fn check(scene: &Scene, choice: &TechniqueChoice, surface: &Surface) -> Result<()> {
-    if let MesostructureSource::Medium(_) = scene.mesostructure {
+    if choice.technique == Technique::Transparency {
+        return Ok(());
+    }
+    if matches!(scene.mesostructure, MesostructureSource::Medium(_)) || surface.translucent_file {
         let what = match choice.technique {
             Technique::Vdm => "a VDM",
             _ => "a GDM",
@@ -126,9 +150,32 @@ pub fn is_height_field(scene: &Scene) -> bool {
     )
 }
 
+/// Whether the scene calls for the translucent-media pipeline: it names the technique or the
+/// `transparency` effect, or its mesostructure is a built-in medium. (A volume file with an
+/// opacity channel is found translucent when it is read.)
+pub fn is_translucent(scene: &Scene) -> bool {
+    scene.technique == Technique::Transparency
+        || scene.wants(Effect::Transparency)
+        || matches!(scene.mesostructure, MesostructureSource::Medium(_))
+}
+
 /// Checks what a scene's technique needs of the scene alone: VDM renders height fields lit by
-/// point and directional lights.
+/// point and directional lights; the GDM and the VDM render no translucency; the
+/// translucent-media pipeline takes no environment lighting.
 pub fn validate(scene: &Scene) -> Result<()> {
+    let opaque_only = matches!(scene.technique, Technique::Gdm | Technique::Vdm);
+    if opaque_only && scene.wants(Effect::Transparency) {
+        return Err(Error::Scene(format!(
+            "technique {} renders opaque mesostructure only: the transparency effect needs              the transparency technique (or auto)",
+            scene.technique.name()
+        )));
+    }
+    if is_translucent(scene) && scene.wants(Effect::EnvironmentLighting) {
+        return Err(Error::Scene(
+            "the translucent-media pipeline shades point, directional and ambient lights:              environment_lighting needs the RTV, which is baked from the GDM of an opaque              mesostructure"
+                .into(),
+        ));
+    }
     if scene.technique != Technique::Vdm {
         return Ok(());
     }
@@ -160,6 +207,20 @@ pub fn choose(scene: &Scene, surface: &Surface) -> TechniqueChoice {
         )),
     };
     let (technique, reason) = match scene.technique {
+        Technique::Transparency => (
+            Technique::Transparency,
+            "the scene asks for transparency".to_owned(),
+        ),
+        Technique::Auto if is_translucent(scene) || surface.translucent_file => (
+            Technique::Transparency,
+            if scene.wants(Effect::Transparency) {
+                "auto: the scene calls for the transparency effect"
+            } else {
+                "auto: the mesostructure is a translucent medium, which only semi-transparent \
+                 3D textures represent"
+            }
+            .to_owned(),
+        ),
         Technique::Gdm => (Technique::Gdm, "the scene asks for gdm".to_owned()),
         Technique::Vdm => (
             Technique::Vdm,

@@ -1,6 +1,7 @@
 //! How a scene's translucent medium is rendered by the real-time algorithm of semi-transparent
 //! 3D textures ([`crate::render::medium_cells`]).
 
+use crate::compress::quantize::Quantization;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -77,6 +78,8 @@ pub struct TransparencySettings {
     pub shadow_map_size: u32,
     /// Transmittance levels whose depths a deep-map texel stores.
     pub shadow_levels: u32,
+    /// Number format of the medium package's textures (`f32` exact, `f16` or `u8`).
+    pub quantization: Quantization,
 }
 
 /// Largest shadow map side.
@@ -107,6 +110,7 @@ impl Default for TransparencySettings {
             shadows: ShadowMethod::DeepMap,
             shadow_map_size: 256,
             shadow_levels: 32,
+            quantization: Quantization::F16,
         }
     }
 }

@@ -16,11 +16,12 @@ use super::worker::resolve_assets;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
 use crate::error::{Error, Result};
+use crate::mesostructure::volume_format;
 use crate::package::manifest::GdmCodec;
 use crate::scene::package::{ScenePackageParams, check_params};
 use crate::scene::plan::Plan;
 use crate::scene::technique::{Surface, Technique, check, choose};
-use crate::scene::{Effect, Scene, load_base_mesh};
+use crate::scene::{Effect, MesostructureSource, Scene, load_base_mesh};
 use crate::surface::shell::Shell;
 use crate::util::limits::Limits;
 use serde::{Deserialize, Serialize};
@@ -69,7 +70,12 @@ impl JobSpec {
         let mut scene = self.scene.clone();
         resolve_assets(&mut scene, blobs)?;
         let (base, report) = load_base_mesh(&scene, Path::new("/"), limits)?;
-        let surface = Surface::of(&report, &Shell::new(&base, scene.shell)?);
+        let translucent_file = match &scene.mesostructure {
+            MesostructureSource::Volume(path) => volume_format::has_opacity(path, limits)?,
+            _ => false,
+        };
+        let surface = Surface::of(&report, &Shell::new(&base, scene.shell)?)
+            .with_translucent_file(translucent_file);
         let technique = choose(&scene, &surface);
         check(&scene, &technique, &surface)?;
         check_params(&technique, self.package_params())?;
@@ -78,7 +84,9 @@ impl JobSpec {
         Ok(plan)
     }
 
-    /// What the result depends on, hashed, for a package of `technique`. A VDM package: the
+    /// What the result depends on, hashed, for a package of `technique`. A medium package:
+    /// the mesostructure, its grid, whether the mip-map is baked and the quantization (never
+    /// the base mesh or the shell, so an animated surface bakes nothing). A VDM package: the
     /// height field, the VDM settings, and what the relief's depth depends on (the base
     /// mesh, its scale and the shell). A GDM package: the mesostructure, its grids and the
     /// package parameters; with environment lighting also what the PRT and RTV depend on
@@ -86,6 +94,21 @@ impl JobSpec {
     /// environment, which a package does not hold.
     pub fn dedup_key(&self, technique: Technique) -> String {
         let s = &self.scene;
+        if technique == Technique::Transparency {
+            // Nothing in a medium package depends on the base mesh or the shell: an animated
+            // surface reuses it.
+            let key = serde_json::json!({
+                "version": crate::package::container::VERSION,
+                "technique": technique,
+                "mesostructure": s.mesostructure,
+                "resolution": s.resolution,
+                "mipmap": s.transparency.mipmap,
+                "quantization": s.transparency.quantization,
+            });
+            return blake3::hash(key.to_string().as_bytes())
+                .to_hex()
+                .to_string();
+        }
         if technique == Technique::Vdm {
             let key = serde_json::json!({
                 "version": crate::package::container::VERSION,

@@ -20,6 +20,7 @@ pub mod gi;
 pub mod grid;
 pub mod ktx2;
 pub mod manifest;
+pub mod medium;
 pub mod occupancy;
 pub mod quantize;
 pub mod svd;

@@ -1,0 +1,229 @@
+//! Medium packages: the transparency technique's plan, its package against the scene's own
+//! medium (each quantization's error measured), an animated surface that re-bakes nothing,
+//! an opaque mesostructure as a medium against the opaque truth, and bad input.
+
+use mesobake::package::AnyPackage;
+use mesobake::render::image::{Comparison, compare};
+use mesobake::render::render_image;
+use mesobake::render::truth::TruthRenderer;
+use mesobake::scene::package::{
+    ScenePackageParams, bake_scene_package, check_any_package_input, scene_package,
+};
+use mesobake::scene::preview::{medium_render_on_cpu, render_on_cpu};
+use mesobake::scene::{LoadedScene, Scene};
+use mesobake::util::limits::Limits;
+use serde_json::{Value, json};
+use std::path::Path;
+
+/// Fur on a torus under a slanted sun with shadows (deep maps), 64² pixels, 16×16×8 voxels.
+fn fur() -> Value {
+    json!({
+        "base_mesh": { "builtin": { "torus": { "segments": [24, 12] } } },
+        "mesostructure": { "medium": "fur" },
+        "resolution": [16, 16, 8],
+        "shell": { "thickness": 0.15, "tiles_per_uv": [8, 4] },
+        "camera": { "eye": [0, 2, 2.5], "target": [0, 0, 0], "fov_y_degrees": 45,
+                    "width": 64, "height": 64 },
+        "lights": [
+            { "directional": { "direction": [-0.4, -1, -0.5], "irradiance": [2.5, 2.5, 2.5] } },
+            { "ambient": { "radiance": [0.1, 0.1, 0.1] } }
+        ],
+        "effects": ["silhouettes", "shadows"]
+    })
+}
+
+fn load(scene: &Value) -> LoadedScene {
+    let scene = Scene::from_json(&scene.to_string()).unwrap();
+    LoadedScene::load(scene, Path::new("."), &Limits::default()).unwrap()
+}
+
+fn package(loaded: &LoadedScene) -> AnyPackage {
+    let params = ScenePackageParams::default();
+    scene_package(loaded, Path::new("."), params, &Limits::default(), &()).unwrap()
+}
+
+/// The cells renderer on `loaded`'s package against the cells renderer on its own medium.
+fn package_vs_scene(loaded: &LoadedScene) -> Comparison {
+    let from_package = render_on_cpu(loaded, &package(loaded)).unwrap();
+    compare(&medium_render_on_cpu(loaded).unwrap(), &from_package).unwrap()
+}
+
+#[test]
+fn a_translucent_scene_plans_only_its_medium_and_renders_from_its_package() {
+    let loaded = load(&fur());
+    let baked = bake_scene_package(
+        &loaded,
+        Path::new("."),
+        ScenePackageParams::default(),
+        &Limits::default(),
+        &(),
+    )
+    .unwrap();
+    let plan = &baked.plan;
+    assert_eq!(plan.technique.technique.name(), "transparency");
+    assert!(
+        plan.technique.reason.contains("translucent medium"),
+        "{plan:?}"
+    );
+    assert_eq!(plan.stages, ["load", "encode"]);
+    let skipped: Vec<&str> = plan.skipped.iter().map(|k| k.stage.as_str()).collect();
+    assert_eq!(
+        skipped,
+        [
+            "bake_gdm",
+            "occupancy",
+            "compress",
+            "bake_prt",
+            "bake_rtv",
+            "compress_rtv",
+            "medium_mips"
+        ]
+    );
+    assert!(plan.skipped[0].reason.contains("no precomputed visibility"));
+
+    // Each quantization against the scene's own medium (CPU cells renderer, same settings):
+    // f32 stores the medium exactly; f16 and u8 cost what they cost.
+    let mut psnr = Vec::new();
+    for (q, mipmap, at_least_db) in [
+        ("f32", false, 80.0),
+        ("f32", true, 80.0),
+        ("f16", false, 50.0),
+        ("f16", true, 50.0),
+        ("u8", false, 30.0),
+    ] {
+        let mut scene = fur();
+        scene["transparency"] = json!({ "quantization": q, "mipmap": mipmap });
+        let loaded = load(&scene);
+        let c = package_vs_scene(&loaded);
+        eprintln!("{q}, mipmap {mipmap}: {c:?}");
+        assert!(
+            c.psnr_db >= at_least_db && c.mask_disagreement == 0.0,
+            "{q}, mipmap {mipmap}: {c:?}"
+        );
+        psnr.push(c.psnr_db);
+    }
+    assert!(psnr[0] > psnr[2] && psnr[2] > psnr[4], "{psnr:?}");
+}
+
+#[test]
+fn an_animated_surface_renders_from_the_same_package_bit_for_bit() {
+    let first = load(&fur());
+    let mut moved = fur();
+    moved["base_mesh"] = json!({ "builtin": { "torus": { "major_radius": 1.2, "minor_radius": 0.3,
+                                                       "segments": [30, 14] } } });
+    moved["shell"]["thickness"] = json!(0.1);
+    let moved = load(&moved);
+    let bake = |loaded: &LoadedScene| {
+        bake_scene_package(
+            loaded,
+            Path::new("."),
+            ScenePackageParams::default(),
+            &Limits::default(),
+            &(),
+        )
+        .unwrap()
+        .bytes
+    };
+    let bytes = bake(&first);
+    assert_eq!(
+        bytes,
+        bake(&moved),
+        "a new surface changed the medium package"
+    );
+    let package = AnyPackage::parse(bytes).unwrap();
+    check_any_package_input(&package, &moved.scene, Path::new(".")).unwrap();
+    // The moved surface renders from it as from its own medium (f16: ≥ 50 dB, as above).
+    let c = compare(
+        &medium_render_on_cpu(&moved).unwrap(),
+        &render_on_cpu(&moved, &package).unwrap(),
+    )
+    .unwrap();
+    assert!(c.psnr_db >= 50.0 && c.mask_disagreement == 0.0, "{c:?}");
+    // Another medium's package is refused by name.
+    let mut clouds = fur();
+    clouds["mesostructure"] = json!({ "medium": "clouds" });
+    let e = check_any_package_input(&package, &load(&clouds).scene, Path::new("."))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("baked from another mesostructure"), "{e}");
+}
+
+#[test]
+fn an_opaque_mesostructure_as_a_medium_renders_like_the_opaque_truth() {
+    // The weave volume with the transparency effect: α = 1 in its solid voxels. The opaque
+    // ground truth (voxel boxes, shadow rays) renders the same voxels independently of the
+    // media code.
+    let mut scene = fur();
+    scene["mesostructure"] = json!({ "sample": "weave" });
+    scene["effects"] = json!(["silhouettes", "shadows", "transparency"]);
+    scene["transparency"] = json!({ "shadows": "rays", "quantization": "f32" });
+    let loaded = load(&scene);
+    let AnyPackage::Medium(p) = package(&loaded) else {
+        panic!("not a medium package")
+    };
+    let voxels = &p.levels()[0].voxels;
+    assert!(voxels.iter().all(|v| v[3] == 0.0 || v[3] == 1.0));
+    assert!(voxels.iter().any(|v| v[3] == 1.0));
+    let from_package = render_on_cpu(&loaded, &AnyPackage::Medium(p)).unwrap();
+    let mut opaque = scene.clone();
+    opaque["effects"] = json!(["silhouettes", "shadows"]);
+    opaque["technique"] = json!("gdm");
+    let opaque = load(&opaque);
+    let truth = TruthRenderer::new(
+        &opaque.shell,
+        opaque.mesostructure.caster(),
+        &opaque.material,
+    );
+    let s = &opaque.scene;
+    let reference = render_image(&s.camera, |o, d| truth.radiance(s, o, d));
+    let c = compare(&reference, &from_package).unwrap();
+    eprintln!("weave as a medium against the opaque truth: {c:?}");
+    assert!(c.mask_disagreement <= 0.01 && c.psnr_db >= 25.0, "{c:?}");
+}
+
+#[test]
+fn scenes_and_packages_that_do_not_fit_are_refused_by_name() {
+    for (edit, expected) in [
+        (
+            json!({ "technique": "gdm", "effects": ["transparency"] }),
+            "technique gdm renders opaque mesostructure only",
+        ),
+        (
+            json!({ "technique": "vdm", "effects": ["transparency"] }),
+            "technique vdm renders opaque mesostructure only",
+        ),
+        (
+            json!({ "effects": ["environment_lighting"],
+                    "environment": { "sky": { "overcast": { "zenith": [1, 1, 1], "ground": [0, 0, 0] } } } }),
+            "the translucent-media pipeline shades point, directional and ambient lights",
+        ),
+        (
+            json!({ "transparency": { "quantization": "f8" } }),
+            "unknown variant",
+        ),
+    ] {
+        let mut scene = fur();
+        for (k, v) in edit.as_object().unwrap() {
+            scene[k] = v.clone();
+        }
+        let e = Scene::from_json(&scene.to_string())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(expected), "{edit}: {e}");
+    }
+    // A package baked without the mip-map cannot serve a scene that filters.
+    let flat = package(&load(&fur()));
+    let mut filtered = fur();
+    filtered["transparency"] = json!({ "mipmap": true });
+    let e = render_on_cpu(&load(&filtered), &flat)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("holds level 0 only"), "{e}");
+    // Nor a scene on another grid.
+    let mut finer = fur();
+    finer["resolution"] = json!([32, 32, 8]);
+    let e = check_any_package_input(&flat, &load(&finer).scene, Path::new("."))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("holds a 16x16x8 medium"), "{e}");
+}
