@@ -3,7 +3,9 @@
 //! an opaque mesostructure as a medium against the opaque truth, and bad input.
 
 use mesobake::package::AnyPackage;
+use mesobake::package::medium as medium_package;
 use mesobake::render::image::{Comparison, compare};
+use mesobake::render::medium_truth::MediumTruth;
 use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::package::{
@@ -82,14 +84,15 @@ fn a_translucent_scene_plans_only_its_medium_and_renders_from_its_package() {
     assert!(plan.skipped[0].reason.contains("no precomputed visibility"));
 
     // Each quantization against the scene's own medium (CPU cells renderer, same settings):
-    // f32 stores the medium exactly; f16 and u8 cost what they cost.
+    // f32 stores the medium exactly (the same image to the bit); f16 and u8 cost what they
+    // cost (measured: 90.9 and 61.4 dB, mask 0).
     let mut psnr = Vec::new();
     for (q, mipmap, at_least_db) in [
-        ("f32", false, 80.0),
-        ("f32", true, 80.0),
-        ("f16", false, 50.0),
-        ("f16", true, 50.0),
-        ("u8", false, 30.0),
+        ("f32", false, f64::INFINITY),
+        ("f32", true, f64::INFINITY),
+        ("f16", false, 60.0),
+        ("f16", true, 60.0),
+        ("u8", false, 40.0),
     ] {
         let mut scene = fur();
         scene["transparency"] = json!({ "quantization": q, "mipmap": mipmap });
@@ -102,7 +105,7 @@ fn a_translucent_scene_plans_only_its_medium_and_renders_from_its_package() {
         );
         psnr.push(c.psnr_db);
     }
-    assert!(psnr[0] > psnr[2] && psnr[2] > psnr[4], "{psnr:?}");
+    assert!(psnr[2] > psnr[4], "{psnr:?}");
 }
 
 #[test]
@@ -132,13 +135,13 @@ fn an_animated_surface_renders_from_the_same_package_bit_for_bit() {
     );
     let package = AnyPackage::parse(bytes).unwrap();
     check_any_package_input(&package, &moved.scene, Path::new(".")).unwrap();
-    // The moved surface renders from it as from its own medium (f16: ≥ 50 dB, as above).
+    // The moved surface renders from it as from its own medium (f16: ≥ 60 dB, as above).
     let c = compare(
         &medium_render_on_cpu(&moved).unwrap(),
         &render_on_cpu(&moved, &package).unwrap(),
     )
     .unwrap();
-    assert!(c.psnr_db >= 50.0 && c.mask_disagreement == 0.0, "{c:?}");
+    assert!(c.psnr_db >= 60.0 && c.mask_disagreement == 0.0, "{c:?}");
     // Another medium's package is refused by name.
     let mut clouds = fur();
     clouds["mesostructure"] = json!({ "medium": "clouds" });
@@ -148,37 +151,67 @@ fn an_animated_surface_renders_from_the_same_package_bit_for_bit() {
     assert!(e.contains("baked from another mesostructure"), "{e}");
 }
 
+/// An opaque mesostructure with the `transparency` effect is the medium with α = 1 in its
+/// solid voxels: the package's level 0 is opaque exactly where the opaque caster's voxel
+/// centres are inside (a volume, a mesh tile and a relief), and the media's ground truth of
+/// the package's medium matches the opaque ground truth of the same voxels (a renderer that
+/// shares no code with the media), unshadowed and with the same normals, to 0.1 % of the
+/// mask and 30 dB (as the opaque sample in tests/medium_render.rs).
 #[test]
-fn an_opaque_mesostructure_as_a_medium_renders_like_the_opaque_truth() {
-    // The weave volume with the transparency effect: α = 1 in its solid voxels. The opaque
-    // ground truth (voxel boxes, shadow rays) renders the same voxels independently of the
-    // media code.
-    let mut scene = fur();
-    scene["mesostructure"] = json!({ "sample": "weave" });
-    scene["effects"] = json!(["silhouettes", "shadows", "transparency"]);
-    scene["transparency"] = json!({ "shadows": "rays", "quantization": "f32" });
-    let loaded = load(&scene);
-    let AnyPackage::Medium(p) = package(&loaded) else {
-        panic!("not a medium package")
-    };
-    let voxels = &p.levels()[0].voxels;
-    assert!(voxels.iter().all(|v| v[3] == 0.0 || v[3] == 1.0));
-    assert!(voxels.iter().any(|v| v[3] == 1.0));
-    let from_package = render_on_cpu(&loaded, &AnyPackage::Medium(p)).unwrap();
-    let mut opaque = scene.clone();
-    opaque["effects"] = json!(["silhouettes", "shadows"]);
-    opaque["technique"] = json!("gdm");
-    let opaque = load(&opaque);
-    let truth = TruthRenderer::new(
-        &opaque.shell,
-        opaque.mesostructure.caster(),
-        &opaque.material,
-    );
-    let s = &opaque.scene;
-    let reference = render_image(&s.camera, |o, d| truth.radiance(s, o, d));
-    let c = compare(&reference, &from_package).unwrap();
-    eprintln!("weave as a medium against the opaque truth: {c:?}");
-    assert!(c.mask_disagreement <= 0.01 && c.psnr_db >= 25.0, "{c:?}");
+fn an_opaque_mesostructure_as_a_medium_is_its_solid_voxels() {
+    // The shipped torus-chain scene, shrunk to 96² pixels and a 32 × 32 × 16 grid.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-chain.json");
+    let mut scene: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    scene["resolution"] = json!([32, 32, 16]);
+    scene["camera"]["width"] = json!(96);
+    scene["camera"]["height"] = json!(96);
+    scene["effects"] = json!(["transparency"]);
+    scene["transparency"] = json!({ "quantization": "f32" });
+    for mesostructure in [
+        json!({ "sample": "chain" }),
+        json!({ "sample_tile": "chain" }),
+        json!({ "relief": "bumps" }),
+    ] {
+        scene["mesostructure"] = mesostructure.clone();
+        let loaded = load(&scene);
+        assert_eq!(loaded.technique().technique.name(), "transparency");
+        let AnyPackage::Medium(p) = package(&loaded) else {
+            panic!("{mesostructure}: not a medium package")
+        };
+        let solid = loaded.mesostructure.caster().centres_inside();
+        let d = solid.dims();
+        let level = &p.levels()[0];
+        for k in 0..d.z {
+            for j in 0..d.y {
+                for i in 0..d.x {
+                    let alpha = level.voxels[d.index(i, j, k)][3];
+                    assert_eq!(
+                        alpha,
+                        f32::from(u8::from(solid.get(i, j, k))),
+                        "{mesostructure}"
+                    );
+                }
+            }
+        }
+        assert!(solid.solid_count() > 0, "{mesostructure}");
+        if mesostructure != json!({ "sample": "chain" }) {
+            continue;
+        }
+        let levels = medium_package::levels(&p, loaded.scene.transparency).unwrap();
+        let s = &loaded.scene;
+        let media = MediumTruth::new(&loaded.shell, &levels[0]);
+        let media_image = render_image(&s.camera, |o, d| media.radiance(s, o, d));
+        let opaque = TruthRenderer::new(
+            &loaded.shell,
+            loaded.mesostructure.caster(),
+            levels[0].material(),
+        );
+        let reference = render_image(&s.camera, |o, d| opaque.radiance(s, o, d));
+        let c = compare(&reference, &media_image).unwrap();
+        eprintln!("the chain's medium package against the opaque truth: {c:?}");
+        assert!(reference.hits() > 96 * 96 / 8);
+        assert!(c.mask_disagreement <= 0.001 && c.psnr_db >= 30.0, "{c:?}");
+    }
 }
 
 #[test]

@@ -213,22 +213,23 @@ fn shadowed_the_opaque_medium_sees_its_voxel_staircase() {
     assert!(c.psnr_db >= 20.0, "{c:?}");
 }
 
-/// The shipped translucent scene renders from the CLI (the default method is the cells);
-/// the real-time techniques refuse it by name, and nothing is written.
+/// The shipped translucent scene renders from the CLI (the default method is the cells),
+/// bakes a medium package that renders the same image with `--package`, and the GDM
+/// renderer refuses it by name.
 #[test]
-fn a_translucent_scene_renders_by_its_cells_and_bakes_nothing() {
+fn a_translucent_scene_renders_by_its_cells_and_from_its_medium_package() {
     let dir = tempfile::tempdir().unwrap();
     let scene = shipped_scene("torus-fur", Some([32, 32, 16]), Some(48));
     let small = dir.path().join("fur.json");
     std::fs::write(&small, scene.to_string()).unwrap();
     let small = small.to_str().unwrap();
-    let out = dir.path().join("fur.png");
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
     let json = succeeds(&[
         "render",
         "--scene",
         small,
         "--out",
-        out.to_str().unwrap(),
+        &path("fur.png"),
         "--json",
     ]);
     let report: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
@@ -237,21 +238,56 @@ fn a_translucent_scene_renders_by_its_cells_and_bakes_nothing() {
         report["hit_pixels"].as_u64().unwrap() > 48 * 48 / 8,
         "{report}"
     );
-    let package = dir.path().join("fur.mbpkg");
-    let package = package.to_str().unwrap();
+    let package = path("fur.mbpkg");
+    let baked = succeeds(&["bake", "--scene", small, "--out", &package, "--json"]);
+    let baked: serde_json::Value = serde_json::from_slice(&baked.stdout).unwrap();
+    assert_eq!(baked["technique"], "transparency", "{baked}");
+    assert_eq!(baked["medium"]["quantization"], "f16", "{baked}");
+    assert_eq!(baked["medium"]["levels"], serde_json::json!([[32, 32, 16]]));
+    succeeds(&[
+        "render",
+        "--scene",
+        small,
+        "--package",
+        &package,
+        "--out",
+        &path("pkg.png"),
+    ]);
+    let c = compare(
+        &Image::read(Path::new(&path("fur.png"))).unwrap(),
+        &Image::read(Path::new(&path("pkg.png"))).unwrap(),
+    )
+    .unwrap();
+    // The f16 package against the scene's own medium (measured on a larger scene in
+    // tests/medium_package.rs).
+    assert!(c.psnr_db >= 50.0 && c.mask_disagreement == 0.0, "{c:?}");
     each_fails_with(&[
         (
             vec![
-                "render", "--scene", small, "--method", "gdm", "--out", package,
+                "render",
+                "--scene",
+                small,
+                "--method",
+                "gdm",
+                "--out",
+                &path("gdm.png"),
             ],
             "the mesostructure is a translucent medium, and the gdm renderer",
         ),
         (
-            vec!["bake", "--scene", small, "--out", package],
-            "the mesostructure is a translucent medium, and a GDM",
+            vec![
+                "bake",
+                "--scene",
+                small,
+                "--gdm-codec",
+                "paper-svd",
+                "--out",
+                &path("x.mbpkg"),
+            ],
+            "the scene's technique is transparency",
         ),
     ]);
-    assert!(!Path::new(package).exists());
+    assert!(!Path::new(&path("gdm.png")).exists() && !Path::new(&path("x.mbpkg")).exists());
 }
 
 /// The truth's one approximation converges: on the fur scene (shrunk), the scattered light
