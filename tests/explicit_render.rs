@@ -93,7 +93,7 @@ fn the_explicit_renderer_refuses_voxel_scenes_and_packages() {
                 "--out",
                 out,
             ],
-            "--package only applies to --method gdm and vdm",
+            "--package only applies to --method gdm, vdm and cells",
         ),
     ]);
 }

@@ -38,120 +38,130 @@ impl Plan {
 /// The stages of `scene`'s package for `technique`, with `codec` for a GDM: `load` first and
 /// `encode` last. A translucent medium's package (the `transparency` technique): `load`
 /// makes the medium (colour, opacity and normals), `medium_mips` its mip-map where the scene
-/// filters, `encode` quantizes and writes them; no GDM, VDM or RTV stage. A VDM package: `bake_vdm`, `compress_vdm`, and none of the GDM's stages. A
-/// GDM package: `bake_gdm`, `compress` for `paper-svd`, `occupancy` for the occupancy codec;
-/// `bake_prt`, `bake_rtv` (after `bake_gdm`, which it needs), `compress_rtv` with environment
-/// lighting; a height field's `bake_vdm` is listed as skipped. Parts of stages the scene does
-/// not call for (`prt_visibility`, `rtv_gloss`) are listed as skipped too.
+/// filters, `encode` quantizes and writes them; no GDM, VDM or RTV stage. A VDM package:
+/// `bake_vdm`, `compress_vdm`, and none of the GDM's stages. A GDM package: `bake_gdm`,
+/// `compress` for `paper-svd`, `occupancy` for the occupancy codec; `bake_prt`, `bake_rtv`
+/// (after `bake_gdm`, which it needs), `compress_rtv` with environment lighting; a height
+/// field's `bake_vdm` is listed as skipped. Parts of stages the scene does not call for
+/// (`prt_visibility`, `rtv_gloss`) are listed as skipped too.
 pub fn plan(scene: &Scene, codec: GdmCodec, technique: TechniqueChoice) -> Plan {
-    let mut stages = vec!["load"];
-    let mut skipped = Vec::new();
-    let mut skip = |stage: &str, reason: &str| {
-        skipped.push(Skipped {
+    let mut stages = Stages {
+        run: vec!["load"],
+        skipped: Vec::new(),
+    };
+    match technique.technique {
+        Technique::Transparency => stages.transparency(scene, &technique),
+        Technique::Vdm => stages.vdm(&technique),
+        Technique::Gdm | Technique::Auto => stages.gdm(scene, codec, &technique),
+    }
+    stages.run.push("encode");
+    Plan {
+        technique,
+        stages: stages.run.into_iter().map(String::from).collect(),
+        skipped: stages.skipped,
+    }
+}
+
+/// The stages a plan runs and skips, as they are decided.
+struct Stages {
+    run: Vec<&'static str>,
+    skipped: Vec<Skipped>,
+}
+
+impl Stages {
+    fn skip(&mut self, stage: &str, reason: &str) {
+        self.skipped.push(Skipped {
             stage: stage.into(),
             reason: reason.into(),
-        })
-    };
-    if technique.technique == Technique::Transparency {
+        });
+    }
+
+    /// The radiance transfer's stages, skipped: the technique takes no environment
+    /// lighting (scene validation refuses it, and `auto` never picks the technique with it).
+    fn skip_radiance_transfer(&mut self) {
+        for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
+            self.skip(stage, "the scene calls for no environment_lighting");
+        }
+    }
+
+    fn transparency(&mut self, scene: &Scene, technique: &TechniqueChoice) {
         let why = format!(
             "the technique is transparency ({}): the medium is rendered from its voxels, with \
              no precomputed visibility",
             technique.reason
         );
         for stage in ["bake_gdm", "occupancy", "compress"] {
-            skip(stage, &why);
+            self.skip(stage, &why);
         }
         if is_height_field(scene) {
-            skip("bake_vdm", &why);
+            self.skip("bake_vdm", &why);
         }
-        // Scene validation refuses environment lighting with transparency.
-        for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
-            skip(stage, "the scene calls for no environment_lighting");
-        }
+        self.skip_radiance_transfer();
         if scene.transparency.mipmap {
-            stages.push("medium_mips");
+            self.run.push("medium_mips");
         } else {
-            skip(
+            self.skip(
                 "medium_mips",
                 "the scene's transparency.mipmap is off: its renderers read level 0 only",
             );
         }
-        stages.push("encode");
-        return Plan {
-            technique,
-            stages: stages.into_iter().map(String::from).collect(),
-            skipped,
-        };
     }
-    if technique.technique == Technique::Vdm {
-        stages.extend(["bake_vdm", "compress_vdm"]);
+
+    fn vdm(&mut self, technique: &TechniqueChoice) {
+        self.run.extend(["bake_vdm", "compress_vdm"]);
         let why = format!("the technique is vdm ({})", technique.reason);
         for stage in ["bake_gdm", "occupancy", "compress"] {
-            skip(stage, &why);
+            self.skip(stage, &why);
         }
-        // Scene validation refuses environment lighting with VDM, and auto never picks it.
-        for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
-            skip(stage, "the scene calls for no environment_lighting");
-        }
-        stages.push("encode");
-        return Plan {
-            technique,
-            stages: stages.into_iter().map(String::from).collect(),
-            skipped,
-        };
+        self.skip_radiance_transfer();
     }
-    if is_height_field(scene) {
-        skip(
-            "bake_vdm",
-            &format!("the technique is gdm ({})", technique.reason),
-        );
-    }
-    let environment = scene.wants(Effect::EnvironmentLighting);
-    match codec {
-        GdmCodec::PaperSvd => {
-            stages.extend(["bake_gdm", "compress"]);
-            skip(
-                "occupancy",
-                "the codec is paper-svd: queries read the compressed GDM",
+
+    fn gdm(&mut self, scene: &Scene, codec: GdmCodec, technique: &TechniqueChoice) {
+        if is_height_field(scene) {
+            self.skip(
+                "bake_vdm",
+                &format!("the technique is gdm ({})", technique.reason),
             );
         }
-        GdmCodec::Occupancy => {
-            if environment {
-                stages.push("bake_gdm");
-            } else {
-                skip(
-                    "bake_gdm",
-                    "the occupancy codec answers GDM queries by ray marching, and the scene \
-                     calls for no environment_lighting (whose RTV needs the baked GDM)",
+        let environment = scene.wants(Effect::EnvironmentLighting);
+        match codec {
+            GdmCodec::PaperSvd => {
+                self.run.extend(["bake_gdm", "compress"]);
+                self.skip(
+                    "occupancy",
+                    "the codec is paper-svd: queries read the compressed GDM",
                 );
             }
-            stages.push("occupancy");
-            skip("compress", "the codec is occupancy: no GDM is stored");
+            GdmCodec::Occupancy => {
+                if environment {
+                    self.run.push("bake_gdm");
+                } else {
+                    self.skip(
+                        "bake_gdm",
+                        "the occupancy codec answers GDM queries by ray marching, and the scene \
+                         calls for no environment_lighting (whose RTV needs the baked GDM)",
+                    );
+                }
+                self.run.push("occupancy");
+                self.skip("compress", "the codec is occupancy: no GDM is stored");
+            }
         }
-    }
-    if environment {
-        stages.extend(["bake_prt", "bake_rtv", "compress_rtv"]);
+        if !environment {
+            self.skip_radiance_transfer();
+            return;
+        }
+        self.run.extend(["bake_prt", "bake_rtv", "compress_rtv"]);
         if !scene.wants(Effect::MacroShadows) {
-            skip(
+            self.skip(
                 "prt_visibility",
                 "the scene calls for no macro_shadows: the PRT is a pure rotation",
             );
         }
         if !scene.wants(Effect::EnvironmentGloss) {
-            skip(
+            self.skip(
                 "rtv_gloss",
                 "the scene calls for no environment_gloss: the RTV is Lambertian",
             );
         }
-    } else {
-        for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
-            skip(stage, "the scene calls for no environment_lighting");
-        }
-    }
-    stages.push("encode");
-    Plan {
-        technique,
-        stages: stages.into_iter().map(String::from).collect(),
-        skipped,
     }
 }
