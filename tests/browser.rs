@@ -345,6 +345,92 @@ async fn upload_bake_and_preview_in_a_browser() {
     })
     .await;
 
+    // The shipped fur scene from the sample-scene list (shrunk): the job's plan picks the
+    // transparency technique, its figures show the medium package, and the preview is drawn
+    // by the translucent-media pipeline.
+    eventually(30, "the sample-scene list", || async {
+        c.execute(
+            "return !!document.querySelector('#sample-scene option[value=\"torus-fur\"]');",
+            vec![],
+        )
+        .await
+        .ok()?
+        .as_bool()
+        .filter(|listed| *listed)
+    })
+    .await;
+    c.execute(
+        "const m = document.getElementById('sample-scene'); m.value = 'torus-fur'; \
+         m.dispatchEvent(new Event('change'));",
+        vec![],
+    )
+    .await
+    .unwrap();
+    eventually(30, "the fur scene in the editor", || async {
+        c.execute(
+            "const t = document.getElementById('scene-json'); const s = JSON.parse(t.value); \
+             if (!s.mesostructure || s.mesostructure.medium !== 'fur') return false; \
+             s.resolution = [16, 16, 8]; s.camera.width = 64; s.camera.height = 64; \
+             s.base_mesh.builtin.torus.segments = [24, 12]; \
+             t.value = JSON.stringify(s, null, 2); \
+             return document.getElementById('sample').value === 'medium:fur';",
+            vec![],
+        )
+        .await
+        .ok()?
+        .as_bool()
+        .filter(|loaded| *loaded)
+    })
+    .await;
+    c.find(Locator::Id("bake-button"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    eventually(
+        120,
+        "a succeeded transparency job with its medium package",
+        || async {
+            c.execute(
+                "const row = [...document.querySelectorAll('#jobs tbody tr')].find((tr) => \
+             tr.querySelector('.job-technique').textContent === 'transparency' && \
+             tr.querySelector('.job-state').textContent === 'succeeded'); \
+             if (row) row.click(); \
+             return !!row && document.getElementById('figures').textContent \
+             .includes('transparency (semi-transparent 3D texture)');",
+                vec![],
+            )
+            .await
+            .ok()?
+            .as_bool()
+            .filter(|done| *done)
+        },
+    )
+    .await;
+    c.find(Locator::Id("preview-button"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    eventually(
+        120,
+        "a preview by the translucent-media pipeline",
+        || async {
+            let v = c
+                .execute(
+                    "const img = document.getElementById('preview'); \
+                 return img.dataset.technique === 'transparency' && img.naturalWidth > 0;",
+                    vec![],
+                )
+                .await
+                .ok()?;
+            v.as_bool().filter(|shown| *shown)
+        },
+    )
+    .await;
+
     // A job put back in the queue after a failed attempt says it is retrying, with the count,
     // and a long error wraps inside the table (the view as the server sends it).
     let retrying = c

@@ -305,8 +305,9 @@ fn the_per_view_order_approximates_the_per_pixel_list() {
     assert_agrees(&c, "per-view order");
 }
 
-/// `mesobake preview` on a translucent scene renders it with the media pipeline, without a
-/// package, and refuses the package options by name.
+/// `mesobake preview` on a translucent scene bakes its medium package and renders it with the
+/// media pipeline, renders a package given with `--package` the same, and refuses the GDM
+/// package options by name.
 #[test]
 fn the_preview_command_renders_translucent_scenes() {
     if gpu().is_none() {
@@ -333,6 +334,28 @@ fn the_preview_command_renders_translucent_scenes() {
     // Shadows by the default deep map: within the software driver's loop budget.
     assert_eq!(json["renderer"], "gpu", "{json}");
     assert!(json["preview"]["mean_frame_seconds"].as_f64().unwrap() > 0.0);
+    let package = dir.path().join("fur.mbpkg");
+    let package = package.to_str().unwrap();
+    succeeds(&["bake", "--scene", scene, "--out", package]);
+    let from_package = dir.path().join("pkg.png");
+    succeeds(&[
+        "preview",
+        "--scene",
+        scene,
+        "--package",
+        package,
+        "--out",
+        from_package.to_str().unwrap(),
+    ]);
+    let c = compare(
+        &Image::read(Path::new(out)).unwrap(),
+        &Image::read(&from_package).unwrap(),
+    )
+    .unwrap();
+    assert!(
+        c.psnr_db >= 60.0 && c.mask_disagreement == 0.0,
+        "the same package, the same image: {c:?}"
+    );
     common::each_fails_with(&[(
         vec![
             "preview",
@@ -343,6 +366,6 @@ fn the_preview_command_renders_translucent_scenes() {
             "--gdm-codec",
             "paper-svd",
         ],
-        "renders without a package",
+        "the scene's technique is transparency",
     )]);
 }

@@ -654,8 +654,8 @@ fn the_cells_affine_error_shrinks_with_the_base_mesh() {
     );
 }
 
-/// `report transparency` on the fur scene (shrunk): one row per setting, the exact cells
-/// nearer the truth than one sample per cell, the WGSL pipeline beside its CPU twin where
+/// `report transparency` on the fur scene (shrunk): one row per setting (the package's
+/// number formats included), the exact cells nearer the truth than one sample per cell, the WGSL pipeline beside its CPU twin where
 /// an adapter exists, its files written; an opaque scene is refused.
 #[test]
 fn report_transparency_measures_each_setting_against_the_truth() {
@@ -696,12 +696,17 @@ fn report_transparency_measures_each_setting_against_the_truth() {
             "coarse deep map",
             "fine deep map",
             "depth map",
-            "per-view order"
+            "per-view order",
+            "package f32",
+            "package u8"
         ],
         "{report}"
     );
     let psnr = |i: usize| rows[i]["error"]["psnr_db"].as_f64().unwrap();
     assert!(psnr(0) > psnr(1), "{report}");
+    // The package's formats: f32 twice f16's bytes, u8 about half (the manifest aside).
+    let bytes = |i: usize| rows[i]["package_bytes"].as_u64().unwrap();
+    assert!(bytes(9) > bytes(0) && bytes(0) > bytes(10), "{report}");
     if !report["adapter"].is_null() {
         // The WGSL pipeline ran (within the software driver's loop budget unshadowed) and
         // agrees with its CPU twin.

@@ -130,8 +130,8 @@ async fn run_async(database_url: Option<&str>, limits: &Limits) -> Result<String
         .json()
         .await
         .map_err(|e| err("upload", e))?;
-    let mut scene: Value = serde_json::from_str(crate::server::preview_api::SAMPLE_SCENE)
-        .map_err(|e| err("scene", e))?;
+    let mut scene: Value =
+        serde_json::from_str(crate::server::scenes::SAMPLE_SCENE).map_err(|e| err("scene", e))?;
     scene["mesostructure"] = json!({ "volume": asset["id"] });
     let job: Value = http
         .post(format!("{base}/jobs"))

@@ -24,6 +24,7 @@ pub mod preview_api;
 pub mod preview_cache;
 pub mod reports;
 pub mod request_limits;
+pub mod scenes;
 pub mod worker;
 
 use crate::error::{Error, Result};
@@ -77,7 +78,8 @@ pub struct AppState {
         packages::get,
         packages::manifest,
         preview_api::render,
-        preview_api::sample_scene,
+        scenes::list,
+        scenes::get,
         reports::codecs,
         health::healthz,
         health::readyz,
@@ -115,7 +117,8 @@ pub fn router(state: AppState) -> Router {
         .route("/packages/{digest}", get(packages::get))
         .route("/packages/{digest}/manifest", get(packages::manifest))
         .route("/preview", post(preview_api::render))
-        .route("/scenes/sample", get(preview_api::sample_scene))
+        .route("/scenes", get(scenes::list))
+        .route("/scenes/{name}", get(scenes::get))
         .route("/reports/codecs", get(reports::codecs))
         .route("/openapi.json", get(openapi))
         .layer(RequestBodyLimitLayer::new(as_usize(config.max_json_bytes)))
@@ -298,7 +301,7 @@ async fn stop_workers(
 /// Queues the bake of the built-in sample scene (a no-op when it was baked before), so that
 /// the web page has a preview at once.
 pub async fn seed_sample(state: &AppState) -> Result<()> {
-    let scene = crate::scene::Scene::from_json(preview_api::SAMPLE_SCENE)?;
+    let scene = crate::scene::Scene::from_json(scenes::SAMPLE_SCENE)?;
     let spec: jobs::JobSpec = serde_json::from_value(serde_json::json!({ "scene": scene }))
         .map_err(|e| Error::Scene(e.to_string()))?;
     let plan = spec.plan(&state.blobs, &state.limits)?;

@@ -1,6 +1,5 @@
 //! `POST /api/v1/preview`: a scene rendered by the real-time pipeline (wgpu) from the package
-//! baked for it, as PNG, cached by (scene, package). `GET /api/v1/scenes/sample`: the built-in
-//! sample scene the web page starts from.
+//! baked for it, as PNG, cached by (scene, package).
 
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
@@ -23,9 +22,6 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 use tokio::sync::Semaphore;
-
-/// The built-in sample scene (`scenes/torus-chain.json`).
-pub const SAMPLE_SCENE: &str = include_str!("../../scenes/torus-chain.json");
 
 /// The header that says which technique's pipeline drew a preview: `gdm` or `vdm` (the
 /// plan's choice for the scene).
@@ -53,12 +49,6 @@ impl Default for PreviewGpu {
             slot: Arc::new(Semaphore::new(1)),
         }
     }
-}
-
-/// The sample scene.
-#[utoipa::path(get, path = "/api/v1/scenes/sample", responses((status = 200, description = "A scene (docs/scene-format.md)")))]
-pub async fn sample_scene() -> impl IntoResponse {
-    ([(header::CONTENT_TYPE, "application/json")], SAMPLE_SCENE)
 }
 
 /// Renders the PNG, opening the device on first use; returns it with the renderer's name.
