@@ -1040,6 +1040,33 @@ async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
             assert_ne!(job["id"], queued["id"], "{key}");
         }
 
+        // An uploaded volume with an opacity channel is found translucent from its header.
+        let medium = mesobake::mesostructure::media::volume(
+            mesobake::mesostructure::media::MediumKind::Clouds,
+            Dims::new(16, 16, 8).unwrap(),
+            &Limits::default(),
+        )
+        .unwrap();
+        let r = reqwest::Client::new()
+            .post(s.url("/api/v1/assets?kind=volume&name=clouds.mbvol"))
+            .body(volume_format::encode(&medium))
+            .send()
+            .await
+            .unwrap();
+        assert!(r.status().is_success());
+        let asset: Value = r.json().await.unwrap();
+        let mut uploaded = scene.clone();
+        uploaded["mesostructure"] = json!({ "volume": asset["id"] });
+        let (status, job) = submit(&s, &json!({ "scene": uploaded })).await;
+        assert_eq!(status, 202, "{job}");
+        assert_eq!(
+            job["plan"]["technique"]["technique"], "transparency",
+            "{job}"
+        );
+        uploaded["technique"] = json!("gdm");
+        let (status, refused) = submit(&s, &json!({ "scene": uploaded })).await;
+        assert_eq!(status, 422, "{refused}");
+
         let id = queued["id"].as_str().unwrap().to_owned();
         let stop = Arc::new(AtomicBool::new(false));
         spawn_workers(&s.state, 1, &stop);

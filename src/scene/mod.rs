@@ -664,7 +664,7 @@ impl LoadedScene {
     /// What the technique's choice needs to know of the scene's surface.
     pub fn surface(&self) -> technique::Surface {
         technique::Surface::of(&self.base_report, &self.shell)
-            .with_translucent_file(self.medium.is_some())
+            .with_translucent(self.medium.is_some())
     }
 
     /// Refuses a translucent mesostructure for `what`, which only represents opaque ones.

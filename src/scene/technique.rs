@@ -82,9 +82,9 @@ pub struct Surface {
     /// The relief's depth in tiles on the shell ([`super::vdm::relief_depth`]); none where the
     /// shell has no area to map a relief onto.
     pub relief_depth: Option<f64>,
-    /// Whether the mesostructure's file is a translucent medium (a volume with an opacity
-    /// channel), which the scene's text does not tell.
-    pub translucent_file: bool,
+    /// Whether the mesostructure as loaded is a translucent medium: what the scene's text does
+    /// not tell of a volume file with an opacity channel.
+    pub translucent: bool,
 }
 
 impl Surface {
@@ -93,14 +93,14 @@ impl Surface {
         Surface {
             boundary_edges: base.boundary_edges,
             relief_depth: super::vdm::relief_depth(shell).ok(),
-            translucent_file: false,
+            translucent: false,
         }
     }
 
-    /// This surface, with a mesostructure file that is (or is not) a translucent medium.
-    pub fn with_translucent_file(self, translucent_file: bool) -> Surface {
+    /// This surface, with a mesostructure that is (or is not) a translucent medium.
+    pub fn with_translucent(self, translucent: bool) -> Surface {
         Surface {
-            translucent_file,
+            translucent,
             ..self
         }
     }
@@ -125,7 +125,7 @@ pub fn check(scene: &Scene, choice: &TechniqueChoice, surface: &Surface) -> Resu
     if choice.technique == Technique::Transparency {
         return Ok(());
     }
-    if matches!(scene.mesostructure, MesostructureSource::Medium(_)) || surface.translucent_file {
+    if matches!(scene.mesostructure, MesostructureSource::Medium(_)) || surface.translucent {
         let what = match choice.technique {
             Technique::Vdm => "a VDM",
             _ => "a GDM",
@@ -211,7 +211,7 @@ pub fn choose(scene: &Scene, surface: &Surface) -> TechniqueChoice {
             Technique::Transparency,
             "the scene asks for transparency".to_owned(),
         ),
-        Technique::Auto if is_translucent(scene) || surface.translucent_file => (
+        Technique::Auto if is_translucent(scene) || surface.translucent => (
             Technique::Transparency,
             if scene.wants(Effect::Transparency) {
                 "auto: the scene calls for the transparency effect"

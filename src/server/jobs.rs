@@ -70,12 +70,12 @@ impl JobSpec {
         let mut scene = self.scene.clone();
         resolve_assets(&mut scene, blobs)?;
         let (base, report) = load_base_mesh(&scene, Path::new("/"), limits)?;
-        let translucent_file = match &scene.mesostructure {
+        let translucent = match &scene.mesostructure {
             MesostructureSource::Volume(path) => volume_format::has_opacity(path, limits)?,
             _ => false,
         };
-        let surface = Surface::of(&report, &Shell::new(&base, scene.shell)?)
-            .with_translucent_file(translucent_file);
+        let surface =
+            Surface::of(&report, &Shell::new(&base, scene.shell)?).with_translucent(translucent);
         let technique = choose(&scene, &surface);
         check(&scene, &technique, &surface)?;
         check_params(&technique, self.package_params())?;
