@@ -107,6 +107,16 @@ pub struct MediumLevel {
     pub normals: Vec<[f32; 3]>,
 }
 
+/// The number format of the normals of a package quantized to `q`: `q`, but f16 for u8: an
+/// 8-bit code of a component's range cannot hold zero exactly, and the zero gradient inside
+/// uniform medium (which has no normal) must decode to zero.
+pub fn normal_quantization(q: Quantization) -> Quantization {
+    match q {
+        Quantization::U8 => Quantization::F16,
+        q => q,
+    }
+}
+
 /// The 3D texture of a level's section in `q`.
 fn level_texture(res: [u32; 3], q: Quantization) -> Texture {
     Texture {
@@ -165,9 +175,9 @@ impl MediumPackage {
             }
             let n = d.voxel_count() as usize;
             assert!(level.voxels.len() == n && level.normals.len() == n);
-            let texture = level_texture(res, q);
             let [voxel_name, normal_name] = section_names(l);
-            let mut factor = |values: Vec<f32>, components: usize, name: &str| {
+            let mut factor = |values: Vec<f32>, components: usize, q, name: &str| {
+                let texture = level_texture(res, q);
                 let f = QuantizedFactor::new(&values, components, q);
                 payloads.push(f.pack_group(0..n, components, 0, &texture));
                 sections.push(Section::new(name, texture));
@@ -180,7 +190,7 @@ impl MediumPackage {
                 (info, values, decoded)
             };
             let (voxels, values, decoded) =
-                factor(level.voxels.concat(), VOXEL_COMPONENTS, &voxel_name);
+                factor(level.voxels.concat(), VOXEL_COMPONENTS, q, &voxel_name);
             for c in 0..VOXEL_COMPONENTS {
                 let column = |v: &[f32]| -> Vec<f32> {
                     v.iter()
@@ -197,8 +207,12 @@ impl MediumPackage {
                 };
                 *slot = slot.max(e);
             }
-            let (normals, values, decoded) =
-                factor(level.normals.concat(), NORMAL_COMPONENTS, &normal_name);
+            let (normals, values, decoded) = factor(
+                level.normals.concat(),
+                NORMAL_COMPONENTS,
+                normal_quantization(q),
+                &normal_name,
+            );
             accuracy.normal_max_abs = accuracy.normal_max_abs.max(max_abs(&values, &decoded));
             infos.push(LevelInfo {
                 res,
@@ -259,9 +273,9 @@ impl MediumPackage {
                 )));
             }
             let n = dims.voxel_count() as usize;
-            let texture = level_texture(level.res, q);
             let names = section_names(l);
-            let decode = |f: &FactorInfo, name: &String, components: usize| {
+            let decode = |f: &FactorInfo, name: &String, components: usize, q| {
+                let texture = level_texture(level.res, q);
                 if f.sections != [name.clone()]
                     || f.scale.len() != components
                     || f.bias.len() != components
@@ -279,8 +293,13 @@ impl MediumPackage {
                         .dequantize(),
                 )
             };
-            let voxels = decode(&level.voxels, &names[0], VOXEL_COMPONENTS)?;
-            let normals = decode(&level.normals, &names[1], NORMAL_COMPONENTS)?;
+            let voxels = decode(&level.voxels, &names[0], VOXEL_COMPONENTS, q)?;
+            let normals = decode(
+                &level.normals,
+                &names[1],
+                NORMAL_COMPONENTS,
+                normal_quantization(q),
+            )?;
             let voxels: Vec<[f32; 4]> = voxels
                 .chunks_exact(4)
                 .map(|c| [c[0], c[1], c[2], c[3]])
@@ -395,13 +414,17 @@ mod tests {
         let acc = u8.manifest().medium.accuracy;
         assert!(acc.opacity_max_abs <= 0.5 / 255.0 + 1e-6, "{acc:?}");
         assert!(acc.opacity_max_abs > 0.0 && acc.colour_max_abs <= 0.5 / 255.0 + 1e-6);
-        // Opaque and empty voxels stay exactly so in every format.
-        for p in [&f16, &u8] {
-            for (got, want) in p.levels()[0].voxels.iter().zip(&levels[0].voxels) {
+        // Opaque and empty voxels, and zero gradients, stay exactly so in every format.
+        let mut zero = levels.clone();
+        zero[0].normals[5] = [0.0; 3];
+        for q in [Quantization::F16, Quantization::U8] {
+            let p = MediumPackage::parse(MediumPackage::encode(input(), q, &zero)).unwrap();
+            for (got, want) in p.levels()[0].voxels.iter().zip(&zero[0].voxels) {
                 if want[3] == 1.0 || want[3] == 0.0 {
                     assert_eq!(got[3], want[3]);
                 }
             }
+            assert_eq!(p.levels()[0].normals[5], [0.0; 3], "{q}");
         }
     }
 
