@@ -78,7 +78,8 @@ pub struct TransparencySettings {
     pub shadow_map_size: u32,
     /// Transmittance levels whose depths a deep-map texel stores.
     pub shadow_levels: u32,
-    /// Number format of the medium package's textures (`f32` exact, `f16` or `u8`).
+    /// Number format of the medium package's colour and opacity (`f32` exact, `f16` or `u8`;
+    /// normals never below f16).
     pub quantization: Quantization,
 }
 
@@ -99,7 +100,8 @@ impl Default for TransparencySettings {
     /// takes 10 to 15 per image); no mip-map, so that one ray per pixel integrates what the
     /// ground truth integrates; with it, one level sharper than the footprint's (averaged
     /// opacity darkens shadows through coarse voxels: on the fur scene bias −1 measured
-    /// nearest a supersampled truth).
+    /// nearest a supersampled truth); packages in f16 (as close to the truth as f32 on every
+    /// sample scene, at half the bytes: docs/BENCHMARKS.md).
     fn default() -> Self {
         TransparencySettings {
             integration: CellIntegration::Exact,
