@@ -70,29 +70,55 @@ pub fn sample(args: SampleArgs, limits: &Limits) -> Result<()> {
 /// Options of `mesobake import`.
 #[derive(clap::Args)]
 pub struct ImportArgs {
-    /// Raw RGBA voxels: x fastest, then y, then z; RGB sRGB-encoded, A the opacity per voxel
-    /// length.
-    raw: PathBuf,
+    /// The voxels: a raw file (x fastest, then y, then z; RGB sRGB-encoded, A the opacity
+    /// per voxel length) or an OpenEXR image (linear RGB, A the opacity; the Z slices
+    /// stacked downwards, X wide and Y·Z tall).
+    input: PathBuf,
     /// Grid X×Y×Z of the file.
     #[arg(long)]
     res: Dims,
-    /// How each channel is stored.
-    #[arg(long, value_enum, default_value_t = RawFormat::Rgba8)]
-    format: RawFormat,
+    /// How the file stores the voxels.
+    #[arg(long, value_enum, default_value_t = ImportFormat::Rgba8)]
+    format: ImportFormat,
     /// Output volume (.mbvol, version 2).
     #[arg(long)]
     out: PathBuf,
 }
 
-/// Reads the raw medium (its size checked before it is read) and writes it as a volume.
+/// The file formats `mesobake import` reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ImportFormat {
+    /// Raw, one byte per channel, value/255.
+    Rgba8,
+    /// Raw, one little-endian f32 per channel, in [0, 1].
+    Rgba32f,
+    /// OpenEXR, the first layer's R, G, B and A channels.
+    Exr,
+}
+
+/// Reads the medium (its size checked before its voxels are read) and writes it as a volume.
 pub fn import(args: ImportArgs, limits: &Limits) -> Result<()> {
-    let len = std::fs::metadata(&args.raw)
-        .map_err(|e| Error::io(&args.raw, e))?
+    let ImportArgs {
+        input,
+        res,
+        format,
+        out,
+    } = args;
+    let raw = match format {
+        ImportFormat::Rgba8 => RawFormat::Rgba8,
+        ImportFormat::Rgba32f => RawFormat::Rgba32f,
+        ImportFormat::Exr => {
+            let volume = raw_medium::medium_from_exr(&input, res, limits)?;
+            return volume_format::write(&volume, &out);
+        }
+    };
+    let len = std::fs::metadata(&input)
+        .map_err(|e| Error::io(&input, e))?
         .len();
-    raw_medium::check_size(len, args.res, args.format, limits)?;
-    let bytes = std::fs::read(&args.raw).map_err(|e| Error::io(&args.raw, e))?;
-    let volume = raw_medium::medium_from_raw(&bytes, args.res, args.format, limits)?;
-    volume_format::write(&volume, &args.out)
+    raw_medium::check_size(len, res, raw, limits)?;
+    let bytes = std::fs::read(&input).map_err(|e| Error::io(&input, e))?;
+    let volume = raw_medium::medium_from_raw(&bytes, res, raw, limits)?;
+    volume_format::write(&volume, &out)
 }
 
 /// Options of `mesobake demo`.
