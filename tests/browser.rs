@@ -67,6 +67,29 @@ where
     }
 }
 
+/// Polls `script` (JavaScript returning a boolean) until it returns true, failing after
+/// `secs` seconds with `what`.
+async fn until_true(c: &fantoccini::Client, secs: u64, what: &str, script: &str) {
+    eventually(secs, what, || async {
+        c.execute(script, vec![])
+            .await
+            .ok()?
+            .as_bool()
+            .filter(|done| *done)
+    })
+    .await;
+}
+
+/// Clicks the element with id `id`.
+async fn click(c: &fantoccini::Client, id: &str) {
+    c.find(Locator::Id(id))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn upload_bake_and_preview_in_a_browser() {
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
@@ -306,58 +329,36 @@ async fn upload_bake_and_preview_in_a_browser() {
         chosen,
         serde_json::json!([{ "relief": "bumps" }, true, "auto"])
     );
-    c.find(Locator::Id("bake-button"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
-    eventually(120, "a succeeded VDM job in the list", || async {
-        c.execute(
-            "return [...document.querySelectorAll('#jobs tbody tr')].some((tr) => \
-             tr.querySelector('.job-technique').textContent === 'vdm' && \
-             tr.querySelector('.job-state').textContent === 'succeeded');",
-            vec![],
-        )
-        .await
-        .ok()?
-        .as_bool()
-        .filter(|done| *done)
-    })
+    click(&c, "bake-button").await;
+    until_true(
+        &c,
+        120,
+        "a succeeded VDM job in the list",
+        "return [...document.querySelectorAll('#jobs tbody tr')].some((tr) => \
+         tr.querySelector('.job-technique').textContent === 'vdm' && \
+         tr.querySelector('.job-state').textContent === 'succeeded');",
+    )
     .await;
-    c.find(Locator::Id("preview-button"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
-    eventually(120, "a preview by the VDM pipeline", || async {
-        let v = c
-            .execute(
-                "const img = document.getElementById('preview'); \
-                 return img.dataset.technique === 'vdm' && img.naturalWidth > 0 && \
-                 document.getElementById('preview-status').textContent.includes('VDM pipeline');",
-                vec![],
-            )
-            .await
-            .ok()?;
-        v.as_bool().filter(|shown| *shown)
-    })
+    click(&c, "preview-button").await;
+    until_true(
+        &c,
+        120,
+        "a preview by the VDM pipeline",
+        "const img = document.getElementById('preview'); \
+         return img.dataset.technique === 'vdm' && img.naturalWidth > 0 && \
+         document.getElementById('preview-status').textContent.includes('VDM pipeline');",
+    )
     .await;
 
     // The shipped fur scene from the sample-scene list (shrunk): the job's plan picks the
     // transparency technique, its figures show the medium package, and the preview is drawn
     // by the translucent-media pipeline.
-    eventually(30, "the sample-scene list", || async {
-        c.execute(
-            "return !!document.querySelector('#sample-scene option[value=\"torus-fur\"]');",
-            vec![],
-        )
-        .await
-        .ok()?
-        .as_bool()
-        .filter(|listed| *listed)
-    })
+    until_true(
+        &c,
+        30,
+        "the sample-scene list",
+        "return !!document.querySelector('#sample-scene option[value=\"torus-fur\"]');",
+    )
     .await;
     c.execute(
         "const m = document.getElementById('sample-scene'); m.value = 'torus-fur'; \
@@ -366,68 +367,38 @@ async fn upload_bake_and_preview_in_a_browser() {
     )
     .await
     .unwrap();
-    eventually(30, "the fur scene in the editor", || async {
-        c.execute(
-            "const t = document.getElementById('scene-json'); const s = JSON.parse(t.value); \
-             if (!s.mesostructure || s.mesostructure.medium !== 'fur') return false; \
-             s.resolution = [16, 16, 8]; s.camera.width = 64; s.camera.height = 64; \
-             s.base_mesh.builtin.torus.segments = [24, 12]; \
-             t.value = JSON.stringify(s, null, 2); \
-             return document.getElementById('sample').value === 'medium:fur';",
-            vec![],
-        )
-        .await
-        .ok()?
-        .as_bool()
-        .filter(|loaded| *loaded)
-    })
-    .await;
-    c.find(Locator::Id("bake-button"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
-    eventually(
-        120,
-        "a succeeded transparency job with its medium package",
-        || async {
-            c.execute(
-                "const row = [...document.querySelectorAll('#jobs tbody tr')].find((tr) => \
-             tr.querySelector('.job-technique').textContent === 'transparency' && \
-             tr.querySelector('.job-state').textContent === 'succeeded'); \
-             if (row) row.click(); \
-             return !!row && document.getElementById('figures').textContent \
-             .includes('transparency (semi-transparent 3D texture)');",
-                vec![],
-            )
-            .await
-            .ok()?
-            .as_bool()
-            .filter(|done| *done)
-        },
+    until_true(
+        &c,
+        30,
+        "the fur scene in the editor",
+        "const t = document.getElementById('scene-json'); const s = JSON.parse(t.value); \
+         if (!s.mesostructure || s.mesostructure.medium !== 'fur') return false; \
+         s.resolution = [16, 16, 8]; s.camera.width = 64; s.camera.height = 64; \
+         s.base_mesh.builtin.torus.segments = [24, 12]; \
+         t.value = JSON.stringify(s, null, 2); \
+         return document.getElementById('sample').value === 'medium:fur';",
     )
     .await;
-    c.find(Locator::Id("preview-button"))
-        .await
-        .unwrap()
-        .click()
-        .await
-        .unwrap();
-    eventually(
+    click(&c, "bake-button").await;
+    until_true(
+        &c,
+        120,
+        "a succeeded transparency job with its medium package",
+        "const row = [...document.querySelectorAll('#jobs tbody tr')].find((tr) => \
+         tr.querySelector('.job-technique').textContent === 'transparency' && \
+         tr.querySelector('.job-state').textContent === 'succeeded'); \
+         if (row) row.click(); \
+         return !!row && document.getElementById('figures').textContent \
+         .includes('transparency (semi-transparent 3D texture)');",
+    )
+    .await;
+    click(&c, "preview-button").await;
+    until_true(
+        &c,
         120,
         "a preview by the translucent-media pipeline",
-        || async {
-            let v = c
-                .execute(
-                    "const img = document.getElementById('preview'); \
-                 return img.dataset.technique === 'transparency' && img.naturalWidth > 0;",
-                    vec![],
-                )
-                .await
-                .ok()?;
-            v.as_bool().filter(|shown| *shown)
-        },
+        "const img = document.getElementById('preview'); \
+         return img.dataset.technique === 'transparency' && img.naturalWidth > 0;",
     )
     .await;
 

@@ -93,6 +93,39 @@ async fn wait_for(s: &TestServer, id: &str, until: impl Fn(&Value) -> bool) -> V
     }
 }
 
+/// The manifest and the package (of any kind) of succeeded job `done`, downloaded.
+async fn fetch_any(s: &TestServer, done: &Value) -> (Value, mesobake::package::AnyPackage) {
+    let digest = done["package_digest"].as_str().unwrap();
+    let manifest: Value = reqwest::get(s.url(&format!("/api/v1/packages/{digest}/manifest")))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let package = mesobake::package::AnyPackage::parse(bytes.to_vec()).unwrap();
+    (manifest, package)
+}
+
+/// The preview of `scene` (which must succeed): the technique that drew it and the PNG.
+async fn preview_png(s: &TestServer, scene: &Value) -> (String, Vec<u8>) {
+    let r = reqwest::Client::new()
+        .post(s.url("/api/v1/preview"))
+        .json(&json!({ "scene": scene }))
+        .send()
+        .await
+        .unwrap();
+    let (status, technique) = (r.status(), r.headers().get("x-mesobake-technique").cloned());
+    let png = r.bytes().await.unwrap().to_vec();
+    assert_eq!(status, 200, "{}", String::from_utf8_lossy(&png));
+    (technique.unwrap().to_str().unwrap().to_owned(), png)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn jobs_bake_once_report_progress_and_reuse_results() {
     let dir = tempfile::tempdir().unwrap();
@@ -901,35 +934,14 @@ async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeli
             "{done}"
         );
         assert!(done["timings"].get("bake_gdm").is_none(), "{done}");
-        let digest = done["package_digest"].as_str().unwrap();
-        let manifest: Value = reqwest::get(s.url(&format!("/api/v1/packages/{digest}/manifest")))
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
+        let (manifest, package) = fetch_any(&s, &done).await;
         assert_eq!(manifest["format"], "mesobake-vdm-package", "{manifest}");
         assert_eq!(manifest["bake"]["grid"]["n_curvature"], 4, "{manifest}");
-        let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
-            .await
-            .unwrap()
-            .bytes()
-            .await
-            .unwrap();
-        let package = AnyPackage::parse(bytes.to_vec()).unwrap();
         assert!(matches!(package, AnyPackage::Vdm(_)));
 
         // The preview draws it by the VDM pipeline, as its CPU specification does.
-        let r = reqwest::Client::new()
-            .post(s.url("/api/v1/preview"))
-            .json(&json!({ "scene": scene }))
-            .send()
-            .await
-            .unwrap();
-        let (status, technique) = (r.status(), r.headers().get("x-mesobake-technique").cloned());
-        let png = r.bytes().await.unwrap();
-        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&png));
-        assert_eq!(technique.unwrap(), "vdm");
+        let (technique, png) = preview_png(&s, &scene).await;
+        assert_eq!(technique, "vdm");
         let shown = data.path().join("preview.png");
         std::fs::write(&shown, &png).unwrap();
         let loaded = LoadedScene::load(
@@ -1072,23 +1084,10 @@ async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
         spawn_workers(&s.state, 1, &stop);
         let done = wait_for(&s, &id, |j| j["state"] == "succeeded").await;
         assert!(done["timings"].get("bake_gdm").is_none(), "{done}");
-        let digest = done["package_digest"].as_str().unwrap();
-        let manifest: Value = reqwest::get(s.url(&format!("/api/v1/packages/{digest}/manifest")))
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
+        let (manifest, package) = fetch_any(&s, &done).await;
         assert_eq!(manifest["format"], "mesobake-medium-package", "{manifest}");
         let levels = manifest["medium"]["levels"].as_array().unwrap();
         assert_eq!(levels.len(), 4, "16×16×8 halves to 2×2×1: {manifest}");
-        let bytes = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
-            .await
-            .unwrap()
-            .bytes()
-            .await
-            .unwrap();
-        let package = AnyPackage::parse(bytes.to_vec()).unwrap();
         assert!(matches!(package, AnyPackage::Medium(_)));
 
         // Every job baked (the other settings' too), so that only a new job could change the list.
@@ -1113,17 +1112,8 @@ async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
         };
         // Both surfaces preview from that one package, as its CPU specification renders them.
         for shown_scene in [&scene, &animated] {
-            let r = reqwest::Client::new()
-                .post(s.url("/api/v1/preview"))
-                .json(&json!({ "scene": shown_scene }))
-                .send()
-                .await
-                .unwrap();
-            let (status, technique) =
-                (r.status(), r.headers().get("x-mesobake-technique").cloned());
-            let png = r.bytes().await.unwrap();
-            assert_eq!(status, 200, "{}", String::from_utf8_lossy(&png));
-            assert_eq!(technique.unwrap(), "transparency");
+            let (technique, png) = preview_png(&s, shown_scene).await;
+            assert_eq!(technique, "transparency");
             let shown = data.path().join("preview.png");
             std::fs::write(&shown, &png).unwrap();
             let loaded = LoadedScene::load(

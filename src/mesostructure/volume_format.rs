@@ -199,13 +199,7 @@ pub fn decode(bytes: &[u8], limits: &Limits) -> Result<Volume> {
 /// Whether the `.mbvol` file at `path` holds an opacity channel (a translucent medium), from
 /// its validated header alone.
 pub fn has_opacity(path: &Path, limits: &Limits) -> Result<bool> {
-    use std::io::Read;
-    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
-    let mut header = vec![0u8; HEADER_BYTES.min(len as usize)];
-    file.read_exact(&mut header)
-        .map_err(|e| Error::io(path, e))?;
-    let (_, channels, _) = parse_header(&header, len, limits)?;
+    let (_, _, channels) = open_checked(path, limits)?;
     Ok(channels & CHANNEL_OPACITY != 0)
 }
 
@@ -213,17 +207,25 @@ pub fn has_opacity(path: &Path, limits: &Limits) -> Result<bool> {
 /// payload.
 pub fn read(path: &Path, limits: &Limits) -> Result<Volume> {
     use std::io::Read;
+    let (mut file, mut bytes, _) = open_checked(path, limits)?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    bytes.reserve_exact((len as usize).saturating_sub(HEADER_BYTES));
+    file.read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    decode(&bytes, limits)
+}
+
+/// Opens the `.mbvol` file at `path` and validates its header against the file's size and
+/// `limits`; returns the file (positioned after the header), the header and its channels.
+fn open_checked(path: &Path, limits: &Limits) -> Result<(std::fs::File, Vec<u8>, u32)> {
+    use std::io::Read;
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut header = vec![0u8; HEADER_BYTES.min(len as usize)];
     file.read_exact(&mut header)
         .map_err(|e| Error::io(path, e))?;
-    parse_header(&header, len, limits)?;
-    let mut bytes = header;
-    bytes.reserve_exact((len as usize).saturating_sub(HEADER_BYTES));
-    file.read_to_end(&mut bytes)
-        .map_err(|e| Error::io(path, e))?;
-    decode(&bytes, limits)
+    let (_, channels, _) = parse_header(&header, len, limits)?;
+    Ok((file, header, channels))
 }
 
 /// Writes `volume` to `path` atomically (temporary file, then rename).

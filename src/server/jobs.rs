@@ -94,38 +94,41 @@ impl JobSpec {
     /// environment, which a package does not hold.
     pub fn dedup_key(&self, technique: Technique) -> String {
         let s = &self.scene;
-        if technique == Technique::Transparency {
+        let hash = |key: serde_json::Value| {
+            blake3::hash(key.to_string().as_bytes())
+                .to_hex()
+                .to_string()
+        };
+        let version = crate::package::container::VERSION;
+        match technique {
             // Nothing in a medium package depends on the base mesh or the shell: an animated
             // surface reuses it.
-            let key = serde_json::json!({
-                "version": crate::package::container::VERSION,
-                "technique": technique,
-                "mesostructure": s.mesostructure,
-                "resolution": s.resolution,
-                "mipmap": s.transparency.mipmap,
-                "quantization": s.transparency.quantization,
-            });
-            return blake3::hash(key.to_string().as_bytes())
-                .to_hex()
-                .to_string();
-        }
-        if technique == Technique::Vdm {
-            let key = serde_json::json!({
-                "version": crate::package::container::VERSION,
-                "technique": technique,
-                "mesostructure": s.mesostructure,
-                "resolution": s.resolution,
-                "vdm": s.vdm,
-                "base_mesh": s.base_mesh,
-                "mesh_scale": s.mesh_scale,
-                "shell": s.shell,
-            });
-            return blake3::hash(key.to_string().as_bytes())
-                .to_hex()
-                .to_string();
+            Technique::Transparency => {
+                return hash(serde_json::json!({
+                    "version": version,
+                    "technique": technique,
+                    "mesostructure": s.mesostructure,
+                    "resolution": s.resolution,
+                    "mipmap": s.transparency.mipmap,
+                    "quantization": s.transparency.quantization,
+                }));
+            }
+            Technique::Vdm => {
+                return hash(serde_json::json!({
+                    "version": version,
+                    "technique": technique,
+                    "mesostructure": s.mesostructure,
+                    "resolution": s.resolution,
+                    "vdm": s.vdm,
+                    "base_mesh": s.base_mesh,
+                    "mesh_scale": s.mesh_scale,
+                    "shell": s.shell,
+                }));
+            }
+            Technique::Gdm | Technique::Auto => {}
         }
         let mut key = serde_json::json!({
-            "version": crate::package::container::VERSION,
+            "version": version,
             "mesostructure": s.mesostructure,
             "resolution": s.resolution,
             "directions": s.directions,
@@ -149,9 +152,7 @@ impl JobSpec {
                 "effects": effects,
             });
         }
-        blake3::hash(key.to_string().as_bytes())
-            .to_hex()
-            .to_string()
+        hash(key)
     }
 }
 
