@@ -247,6 +247,33 @@ fn scenes_and_packages_that_do_not_fit_are_refused_by_name() {
             .to_string();
         assert!(e.contains(expected), "{edit}: {e}");
     }
+    // A volume file whose header has an opacity channel is found translucent when the scene
+    // is loaded: environment lighting is refused then, before anything is baked.
+    let dir = tempfile::tempdir().unwrap();
+    let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
+    let clouds = mesobake::mesostructure::media::volume(
+        mesobake::mesostructure::media::MediumKind::Clouds,
+        dims,
+        &Limits::default(),
+    )
+    .unwrap();
+    mesobake::mesostructure::volume_format::write(&clouds, &dir.path().join("c.mbvol")).unwrap();
+    let mut lit = fur();
+    lit["mesostructure"] = json!({ "volume": "c.mbvol" });
+    lit["effects"] = json!(["environment_lighting"]);
+    lit["environment"] =
+        json!({ "sky": { "overcast": { "zenith": [1, 1, 1], "ground": [0, 0, 0] } } });
+    let scene = Scene::from_json(&lit.to_string()).unwrap();
+    let loaded = LoadedScene::load(scene, dir.path(), &Limits::default()).unwrap();
+    let params = ScenePackageParams::default();
+    let e = bake_scene_package(&loaded, dir.path(), params, &Limits::default(), &())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("the translucent-media pipeline shades point"),
+        "{e}"
+    );
     // A package baked without the mip-map cannot serve a scene that filters.
     let flat = package(&load(&fur()));
     let mut filtered = fur();

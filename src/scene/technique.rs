@@ -120,9 +120,13 @@ impl Surface {
 
 /// Checks that a scene whose technique is `choice` can bake it on `surface`: a VDM's grid
 /// must hold the relief's depth; neither the GDM nor the VDM represents a translucent
-/// medium.
+/// medium; the translucent-media pipeline takes no environment lighting (a volume file's
+/// opacity channel is found only here).
 pub fn check(scene: &Scene, choice: &TechniqueChoice, surface: &Surface) -> Result<()> {
     if choice.technique == Technique::Transparency {
+        if scene.wants(Effect::EnvironmentLighting) {
+            return Err(Error::Scene(MEDIA_TAKE_NO_ENVIRONMENT.into()));
+        }
         return Ok(());
     }
     if matches!(scene.mesostructure, MesostructureSource::Medium(_)) || surface.translucent {
@@ -150,6 +154,11 @@ pub fn is_height_field(scene: &Scene) -> bool {
     )
 }
 
+/// Why a translucent scene cannot have environment lighting.
+const MEDIA_TAKE_NO_ENVIRONMENT: &str = "the translucent-media pipeline shades point, \
+     directional and ambient lights: environment_lighting needs the RTV, which is baked from \
+     the GDM of an opaque mesostructure";
+
 /// Whether the scene calls for the translucent-media pipeline: it names the technique or the
 /// `transparency` effect, or its mesostructure is a built-in medium. (A volume file with an
 /// opacity channel is found translucent when it is read.)
@@ -166,15 +175,13 @@ pub fn validate(scene: &Scene) -> Result<()> {
     let opaque_only = matches!(scene.technique, Technique::Gdm | Technique::Vdm);
     if opaque_only && scene.wants(Effect::Transparency) {
         return Err(Error::Scene(format!(
-            "technique {} renders opaque mesostructure only: the transparency effect needs              the transparency technique (or auto)",
+            "technique {} renders opaque mesostructure only: the transparency effect needs \
+             the transparency technique (or auto)",
             scene.technique.name()
         )));
     }
     if is_translucent(scene) && scene.wants(Effect::EnvironmentLighting) {
-        return Err(Error::Scene(
-            "the translucent-media pipeline shades point, directional and ambient lights:              environment_lighting needs the RTV, which is baked from the GDM of an opaque              mesostructure"
-                .into(),
-        ));
+        return Err(Error::Scene(MEDIA_TAKE_NO_ENVIRONMENT.into()));
     }
     if scene.technique != Technique::Vdm {
         return Ok(());
