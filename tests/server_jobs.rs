@@ -126,6 +126,29 @@ async fn preview_png(s: &TestServer, scene: &Value) -> (String, Vec<u8>) {
     (technique.unwrap().to_str().unwrap().to_owned(), png)
 }
 
+/// Asserts that `png`, the server's preview of `scene`, is what the real-time pipeline's CPU
+/// twin renders from `package` (≥ 35 dB, mask ≤ 0.5 %), and that both show the mesostructure
+/// in more than a tenth of the pixels of the 48² image.
+fn assert_previews_as_its_cpu_twin(
+    png: &[u8],
+    scene: &Value,
+    package: &mesobake::package::AnyPackage,
+    dir: &std::path::Path,
+) {
+    use mesobake::render::image::{Image, compare};
+    use mesobake::scene::preview::render_on_cpu;
+    use mesobake::scene::{LoadedScene, Scene};
+    let shown = dir.join("preview.png");
+    std::fs::write(&shown, png).unwrap();
+    let shown = Image::read(&shown).unwrap();
+    let scene = Scene::from_json(&scene.to_string()).unwrap();
+    let loaded = LoadedScene::load(scene, dir, &Limits::default()).unwrap();
+    let expected = render_on_cpu(&loaded, package).unwrap();
+    let c = compare(&expected, &shown).unwrap();
+    assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
+    assert!(expected.hits() > 48 * 48 / 10 && shown.hits() > 48 * 48 / 10);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn jobs_bake_once_report_progress_and_reuse_results() {
     let dir = tempfile::tempdir().unwrap();
@@ -856,9 +879,6 @@ async fn an_s3_blob_store_is_shared_by_servers_on_other_machines() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeline() {
     use mesobake::package::AnyPackage;
-    use mesobake::render::image::{Image, compare};
-    use mesobake::scene::preview::render_on_cpu;
-    use mesobake::scene::{LoadedScene, Scene};
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
         eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
         return;
@@ -942,26 +962,7 @@ async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeli
         // The preview draws it by the VDM pipeline, as its CPU specification does.
         let (technique, png) = preview_png(&s, &scene).await;
         assert_eq!(technique, "vdm");
-        let shown = data.path().join("preview.png");
-        std::fs::write(&shown, &png).unwrap();
-        let loaded = LoadedScene::load(
-            Scene::from_json(&scene.to_string()).unwrap(),
-            dir.path(),
-            &Limits::default(),
-        )
-        .unwrap();
-        let expected = data.path().join("cpu.png");
-        render_on_cpu(&loaded, &package)
-            .unwrap()
-            .write(&expected)
-            .unwrap();
-        let c = compare(
-            &Image::read(&expected).unwrap(),
-            &Image::read(&shown).unwrap(),
-        )
-        .unwrap();
-        assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
-        assert!(Image::read(&shown).unwrap().hits() > 48 * 48 / 10);
+        assert_previews_as_its_cpu_twin(&png, &scene, &package, data.path());
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
     }
 }
@@ -969,9 +970,6 @@ async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeli
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
     use mesobake::package::AnyPackage;
-    use mesobake::render::image::{Image, compare};
-    use mesobake::scene::preview::render_on_cpu;
-    use mesobake::scene::{LoadedScene, Scene};
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
         eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
         return;
@@ -1114,18 +1112,7 @@ async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
         for shown_scene in [&scene, &animated] {
             let (technique, png) = preview_png(&s, shown_scene).await;
             assert_eq!(technique, "transparency");
-            let shown = data.path().join("preview.png");
-            std::fs::write(&shown, &png).unwrap();
-            let loaded = LoadedScene::load(
-                Scene::from_json(&shown_scene.to_string()).unwrap(),
-                dir.path(),
-                &Limits::default(),
-            )
-            .unwrap();
-            let expected = render_on_cpu(&loaded, &package).unwrap();
-            let c = compare(&expected, &Image::read(&shown).unwrap()).unwrap();
-            assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
-            assert!(expected.hits() > 48 * 48 / 10);
+            assert_previews_as_its_cpu_twin(&png, shown_scene, &package, data.path());
         }
         let jobs_after: Value = reqwest::get(s.url("/api/v1/jobs"))
             .await

@@ -79,11 +79,11 @@ impl Medium {
         }
     }
 
-    /// The medium and the coarser levels of its opacity-aware mip-map
-    /// ([`Medium::coarser`]), level 0 first.
-    pub fn mip_chain(self) -> Vec<Medium> {
-        let mut levels = vec![self];
-        while let Some(next) = levels.last().and_then(Medium::coarser) {
+    /// The coarser levels of the medium's opacity-aware mip-map ([`Medium::coarser`]),
+    /// level 1 first (empty where the medium cannot be halved).
+    pub fn coarser_levels(&self) -> Vec<Medium> {
+        let mut levels: Vec<Medium> = Vec::new();
+        while let Some(next) = levels.last().unwrap_or(self).coarser() {
             levels.push(next);
         }
         levels

@@ -10,12 +10,12 @@ pub use mesobake_package::medium::MediumPackage;
 use mesobake_package::medium::{MediumLevel, coarser_res};
 use mesobake_package::quantize::Quantization;
 
-/// The package bytes of `levels` (a medium's mip chain, level 0 first, as
-/// [`Medium::mip_chain`] builds it, or the medium alone) quantized to `q`, made from `input`
+/// The package bytes of `medium` and `coarser`, the coarser levels of its mip-map
+/// ([`Medium::coarser_levels`], or none), quantized to `q`, made from `input`
 /// (deterministic).
-pub fn encode(input: InputInfo, levels: &[Medium], q: Quantization) -> Vec<u8> {
-    let levels: Vec<MediumLevel> = levels
-        .iter()
+pub fn encode(input: InputInfo, medium: &Medium, coarser: &[Medium], q: Quantization) -> Vec<u8> {
+    let levels: Vec<MediumLevel> = std::iter::once(medium)
+        .chain(coarser)
         .map(|m| {
             let n = m.dims().voxel_count() as usize;
             MediumLevel {

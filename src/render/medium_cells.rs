@@ -262,12 +262,10 @@ impl<'a> CellRenderer<'a> {
     /// Splits `shell` into cells for `medium`, integrated as `settings` says (building the
     /// mip-map if they ask for it).
     pub fn new(shell: &Shell, medium: &'a Medium, settings: TransparencySettings) -> Self {
-        let mut coarser: Vec<Medium> = Vec::new();
-        if settings.mipmap {
-            while let Some(next) = coarser.last().unwrap_or(medium).coarser() {
-                coarser.push(next);
-            }
-        }
+        let coarser = match settings.mipmap {
+            true => medium.coarser_levels(),
+            false => Vec::new(),
+        };
         Self::build(shell, medium, Cow::Owned(coarser), settings)
     }
 

@@ -272,17 +272,21 @@ pub fn transparency_report(
 /// The levels `medium`'s package for `settings` delivers (its mip-map where they filter,
 /// quantized as they say), and the package's bytes.
 fn packaged(medium: &Medium, settings: TransparencySettings) -> Result<(Vec<Medium>, usize)> {
-    let chain = match settings.mipmap {
-        true => medium.clone().mip_chain(),
-        false => vec![medium.clone()],
+    let coarser = match settings.mipmap {
+        true => medium.coarser_levels(),
+        false => Vec::new(),
     };
     let input = InputInfo {
         kind: "medium".into(),
         bytes: 0,
         blake3: blake3::hash(&[]).to_hex().to_string(),
     };
-    let package =
-        MediumPackage::parse(medium_package::encode(input, &chain, settings.quantization))?;
+    let package = MediumPackage::parse(medium_package::encode(
+        input,
+        medium,
+        &coarser,
+        settings.quantization,
+    ))?;
     Ok((
         medium_package::levels(&package, settings)?,
         package.bytes().len(),

@@ -30,7 +30,7 @@ use crate::scene::plan::{Plan, plan};
 use crate::scene::technique::{self, Technique, TechniqueChoice};
 use crate::scene::{Effect, LoadedScene, MesostructureSource, Scene};
 use crate::util::limits::Limits;
-use mesobake_package::medium::MediumAccuracy;
+use mesobake_package::medium::{MediumAccuracy, MediumManifest};
 use mesobake_package::vdm::VdmAccuracy;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -307,27 +307,25 @@ fn bake_medium_package(
     plan: Plan,
     observer: &dyn BakeObserver,
 ) -> Result<ScenePackage> {
-    let medium = loaded
-        .medium
-        .clone()
-        .expect("the transparency technique loads a medium");
+    let medium = (loaded.medium.as_ref()).expect("the transparency technique loads a medium");
     let mut seconds = Vec::new();
-    let levels = if plan.runs("medium_mips") {
+    let coarser = if plan.runs("medium_mips") {
         let start = Instant::now();
         observer.stage("medium_mips");
-        let chain = medium.mip_chain();
+        let coarser = medium.coarser_levels();
         seconds.push(("medium_mips".to_owned(), start.elapsed().as_secs_f64()));
-        chain
+        coarser
     } else {
-        vec![medium]
+        Vec::new()
     };
     let start = Instant::now();
     observer.stage("encode");
     let q = loaded.scene.transparency.quantization;
-    let bytes = medium_package::encode(input, &levels, q);
+    let bytes = medium_package::encode(input, medium, &coarser, q);
     seconds.push(("encode".to_owned(), start.elapsed().as_secs_f64()));
-    let parsed = medium_package::MediumPackage::parse(bytes.clone())?;
-    let info = &parsed.manifest().medium;
+    // The manifest alone (the container checked, the textures not decoded again).
+    let manifest: MediumManifest = crate::package::container::parse(&bytes)?;
+    let info = &manifest.medium;
     Ok(ScenePackage {
         bytes,
         payload: ScenePayload::Medium {
