@@ -188,7 +188,6 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
             field: &field,
             depth: 0.125,
         };
-        let slopes = relief.slopes();
         let (mut compared, mut far) = (0, 0);
         for n in 0..400u32 {
             let p = [
@@ -197,7 +196,19 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
             ];
             let (theta, phi) = (GRID.theta(n % 8), GRID.phi(n % 4) + 0.3 * f64::from(n % 3));
             let c = [-1.5, 0.0, 2.0][(n % 3) as usize];
-            let got = exact::cast(relief, &slopes, p, theta, phi, Bend { c });
+            let got = exact::cast(relief, p, theta, phi, Bend { c });
+            // The fan's shared march gives each of its rays what a march of its own does
+            let thetas: Vec<f64> = (0..8).map(|a| GRID.theta(a)).collect();
+            let mut fan = vec![None; 8];
+            exact::cast_fan(relief, p, phi, Bend { c }, &thetas, &mut fan);
+            // (each root to the tolerance, from its own start).
+            match (fan[(n % 8) as usize], got) {
+                (Some(f), Some(g)) => assert!(
+                    (f - g).abs() <= 2.0 * exact::TOLERANCE / theta.sin(),
+                    "ray {n}: {f} against {g}"
+                ),
+                (f, g) => assert_eq!(f, g, "ray {n}"),
+            }
             let want = brute_force(&field, 0.125, p, theta, phi, c);
             match (got, want) {
                 (Some(g), Some(w)) => {
@@ -560,9 +571,10 @@ fn the_cli_packages_a_vdm_and_unpack_reconstructs_it_as_measured() {
 
 #[test]
 fn the_flat_vdm_is_what_the_exact_height_field_caster_finds() {
-    // Two independent exact intersectors of the same bilinear relief: the VDM's sphere
-    // tracing with bisection (tile units, from the reference surface) and the height-field
-    // caster's per-cell quadratic (voxel units, any origin). Tolerance: the bake's 1e-7 along
+    // Two independent exact intersectors of the same bilinear relief: the VDM's march along
+    // the azimuth's line with Newton steps per cell (tile units, from the reference surface,
+    // a fan of rays at once) and the height-field caster's per-cell quadratic (voxel units,
+    // any origin, one 3D ray). Tolerance: the bake's 1e-7 along
     // the ray plus rounding.
     let limits = Limits::default();
     let field = reliefs::height_field(ReliefKind::Bumps, 16, &limits).unwrap();

@@ -8,7 +8,7 @@
 //! [`NO_HIT`] (no intersection exists) and a flat or concave one holds the last value.
 
 use super::bend::Bend;
-use super::exact::cast;
+use super::exact::cast_fan;
 use super::{NO_HIT, Relief, VdmGrid};
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -31,7 +31,10 @@ pub fn bake(
         grid.n_phi as usize,
         grid.n_curvature as usize,
     );
-    let slopes = relief.slopes();
+    let casts = grid.n_theta * oversampling;
+    let thetas: Vec<f64> = (0..casts)
+        .map(|m| (f64::from(m) + 0.5) * FRAC_PI_2 / f64::from(casts))
+        .collect();
     let done = AtomicU64::new(0);
     let per_phi: Vec<Vec<f32>> = (0..grid.n_phi)
         .into_par_iter()
@@ -40,6 +43,7 @@ pub fn bake(
                 return Err(Error::Cancelled);
             }
             let phi = grid.phi(b);
+            let mut flat = vec![None; thetas.len()];
             // [k][a][texel] for this azimuth.
             let mut out = vec![NO_HIT; n_c * n_theta * texels];
             for texel in 0..texels {
@@ -47,13 +51,9 @@ pub fn bake(
                     (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
                     (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                 ];
-                let casts = grid.n_theta * oversampling;
-                let hits: Vec<(f64, f64)> = (0..casts)
-                    .filter_map(|m| {
-                        let theta = (f64::from(m) + 0.5) * FRAC_PI_2 / f64::from(casts);
-                        let d = cast(relief, &slopes, p, theta, phi, Bend { c: 0.0 })?;
-                        Some((d * theta.sin(), d * theta.cos()))
-                    })
+                cast_fan(relief, p, phi, Bend { c: 0.0 }, &thetas, &mut flat);
+                let hits: Vec<(f64, f64)> = (thetas.iter().zip(&flat))
+                    .filter_map(|(&theta, &d)| Some((d? * theta.sin(), d? * theta.cos())))
                     .collect();
                 for k in 0..grid.n_curvature {
                     let column = resample(
