@@ -1,8 +1,8 @@
 //! The translucent-media real-time pipeline (WGSL) against its specification, the CPU cell
 //! renderer (`render::medium_cells`): the same scene must give the same image (PSNR ≥ 35 dB
 //! over sRGB values, hit/miss mask disagreement ≤ 0.5 %), for each integration, with and
-//! without shadows (shadow maps and rays) and the mip-map. The per-view cell order (MPVO,
-//! blended) is measured against the per-pixel list it approximates. Runs on whatever adapter
+//! without shadows (shadow maps and rays) and the mip-map. The per-view cell order (SXMPVO,
+//! blended) is measured against the per-pixel list. Runs on whatever adapter
 //! wgpu finds (CI: Mesa's software Vulkan driver, which cuts long loops short: there, shadow
 //! rays through the fur scene's cells must be refused, never rendered wrong, and shadow
 //! rays are checked on the flat scenes); without one these tests fail unless
@@ -286,9 +286,9 @@ fn empty_and_opaque_media_agree_with_the_specification() {
     }
 }
 
-/// The per-view order (MPVO over shared faces, farthest free cell first, drawn back to
-/// front and blended) against the per-pixel list, unshadowed: on the torus the sort breaks
-/// no cycle and the images agree to the specification's tolerance.
+/// The per-view order (SXMPVO, drawn back to front and blended) against the per-pixel list,
+/// unshadowed: on the torus the sort breaks no cycle and the images agree to the
+/// specification's tolerance.
 #[test]
 fn the_per_view_order_approximates_the_per_pixel_list() {
     let Some(gpu) = gpu() else { return };

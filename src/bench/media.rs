@@ -23,7 +23,7 @@ pub const PAPER_CELLS: usize = 25_920;
 /// One cell order at one image size.
 #[derive(Clone, Debug, Serialize)]
 pub struct MediaBenchRow {
-    /// `per-pixel` or `per-view`.
+    /// The cell order's name as scenes write it.
     pub order: &'static str,
     /// Image side in pixels (square images).
     pub size: u32,
@@ -32,8 +32,11 @@ pub struct MediaBenchRow {
     /// The real-time pipeline, mean seconds per frame (the per-view sort included); none
     /// where the adapter refused it ([`Error::LoopBudget`]).
     pub gpu_seconds: Option<f64>,
-    /// Seconds sorting the cells for the view once (per-view order only).
+    /// Seconds sorting the cells for the view once (per-view orders only).
     pub sort_seconds: Option<f64>,
+    /// Pixels whose ray crosses two cells in the wrong order, and the cycles the sort broke
+    /// (per-view orders only).
+    pub misordered: Option<(usize, usize)>,
     /// The WGSL image against the CPU specification's.
     pub wgsl_vs_cpu: Option<Comparison>,
     /// Why the adapter refused the row.
@@ -127,7 +130,7 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
         let scene = &loaded.scene;
         let cpu_image = render_image(&scene.camera, |o, d| cpu.radiance(scene, o, d));
         let cpu_seconds = start.elapsed().as_secs_f64();
-        for order in [CellOrder::PerPixel, CellOrder::PerView] {
+        for order in CellOrder::ALL {
             let mut scene = loaded.scene.clone();
             scene.transparency = TransparencySettings { order, ..base };
             let mut row = MediaBenchRow {
@@ -136,6 +139,11 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
                 cpu_seconds,
                 gpu_seconds: None,
                 sort_seconds: None,
+                misordered: order.view_sort().map(|sort| {
+                    let view = cpu.cells().view_order(&scene.camera, sort);
+                    let pixels = cpu.cells().misordered_pixels(&scene.camera, &view.order);
+                    (pixels, view.cycles_broken)
+                }),
                 wgsl_vs_cpu: None,
                 refused: None,
             };
@@ -148,8 +156,7 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
             match rendered {
                 Ok((image, preview)) => {
                     row.gpu_seconds = Some(preview.time_frames(frames, &())?);
-                    row.sort_seconds =
-                        (order == CellOrder::PerView).then(|| preview.sort_seconds());
+                    row.sort_seconds = preview.sort_seconds();
                     row.wgsl_vs_cpu = Some(compare(&cpu_image, &image)?);
                 }
                 Err(e @ Error::LoopBudget { .. }) => row.refused = Some(e.to_string()),
@@ -186,8 +193,8 @@ pub fn markdown(bench: &MediaBench) -> String {
         bench.texture[1],
         bench.texture[2],
     );
-    out += "| order | image | CPU image (s) | real-time frame (ms) | per-view sort (ms) | WGSL vs CPU PSNR (dB) | mask |\n";
-    out += "|---|---:|---:|---:|---:|---:|---:|\n";
+    out += "| order | image | CPU image (s) | real-time frame (ms) | per-view sort (ms) | misordered pixels | cycles broken | WGSL vs CPU PSNR (dB) | mask |\n";
+    out += "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     let ms = |s: Option<f64>| s.map_or("–".to_owned(), |s| format!("{:.1}", s * 1e3));
     for r in &bench.rows {
         let (psnr, mask) = r
@@ -199,8 +206,11 @@ pub fn markdown(bench: &MediaBench) -> String {
                     format!("{:.3} %", 100.0 * c.mask_disagreement),
                 )
             });
+        let (misordered, cycles) = r.misordered.map_or(("–".into(), "–".into()), |(p, c)| {
+            (p.to_string(), c.to_string())
+        });
         out += &format!(
-            "| {} | {size}×{size} | {:.3} | {} | {} | {psnr} | {mask} |\n",
+            "| {} | {size}×{size} | {:.3} | {} | {} | {misordered} | {cycles} | {psnr} | {mask} |\n",
             r.order,
             r.cpu_seconds,
             ms(r.gpu_seconds),

@@ -1,8 +1,9 @@
 //! The translucent-media real-time pipeline (`shaders/medium_preview.wgsl`): the shell's
-//! tetrahedral cells, each integrated on its own and composited front to back, in one of two
-//! orders ([`CellOrder`]): a per-pixel sorted list gathered from a BVH over the cells in a
-//! compute pass (one invocation per pixel, writing the target), or the cells drawn back to
-//! front in an order sorted per view on the CPU and blended. Shadows come from shadow maps
+//! tetrahedral cells, each integrated on its own and composited front to back, in one of the
+//! [`CellOrder`](crate::scene::transparency::CellOrder)s: a per-pixel sorted list gathered
+//! from a BVH over the cells in a compute pass (one invocation per pixel, writing the
+//! target), or the cells drawn back to front in an order sorted per view on the CPU (SXMPVO
+//! or MPVONC) and blended. Shadows come from shadow maps
 //! built by a compute pass before each frame ([`crate::render::medium_shadow_map`]) or from
 //! shadow rays. Its specification is [`crate::render::medium_cells`], which it is tested
 //! against.
@@ -17,12 +18,13 @@ use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames
 use super::variant::COMMON;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
+use crate::render::cell_order::ViewSort;
 use crate::render::image::Image;
 use crate::render::medium_cells::{Cell, CellRenderer};
 use crate::render::medium_shadow_map::{LightFrame, Projection, map_frames};
 use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
-use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod};
-use crate::scene::{Effect, Light, Scene};
+use crate::scene::transparency::{CellIntegration, ShadowMethod};
+use crate::scene::{Camera, Effect, Light, Scene};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 use std::time::Instant;
@@ -184,8 +186,8 @@ fn medium_texels(cells: &CellRenderer) -> Result<MediumTexels> {
 enum MediaPipeline {
     /// Per-pixel lists: the compute pipeline.
     PerPixel(wgpu::ComputePipeline),
-    /// Per-view order: the cells' faces rasterized and blended.
-    PerView(wgpu::RenderPipeline),
+    /// Per-view order by a sort: the cells' faces rasterized and blended.
+    PerView(wgpu::RenderPipeline, ViewSort),
 }
 
 /// A translucent scene ready to render with the real-time pipeline.
@@ -205,7 +207,7 @@ pub struct MediumPreview<'g> {
     /// Light records (the maps' build pass runs over them).
     lights: u32,
     order_buffer: wgpu::Buffer,
-    eye: DVec3,
+    camera: Camera,
     target: Target,
     memory: GpuMemory,
 }
@@ -227,7 +229,7 @@ impl<'g> MediumPreview<'g> {
         let rays = shadows
             && (frames.iter().zip(&scene.lights))
                 .any(|(f, l)| f.is_none() && !matches!(l, Light::Ambient { .. }));
-        if let (Some(budget), CellOrder::PerView, true) = (gpu.loop_budget(), settings.order, rays)
+        if let (Some(budget), Some(_), true) = (gpu.loop_budget(), settings.order.view_sort(), rays)
         {
             // Fragments cannot count what they ran; the per-pixel lists can.
             return Err(Error::LoopBudget {
@@ -267,18 +269,16 @@ impl<'g> MediumPreview<'g> {
             }
         }
         let camera = &scene.camera;
-        let eye = DVec3::from(camera.eye);
-        let forward = (DVec3::from(camera.target) - eye).normalize();
-        let right = forward.cross(DVec3::from(camera.up)).normalize();
-        let up = right.cross(forward);
-        let half = (camera.fov_y_degrees.to_radians() * 0.5).tan();
-        let aspect = f64::from(camera.width) / f64::from(camera.height);
+        let plane = camera.image_plane();
         let mut level_table = [[0u32; 4]; MAX_LEVELS];
         level_table[..levels.len()].copy_from_slice(&levels);
         let params = MediumUniform {
-            forward: vec4(forward, 2.0 * half / f64::from(camera.height)),
-            right: vec4(right * (half * aspect), 0.0),
-            up: vec4(up * half, 0.0),
+            forward: vec4(
+                plane.forward,
+                2.0 * plane.half_height / f64::from(camera.height),
+            ),
+            right: vec4(plane.right * plane.half_width, 0.0),
+            up: vec4(plane.up * plane.half_height, 0.0),
             height: camera.height,
             integration: u32::from(settings.integration == CellIntegration::Samples),
             samples: settings.samples,
@@ -418,8 +418,8 @@ impl<'g> MediumPreview<'g> {
                 })
             };
             let read_maps = (layout_entry(2, all, storage()), maps.as_entire_binding());
-            let (pipeline, pass) = match settings.order {
-                CellOrder::PerPixel => {
+            let (pipeline, pass) = match settings.order.view_sort() {
+                None => {
                     let image = wgpu::BindGroupLayoutEntry {
                         binding: 0,
                         visibility: compute,
@@ -448,7 +448,7 @@ impl<'g> MediumPreview<'g> {
                     let pipeline = compute_pipeline(label, &layout, "cs_pixels");
                     (MediaPipeline::PerPixel(pipeline), group)
                 }
-                CellOrder::PerView => {
+                Some(sort) => {
                     let label = "media per-view order";
                     let (layout, group) = pass_group(label, &[read_maps]);
                     // Back to front, premultiplied: dst = src + (1 − src α) · dst.
@@ -459,7 +459,7 @@ impl<'g> MediumPreview<'g> {
                         blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
                     };
                     let pipeline = target_pipeline(d, label, &layout, &module, &[], state);
-                    (MediaPipeline::PerView(pipeline), group)
+                    (MediaPipeline::PerView(pipeline, sort), group)
                 }
             };
             let map_build = (map_values > 0).then(|| {
@@ -506,7 +506,7 @@ impl<'g> MediumPreview<'g> {
             overflow_read,
             lights: frame_list.len() as u32,
             order_buffer,
-            eye,
+            camera: scene.camera,
             target,
             memory,
         })
@@ -534,8 +534,8 @@ impl<'g> MediumPreview<'g> {
                 let (w, h) = self.target.size();
                 pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
             }
-            MediaPipeline::PerView(pipeline) => {
-                let order = self.cells.cells().view_order(self.eye).order;
+            MediaPipeline::PerView(pipeline, sort) => {
+                let order = self.cells.cells().view_order(&self.camera, *sort).order;
                 self.gpu
                     .queue
                     .write_buffer(&self.order_buffer, 0, bytemuck::cast_slice(&order));
@@ -586,11 +586,14 @@ impl<'g> MediumPreview<'g> {
         time_frames(self.gpu, frames, observer, || self.submit_frame(false))
     }
 
-    /// CPU seconds to sort the cells for the view once (what each frame of the per-view
-    /// order spends before drawing).
-    pub fn sort_seconds(&self) -> f64 {
+    /// CPU seconds to sort the cells for the view once (what each frame of a per-view
+    /// order spends before drawing); `None` for the per-pixel lists.
+    pub fn sort_seconds(&self) -> Option<f64> {
+        let MediaPipeline::PerView(_, sort) = self.pipeline else {
+            return None;
+        };
         let start = Instant::now();
-        std::hint::black_box(self.cells.cells().view_order(self.eye));
-        start.elapsed().as_secs_f64()
+        std::hint::black_box(self.cells.cells().view_order(&self.camera, sort));
+        Some(start.elapsed().as_secs_f64())
     }
 }

@@ -1,24 +1,62 @@
-//! A visibility order of the shell's cells for one eye, back to front: what the real-time
-//! pipeline's per-view order draws by ([`crate::scene::transparency::CellOrder::PerView`]).
+//! A visibility order of the shell's cells for one view, back to front: what the real-time
+//! pipeline's per-view orders draw by ([`crate::scene::transparency::CellOrder`]).
 //!
-//! MPVO with the non-convex heuristic (Williams' MPVONC; the semi-transparent 3D textures
-//! paper uses its successor SXMPVO). Across every face two cells share, the cell on the far
-//! side from the eye must be drawn before the near one: the eye lies outside the far cell's
-//! plane of that face. Those constraints are sorted topologically, and whenever several
-//! cells are free to go next, the one whose centroid is farthest from the eye goes first:
-//! that orders the cells of separate parts of a non-convex shell (which share no face) by
-//! distance, which is right unless one part reaches behind another.
+//! Both orders start from MPVO's constraints: across every face two cells share, the cell on
+//! the far side from the eye must be drawn before the near one (the eye lies outside the far
+//! cell's plane of that face). A non-convex mesh (a torus's shell, a wavy surface seen at a
+//! grazing angle) also hides cells behind others across gaps of empty space, which no shared
+//! face relates:
+//! - **SXMPVO** ([`ViewSort::Sxmpvo`], Cook, Max, Silva and Williams 2004; the semi-transparent
+//!   3D textures paper's choice) finds those relations in image space: every boundary face
+//!   (a face no other cell shares) is cast through every pixel centre it covers, and per pixel,
+//!   wherever the ray leaves the mesh through one cell and next enters it through another,
+//!   the entered cell is behind the left one ([`gap_constraints`]). Along every pixel's ray
+//!   each cell is then related to the next one it crosses, so the order is exact at every
+//!   pixel centre unless the constraints form a cycle.
+//! - **MPVONC** ([`ViewSort::Mpvonc`], Williams' non-convex heuristic) adds no relation
+//!   across gaps and instead takes, whenever several cells are free to go next, the one whose
+//!   centroid is farthest from the eye: cheaper, and wrong where one part of the mesh reaches
+//!   behind another.
 //!
+//! Both sort their constraints topologically ([`far_first`]), the farthest free cell first.
 //! The constraints can form a cycle (three or more cells that each hide part of the next;
-//! rare in a shell of thin prisms, but possible near grazing views). Then no cell is free:
-//! the farthest remaining cell is drawn next regardless, its unmet constraints dropped, and
-//! the break counted ([`ViewOrder::cycles_broken`]). Where a cycle is broken, or a part
-//! reaches behind another, compositing in this order is wrong by the cells' overlap on
-//! screen; the per-pixel sorted list never is.
+//! rare in a shell of thin prisms, possible near grazing views). Then no cell is free: the
+//! farthest remaining cell is drawn next regardless, its unmet constraints dropped, and the
+//! break counted ([`ViewOrder::cycles_broken`]); the paper suggests clipping the cells
+//! instead. Where a cycle is broken, compositing in this order is wrong by the cells' overlap
+//! on screen; the per-pixel sorted list never is.
 
 use glam::DVec3;
+use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap};
+
+/// How a per-view order relates cells that share no face.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ViewSort {
+    /// Per pixel, across every gap between the mesh's boundary faces (exact at pixel
+    /// centres).
+    Sxmpvo,
+    /// Not at all: the farthest centroid first among cells free to go.
+    Mpvonc,
+}
+
+/// Where a pixel's ray crosses a boundary face of the mesh (a face of one cell only).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundaryFragment {
+    /// The pixel, as `y · width + x`.
+    pub pixel: u32,
+    /// Ray parameter of the crossing.
+    pub t: f64,
+    /// The cell whose face it is.
+    pub cell: u32,
+    /// Whether the ray leaves the mesh there (the face's outward normal points along it).
+    pub leaving: bool,
+}
+
+/// Relative gap below which a ray leaving the mesh and entering it again is taken to touch
+/// it only (a silhouette edge where two boundary faces meet), not to cross empty space.
+const MIN_GAP: f64 = 1e-9;
 
 /// A drawing order and how it was reached.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -54,6 +92,34 @@ pub fn face_neighbours(corners: &[[DVec3; 4]]) -> Vec<[Option<u32>; 4]> {
         }
     }
     neighbours
+}
+
+/// SXMPVO's constraints across gaps, as (behind, in front) pairs, sorted and without
+/// repeats: per pixel, wherever the ray leaves the mesh through one cell's boundary face and
+/// next enters it through another's (further than [`MIN_GAP`] of the distance on), the
+/// entered cell is behind the one left. `fragments` may come in any order.
+pub fn gap_constraints(mut fragments: Vec<BoundaryFragment>) -> Vec<(u32, u32)> {
+    // By pixel, then along the ray; where a ray leaves and enters at one point, leaving
+    // first.
+    fragments.par_sort_unstable_by(|a, b| {
+        (a.pixel.cmp(&b.pixel))
+            .then(a.t.total_cmp(&b.t))
+            .then(b.leaving.cmp(&a.leaving))
+    });
+    let mut behind: Vec<(u32, u32)> = fragments
+        .windows(2)
+        .filter(|w| {
+            let (left, entered) = (w[0], w[1]);
+            left.pixel == entered.pixel
+                && left.leaving
+                && !entered.leaving
+                && entered.t - left.t > MIN_GAP * entered.t.abs()
+        })
+        .map(|w| (w[1].cell, w[0].cell))
+        .collect();
+    behind.par_sort_unstable();
+    behind.dedup();
+    behind
 }
 
 /// Sorts cells `0..distance.len()` so that for every pair (a, b) in `behind` (a must be
@@ -141,6 +207,31 @@ mod tests {
         assert_eq!(o.cycles_broken, 1);
         // 3 is free; then 1, the farthest of the cycle, then 2 (freed by 1), then 0.
         assert_eq!(o.order, [3, 1, 2, 0]);
+    }
+
+    /// Along one pixel's ray: enter cell 4, leave it, enter 7 beyond a gap, leave, enter
+    /// 9 where the ray touched the mesh without a gap. Only the gap relates two cells.
+    #[test]
+    fn gaps_relate_the_cell_left_and_the_cell_entered() {
+        let f = |pixel, t, cell, leaving| BoundaryFragment {
+            pixel,
+            t,
+            cell,
+            leaving,
+        };
+        let fragments = vec![
+            f(3, 5.0, 7, false),
+            f(3, 1.0, 4, false),
+            f(3, 6.0, 7, true),
+            f(3, 2.0, 4, true),
+            f(3, 6.0, 9, false),
+            // Another pixel's fragment between them in t relates nothing here.
+            f(8, 3.0, 1, false),
+            // The same gap seen from a second pixel: one pair.
+            f(5, 2.5, 4, true),
+            f(5, 5.5, 7, false),
+        ];
+        assert_eq!(gap_constraints(fragments), [(7, 4)]);
     }
 
     /// Two tetrahedra sharing a face are each other's neighbours across it, and nowhere

@@ -224,7 +224,11 @@ fn mapped_normal(prism: &Prism, source: &TriangleSource, tile: DVec3) -> Option<
 
 /// The ray parameter and barycentric coordinates where `origin + t·dir` meets the plane of
 /// `corners` (Möller–Trumbore in f64); `None` if the ray is parallel to it.
-fn intersect(corners: &[DVec3; 3], origin: DVec3, dir: DVec3) -> Option<(f64, [f64; 3])> {
+pub(super) fn intersect(
+    corners: &[DVec3; 3],
+    origin: DVec3,
+    dir: DVec3,
+) -> Option<(f64, [f64; 3])> {
     let (e1, e2) = (corners[1] - corners[0], corners[2] - corners[0]);
     let p = dir.cross(e2);
     let det = e1.dot(p);

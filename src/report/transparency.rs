@@ -3,13 +3,13 @@
 //! ([`CellRenderer`]) and compares the image with the ground truth ([`MediumTruth`]) of the
 //! scene as it is: the scene's own settings, each sample count per cell, exact integration,
 //! (where the scene has shadows) each shadow method and shadow-map resolution and the same
-//! without shadows, the real-time pipeline's other cell order, and the medium package's
+//! without shadows, the real-time pipeline's other cell orders, and the medium package's
 //! other number formats. Every row renders what its medium package delivers (the medium,
 //! its mip-map where the row filters, quantized as the row says). With frames to time and an adapter, each row also renders with the WGSL
 //! pipeline ([`MediumPreview`]): its mean frame time, and its image against the truth and
 //! against its CPU twin. The time to find and order every pixel's cells (the per-pixel
-//! sorted lists) on the CPU, and to sort the cells once for the view, are measured on their
-//! own.
+//! sorted lists) on the CPU, and for each per-view sort the time to sort the cells once for
+//! the view and the pixels it misorders, are measured on their own.
 
 use crate::bake::gdm::BakeObserver;
 use crate::compress::quantize::Quantization;
@@ -57,6 +57,20 @@ pub struct TransparencyRow {
     pub realtime_vs_cpu: Option<Comparison>,
 }
 
+/// What one per-view order costs and gets wrong for the scene's view.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ViewOrderMeasure {
+    /// The order's name as scenes write it.
+    pub order: &'static str,
+    /// Seconds sorting the cells once (the order's work per frame).
+    pub sort_s: f64,
+    /// Cycles the sort broke.
+    pub cycles_broken: usize,
+    /// Pixels whose ray crosses two cells in the wrong order
+    /// ([`CellMesh::misordered_pixels`](crate::render::medium_cells::CellMesh::misordered_pixels)).
+    pub misordered_pixels: usize,
+}
+
 /// The report on one scene.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TransparencyReport {
@@ -72,10 +86,8 @@ pub struct TransparencyReport {
     pub order_s: f64,
     /// Mean cells crossed per pixel that meets any.
     pub mean_crossings: f64,
-    /// Seconds sorting the cells once for the view (the per-view order's work per frame).
-    pub view_sort_s: f64,
-    /// Cycles the view's sort broke.
-    pub view_cycles_broken: usize,
+    /// Each per-view order's sort for the scene's view.
+    pub view_orders: Vec<ViewOrderMeasure>,
     /// The adapter the real-time rows ran on.
     pub adapter: Option<String>,
     /// The rows.
@@ -152,18 +164,10 @@ pub fn transparency_report(
             add(label.into(), s, true);
         }
     }
-    let other_order = match base.order {
-        CellOrder::PerPixel => ("per-view order", CellOrder::PerView),
-        CellOrder::PerView => ("per-pixel order", CellOrder::PerPixel),
-    };
-    add(
-        other_order.0.into(),
-        TransparencySettings {
-            order: other_order.1,
-            ..base
-        },
-        true,
-    );
+    for order in CellOrder::ALL.into_iter().filter(|&o| o != base.order) {
+        let s = TransparencySettings { order, ..base };
+        add(format!("{} order", s.order_name()), s, true);
+    }
     for q in Quantization::ALL {
         let s = TransparencySettings {
             quantization: q,
@@ -252,9 +256,20 @@ pub fn transparency_report(
         });
         steps.step()?;
     }
-    let start = Instant::now();
-    let view = cells.cells().view_order(DVec3::from(scene.camera.eye));
-    let view_sort_s = start.elapsed().as_secs_f64();
+    let view_orders = (CellOrder::ALL.into_iter())
+        .filter_map(|order| {
+            let sort = order.view_sort()?;
+            let start = Instant::now();
+            let view = cells.cells().view_order(&scene.camera, sort);
+            let sort_s = start.elapsed().as_secs_f64();
+            Some(ViewOrderMeasure {
+                order: TransparencySettings { order, ..base }.order_name(),
+                sort_s,
+                cycles_broken: view.cycles_broken,
+                misordered_pixels: cells.cells().misordered_pixels(&scene.camera, &view.order),
+            })
+        })
+        .collect();
     Ok(TransparencyReport {
         scene: name.to_owned(),
         pixels: [scene.camera.width, scene.camera.height],
@@ -262,8 +277,7 @@ pub fn transparency_report(
         truth_s,
         order_s,
         mean_crossings,
-        view_sort_s,
-        view_cycles_broken: view.cycles_broken,
+        view_orders,
         adapter: gpu.map(|g| g.adapter.name),
         rows,
     })
@@ -326,10 +340,18 @@ pub fn markdown(report: &TransparencyReport) -> String {
             ),
         ]
     });
+    let view_orders: Vec<String> = (report.view_orders.iter())
+        .map(|v| {
+            format!(
+                "{} {:.4} s ({} cycles broken, {} pixels misordered)",
+                v.order, v.sort_s, v.cycles_broken, v.misordered_pixels
+            )
+        })
+        .collect();
     format!(
         "Scene {} at {}×{}, {} cells: ground truth {:.2} s; finding and ordering every pixel's \
-         cells {:.3} s ({:.1} cells per covered pixel); sorting the cells for the view once \
-         {:.4} s ({} cycles broken). Real-time columns: {}.\n\n{}",
+         cells {:.3} s ({:.1} cells per covered pixel); sorting the cells for the view once: \
+         {}. Real-time columns: {}.\n\n{}",
         report.scene,
         report.pixels[0],
         report.pixels[1],
@@ -337,8 +359,7 @@ pub fn markdown(report: &TransparencyReport) -> String {
         report.truth_s,
         report.order_s,
         report.mean_crossings,
-        report.view_sort_s,
-        report.view_cycles_broken,
+        view_orders.join("; "),
         report
             .adapter
             .as_deref()

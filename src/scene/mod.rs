@@ -256,18 +256,73 @@ fn default_up() -> [f64; 3] {
     [0.0, 1.0, 0.0]
 }
 
+/// A camera's eye and its image plane at unit distance along the view: the pixel at
+/// continuous image position (x, y) (pixel centres at half-integers, row 0 at the top) looks
+/// along `forward + right·sx + up·sy`, sx = (2x/width − 1)·`half_width`,
+/// sy = (1 − 2y/height)·`half_height`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImagePlane {
+    /// Eye position.
+    pub eye: DVec3,
+    /// Unit viewing direction.
+    pub forward: DVec3,
+    /// Unit image-right direction.
+    pub right: DVec3,
+    /// Unit image-up direction.
+    pub up: DVec3,
+    /// Half the image plane's width at unit distance.
+    pub half_width: f64,
+    /// Half its height (tan of half the vertical field of view).
+    pub half_height: f64,
+    size: [f64; 2],
+}
+
+impl ImagePlane {
+    /// Where `point` projects to, as a continuous image position (see [`ImagePlane`]), or
+    /// `None` if it does not lie in front of the eye.
+    pub fn project(&self, point: DVec3) -> Option<[f64; 2]> {
+        let d = point - self.eye;
+        let z = d.dot(self.forward);
+        (z > 0.0).then(|| {
+            let sx = d.dot(self.right) / (z * self.half_width);
+            let sy = d.dot(self.up) / (z * self.half_height);
+            [
+                (sx + 1.0) * 0.5 * self.size[0],
+                (1.0 - sy) * 0.5 * self.size[1],
+            ]
+        })
+    }
+
+    /// The unit direction through the centre of pixel (`x`, `y`).
+    pub fn pixel_direction(&self, x: u32, y: u32) -> DVec3 {
+        let sx = ((x as f64 + 0.5) / self.size[0] * 2.0 - 1.0) * self.half_width;
+        let sy = (1.0 - (y as f64 + 0.5) / self.size[1] * 2.0) * self.half_height;
+        (self.forward + self.right * sx + self.up * sy).normalize()
+    }
+}
+
 impl Camera {
-    /// Eye, and the unit direction through the centre of pixel (`x`, `y`) (row 0 at the top).
-    pub fn ray(&self, x: u32, y: u32) -> (DVec3, DVec3) {
+    /// The eye and image plane.
+    pub fn image_plane(&self) -> ImagePlane {
         let eye = DVec3::from(self.eye);
         let forward = (DVec3::from(self.target) - eye).normalize();
         let right = forward.cross(DVec3::from(self.up)).normalize();
-        let up = right.cross(forward);
-        let half = (self.fov_y_degrees.to_radians() * 0.5).tan();
-        let aspect = self.width as f64 / self.height as f64;
-        let sx = ((x as f64 + 0.5) / self.width as f64 * 2.0 - 1.0) * half * aspect;
-        let sy = (1.0 - (y as f64 + 0.5) / self.height as f64 * 2.0) * half;
-        (eye, (forward + right * sx + up * sy).normalize())
+        let half_height = (self.fov_y_degrees.to_radians() * 0.5).tan();
+        ImagePlane {
+            eye,
+            forward,
+            right,
+            up: right.cross(forward),
+            half_width: half_height * self.width as f64 / self.height as f64,
+            half_height,
+            size: [self.width as f64, self.height as f64],
+        }
+    }
+
+    /// Eye, and the unit direction through the centre of pixel (`x`, `y`) (row 0 at the top).
+    pub fn ray(&self, x: u32, y: u32) -> (DVec3, DVec3) {
+        let plane = self.image_plane();
+        (plane.eye, plane.pixel_direction(x, y))
     }
 
     fn validate(&self) -> Result<()> {

@@ -3,6 +3,7 @@
 
 use crate::compress::quantize::Quantization;
 use crate::error::{Error, Result};
+use crate::render::cell_order::ViewSort;
 use serde::{Deserialize, Serialize};
 
 /// Most samples per cell.
@@ -30,10 +31,32 @@ pub enum CellOrder {
     /// always the exact order, no cycles to break.
     #[default]
     PerPixel,
-    /// The cells sorted once per view on the CPU (MPVO for non-convex meshes:
-    /// [`crate::render::cell_order`]), drawn back to front and blended: the paper's
-    /// structure (it sorts with SXMPVO); wrong where that order is not a visibility order.
+    /// The cells sorted once per view on the CPU by SXMPVO ([`crate::render::cell_order`]),
+    /// drawn back to front and blended: the paper's algorithm; exact at pixel centres
+    /// unless the cells' constraints form a cycle.
     PerView,
+    /// The same with the cheaper MPVONC sort (no relations across gaps in the mesh, the
+    /// farthest centroid first instead): wrong where one part of the shell reaches behind
+    /// another.
+    PerViewMpvo,
+}
+
+impl CellOrder {
+    /// Every order.
+    pub const ALL: [CellOrder; 3] = [
+        CellOrder::PerPixel,
+        CellOrder::PerView,
+        CellOrder::PerViewMpvo,
+    ];
+
+    /// The per-view sort, for the orders that sort once per view.
+    pub fn view_sort(self) -> Option<ViewSort> {
+        match self {
+            CellOrder::PerPixel => None,
+            CellOrder::PerView => Some(ViewSort::Sxmpvo),
+            CellOrder::PerViewMpvo => Some(ViewSort::Mpvonc),
+        }
+    }
 }
 
 /// How the real-time algorithm finds what of each light reaches a point in the medium
@@ -128,6 +151,7 @@ impl TransparencySettings {
         match self.order {
             CellOrder::PerPixel => "per-pixel",
             CellOrder::PerView => "per-view",
+            CellOrder::PerViewMpvo => "per-view-mpvo",
         }
     }
 
