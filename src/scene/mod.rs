@@ -295,7 +295,9 @@ impl ImagePlane {
 
     /// The unit direction through the centre of pixel (`x`, `y`).
     pub fn pixel_direction(&self, x: u32, y: u32) -> DVec3 {
-        let sx = ((x as f64 + 0.5) / self.size[0] * 2.0 - 1.0) * self.half_width;
+        // In the camera's historical association, so that images stay bit for bit.
+        let aspect = self.size[0] / self.size[1];
+        let sx = ((x as f64 + 0.5) / self.size[0] * 2.0 - 1.0) * self.half_height * aspect;
         let sy = (1.0 - (y as f64 + 0.5) / self.size[1] * 2.0) * self.half_height;
         (self.forward + self.right * sx + self.up * sy).normalize()
     }
