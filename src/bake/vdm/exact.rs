@@ -28,46 +28,47 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Largest error of a hit's arc length σ along the reference surface (tile units).
 pub const TOLERANCE: f64 = 1e-7;
 
-/// Bakes every (curvature, azimuth) fan of every texel in parallel.
+/// Bakes every fan (texel, azimuth, curvature): curvature by curvature, its azimuths in
+/// parallel, so that beside the VDM only one curvature's values are held twice.
 pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Result<Vec<f32>> {
     let (w, h) = relief.field.size();
     let texels = (w * h) as usize;
     let (n_theta, n_phi) = (grid.n_theta as usize, grid.n_phi as usize);
-    let fans = grid.n_curvature as usize * n_phi;
+    let fans = (grid.n_curvature * grid.n_phi) as u64;
     let done = AtomicU64::new(0);
-    // Per (curvature, azimuth): [a][texel].
-    let blocks: Vec<Vec<f32>> = (0..fans)
-        .into_par_iter()
-        .map(|fan| {
-            if observer.cancelled() {
-                return Err(Error::Cancelled);
-            }
-            let (k, b) = ((fan / n_phi) as u32, (fan % n_phi) as u32);
-            let c = grid.curvature(k);
-            let rays: Vec<BentRay> = (0..grid.n_theta)
-                .map(|a| BentRay::new(grid.theta(a), c))
-                .collect();
-            let mut block = vec![NO_HIT; n_theta * texels];
-            let mut hits = vec![None; n_theta];
-            for texel in 0..texels {
-                let p = [
-                    (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
-                    (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
-                ];
-                march(relief, p, grid.phi(b), c, &rays, &mut hits);
-                for (a, hit) in hits.iter().enumerate() {
-                    block[a * texels + texel] = hit.map_or(NO_HIT, |d| d as f32);
+    let mut values = vec![NO_HIT; grid.n_curvature as usize * n_theta * n_phi * texels];
+    for (k, curvature) in values.chunks_mut(n_theta * n_phi * texels).enumerate() {
+        let c = grid.curvature(k as u32);
+        let rays: Vec<BentRay> = (0..grid.n_theta)
+            .map(|a| BentRay::new(grid.theta(a), c))
+            .collect();
+        // Per azimuth: [a][texel].
+        let blocks: Vec<Vec<f32>> = (0..grid.n_phi)
+            .into_par_iter()
+            .map(|b| {
+                if observer.cancelled() {
+                    return Err(Error::Cancelled);
                 }
+                let mut block = vec![NO_HIT; n_theta * texels];
+                let mut hits = vec![None; n_theta];
+                for texel in 0..texels {
+                    let p = [
+                        (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
+                        (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
+                    ];
+                    march(relief, p, grid.phi(b), c, &rays, &mut hits);
+                    for (a, hit) in hits.iter().enumerate() {
+                        block[a * texels + texel] = hit.map_or(NO_HIT, |d| d as f32);
+                    }
+                }
+                observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, fans);
+                Ok(block)
+            })
+            .collect::<Result<_>>()?;
+        for (b, block) in blocks.iter().enumerate() {
+            for (a, image) in block.chunks_exact(texels).enumerate() {
+                curvature[(a * n_phi + b) * texels..][..texels].copy_from_slice(image);
             }
-            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, fans as u64);
-            Ok(block)
-        })
-        .collect::<Result<_>>()?;
-    let mut values = vec![NO_HIT; fans * n_theta * texels];
-    for (fan, block) in blocks.iter().enumerate() {
-        let (k, b) = (fan / n_phi, fan % n_phi);
-        for (a, image) in block.chunks_exact(texels).enumerate() {
-            values[((k * n_theta + a) * n_phi + b) * texels..][..texels].copy_from_slice(image);
         }
     }
     Ok(values)
