@@ -263,7 +263,7 @@ pub fn transparency_report(
             let view = cells.cells().view_order(&scene.camera, sort);
             let sort_s = start.elapsed().as_secs_f64();
             Some(ViewOrderMeasure {
-                order: TransparencySettings { order, ..base }.order_name(),
+                order: order.name(),
                 sort_s,
                 cycles_broken: view.cycles_broken,
                 misordered_pixels: cells.cells().misordered_pixels(&scene.camera, &view.order),

@@ -49,6 +49,15 @@ impl CellOrder {
         CellOrder::PerViewMpvo,
     ];
 
+    /// The order's name as scenes write it.
+    pub fn name(self) -> &'static str {
+        match self {
+            CellOrder::PerPixel => "per-pixel",
+            CellOrder::PerView => "per-view",
+            CellOrder::PerViewMpvo => "per-view-mpvo",
+        }
+    }
+
     /// The per-view sort, for the orders that sort once per view.
     pub fn view_sort(self) -> Option<ViewSort> {
         match self {
@@ -148,11 +157,7 @@ impl TransparencySettings {
 
     /// The cell order's name as scenes write it.
     pub fn order_name(&self) -> &'static str {
-        match self.order {
-            CellOrder::PerPixel => "per-pixel",
-            CellOrder::PerView => "per-view",
-            CellOrder::PerViewMpvo => "per-view-mpvo",
-        }
+        self.order.name()
     }
 
     /// The shadow method's name as scenes write it.

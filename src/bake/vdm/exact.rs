@@ -9,7 +9,7 @@
 //! R = 1/c (σ·cot θ on the flat surface, c = 0). The march steps once from cell to cell along
 //! the line for the whole fan of θ: rays from one point in one plane never cross, so a
 //! steeper ray lies below a shallower one everywhere and hits no later along the line
-//! ([`cast_fan`]). In each cell the gap g(σ) = D(σ) − t(σ) is bounded from below (D's
+//! ([`Fan`]). In each cell the gap g(σ) = D(σ) − t(σ) is bounded from below (D's
 //! minimum, t's maximum, both exact), and only where the bound does not rule a crossing out is
 //! the first root found: Newton steps kept inside the bracket, to [`TOLERANCE`]; where the
 //! gap is still positive at the cell's end, the cell is halved until its bound rules the
@@ -39,9 +39,8 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
     let mut values = vec![NO_HIT; grid.n_curvature as usize * n_theta * n_phi * texels];
     for (k, curvature) in values.chunks_mut(n_theta * n_phi * texels).enumerate() {
         let c = grid.curvature(k as u32);
-        let rays: Vec<BentRay> = (0..grid.n_theta)
-            .map(|a| BentRay::new(grid.theta(a), c))
-            .collect();
+        let thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
+        let fan = Fan::new(&thetas, Bend { c });
         // Per azimuth: [a][texel].
         let blocks: Vec<Vec<f32>> = (0..grid.n_phi)
             .into_par_iter()
@@ -56,7 +55,7 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
                         (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
                         (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                     ];
-                    march(relief, p, grid.phi(b), c, &rays, &mut hits);
+                    fan.cast(relief, p, grid.phi(b), &mut hits);
                     for (a, hit) in hits.iter().enumerate() {
                         block[a * texels + texel] = hit.map_or(NO_HIT, |d| d as f32);
                     }
@@ -78,26 +77,35 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
 /// bent by `bend`: l / sin θ, l the arc length to the hit; `None` without a hit.
 pub fn cast(relief: Relief, p: [f64; 2], theta: f64, phi: f64, bend: Bend) -> Option<f64> {
     let mut hit = [None];
-    cast_fan(relief, p, phi, bend, &[theta], &mut hit);
+    Fan::new(&[theta], bend).cast(relief, p, phi, &mut hit);
     hit[0]
 }
 
-/// The VDM values of the rays entering at `p` along azimuth `phi` at each of `thetas`
-/// (ascending, in (0, π/2)), written to `out` (as [`cast`] gives them), in one march.
-pub fn cast_fan(
-    relief: Relief,
-    p: [f64; 2],
-    phi: f64,
-    bend: Bend,
-    thetas: &[f64],
-    out: &mut [Option<f64>],
-) {
-    debug_assert!(thetas.is_sorted());
-    let rays: Vec<BentRay> = thetas.iter().map(|&th| BentRay::new(th, bend.c)).collect();
-    march(relief, p, phi, bend.c, &rays, out);
+/// The rays of one set of polar angles θ on one bent surface, prepared once: cast together
+/// from any entry point along any azimuth, in one march.
+pub struct Fan {
+    c: f64,
+    rays: Vec<BentRay>,
 }
 
-/// [`cast_fan`] for the rays prepared on curvature `c`.
+impl Fan {
+    /// The fan of `thetas` (ascending, in (0, π/2)) on the surface bent by `bend`.
+    pub fn new(thetas: &[f64], bend: Bend) -> Fan {
+        debug_assert!(thetas.is_sorted());
+        Fan {
+            c: bend.c,
+            rays: thetas.iter().map(|&th| BentRay::new(th, bend.c)).collect(),
+        }
+    }
+
+    /// The VDM values of the fan's rays entering at `p` along azimuth `phi`, written to `out`
+    /// in θ order (as [`cast`] gives them).
+    pub fn cast(&self, relief: Relief, p: [f64; 2], phi: f64, out: &mut [Option<f64>]) {
+        march(relief, p, phi, self.c, &self.rays, out);
+    }
+}
+
+/// [`Fan::cast`].
 fn march(relief: Relief, p: [f64; 2], phi: f64, c: f64, rays: &[BentRay], out: &mut [Option<f64>]) {
     debug_assert_eq!(rays.len(), out.len());
     out.fill(None);
