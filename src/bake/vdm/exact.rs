@@ -21,6 +21,7 @@ use super::bend::Bend;
 use super::{NO_HIT, Relief, VdmGrid};
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
+use crate::mesostructure::height_field::HeightField;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -28,45 +29,64 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Largest error of a hit's arc length σ along the reference surface (tile units).
 pub const TOLERANCE: f64 = 1e-7;
 
-/// Bakes every fan (texel, azimuth, curvature): curvature by curvature, its azimuths in
-/// parallel, so that beside the VDM only one curvature's values are held twice.
+/// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, a few at a time so
+/// that beside the VDM only theirs are held twice, and at each texel the curvatures in
+/// ascending order, each march starting where the last curvature's rays hit ([`Fan::cast`]).
 pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Result<Vec<f32>> {
     let (w, h) = relief.field.size();
     let texels = (w * h) as usize;
-    let (n_theta, n_phi) = (grid.n_theta as usize, grid.n_phi as usize);
-    let fans = (grid.n_curvature * grid.n_phi) as u64;
+    let (n_theta, n_phi, n_c) = (
+        grid.n_theta as usize,
+        grid.n_phi as usize,
+        grid.n_curvature as usize,
+    );
+    let thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
+    let fans: Vec<Fan> = (0..grid.n_curvature)
+        .map(|k| {
+            Fan::new(
+                relief,
+                &thetas,
+                Bend {
+                    c: grid.curvature(k),
+                },
+            )
+        })
+        .collect();
     let done = AtomicU64::new(0);
-    let mut values = vec![NO_HIT; grid.n_curvature as usize * n_theta * n_phi * texels];
-    for (k, curvature) in values.chunks_mut(n_theta * n_phi * texels).enumerate() {
-        let c = grid.curvature(k as u32);
-        let thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
-        let fan = Fan::new(&thetas, Bend { c });
-        // Per azimuth: [a][texel].
-        let blocks: Vec<Vec<f32>> = (0..grid.n_phi)
+    let mut values = vec![NO_HIT; n_c * n_theta * n_phi * texels];
+    let batch = 2 * rayon::current_num_threads();
+    for first in (0..n_phi).step_by(batch) {
+        // Per azimuth: [k][a][texel].
+        let blocks: Vec<Vec<f32>> = (first..n_phi.min(first + batch))
             .into_par_iter()
             .map(|b| {
                 if observer.cancelled() {
                     return Err(Error::Cancelled);
                 }
-                let mut block = vec![NO_HIT; n_theta * texels];
+                let phi = grid.phi(b as u32);
+                let mut block = vec![NO_HIT; n_c * n_theta * texels];
                 let mut hits = vec![None; n_theta];
                 for texel in 0..texels {
                     let p = [
                         (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
                         (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                     ];
-                    fan.cast(relief, p, grid.phi(b), &mut hits);
-                    for (a, hit) in hits.iter().enumerate() {
-                        block[a * texels + texel] = hit.map_or(NO_HIT, |d| d as f32);
+                    hits.fill(None);
+                    for (k, fan) in fans.iter().enumerate() {
+                        fan.cast(p, phi, &mut hits);
+                        for (a, hit) in hits.iter().enumerate() {
+                            block[(k * n_theta + a) * texels + texel] =
+                                hit.map_or(NO_HIT, |d| d as f32);
+                        }
                     }
                 }
-                observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, fans);
+                observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
                 Ok(block)
             })
             .collect::<Result<_>>()?;
-        for (b, block) in blocks.iter().enumerate() {
-            for (a, image) in block.chunks_exact(texels).enumerate() {
-                curvature[(a * n_phi + b) * texels..][..texels].copy_from_slice(image);
+        for (b, block) in (first..).zip(&blocks) {
+            for (ka, image) in block.chunks_exact(texels).enumerate() {
+                values[(ka * n_phi + b) * texels..][..texels].copy_from_slice(image);
             }
         }
     }
@@ -77,112 +97,370 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
 /// bent by `bend`: l / sin θ, l the arc length to the hit; `None` without a hit.
 pub fn cast(relief: Relief, p: [f64; 2], theta: f64, phi: f64, bend: Bend) -> Option<f64> {
     let mut hit = [None];
-    Fan::new(&[theta], bend).cast(relief, p, phi, &mut hit);
+    Fan::new(relief, &[theta], bend).cast(p, phi, &mut hit);
     hit[0]
 }
 
-/// The rays of one set of polar angles θ on one bent surface, prepared once: cast together
-/// from any entry point along any azimuth, in one march.
-pub struct Fan {
+/// The rays of one set of polar angles θ on one relief bent to one curvature, prepared once:
+/// cast together from any entry point along any azimuth, in one march.
+pub struct Fan<'a> {
+    relief: Relief<'a>,
+    blocks: Blocks,
     c: f64,
     rays: Vec<BentRay>,
+    /// Per ray, where it first reaches each of the [`LAYERS`] + 1 depths i·depth/[`LAYERS`]
+    /// (rounded down; infinity for a convex surface's ray that never does).
+    reach: Vec<Vec<f64>>,
 }
 
-impl Fan {
-    /// The fan of `thetas` (ascending, in (0, π/2)) on the surface bent by `bend`.
-    pub fn new(thetas: &[f64], bend: Bend) -> Fan {
+/// The depth layers the march's bounds are rounded to (a cell whose highest corner lies in
+/// layer i is passed over by a ray that has not reached layer i's top).
+const LAYERS: usize = 256;
+
+impl<'a> Fan<'a> {
+    /// The fan of `thetas` (ascending, in (0, π/2)) on `relief` bent by `bend`.
+    pub fn new(relief: Relief<'a>, thetas: &[f64], bend: Bend) -> Fan<'a> {
         debug_assert!(thetas.is_sorted());
+        let rays: Vec<BentRay> = thetas.iter().map(|&th| BentRay::new(th, bend.c)).collect();
+        let reach = rays
+            .iter()
+            .map(|ray| {
+                (0..=LAYERS)
+                    .map(|i| ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9))
+                    .collect()
+            })
+            .collect();
         Fan {
+            relief,
+            blocks: Blocks::new(relief.field),
             c: bend.c,
-            rays: thetas.iter().map(|&th| BentRay::new(th, bend.c)).collect(),
+            rays,
+            reach,
         }
     }
 
     /// The VDM values of the fan's rays entering at `p` along azimuth `phi`, written to `out`
-    /// in θ order (as [`cast`] gives them).
-    pub fn cast(&self, relief: Relief, p: [f64; 2], phi: f64, out: &mut [Option<f64>]) {
-        march(relief, p, phi, self.c, &self.rays, out);
+    /// in θ order (as [`cast`] gives them). What `out` holds on entry is where the same rays
+    /// hit on a surface of lesser curvature (or `None`): on a more convex surface a ray lies
+    /// shallower all along (t(σ) falls as c grows), so it hits no earlier, and the march
+    /// starts there.
+    pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>]) {
+        debug_assert_eq!(self.rays.len(), out.len());
+        let hit = self.march(p, phi, out);
+        out[hit..].fill(None);
+    }
+
+    /// [`Fan::cast`], returning how many rays hit (the first ones: `out` beyond them still
+    /// holds what it held on entry).
+    fn march(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>]) -> usize {
+        let rays = &self.rays;
+        // Where a ray not yet hit starts its search: short of the flatter surface's hit by its
+        // tolerance.
+        let beyond = |out: &[Option<f64>], a: usize| {
+            out[a].map_or(0.0, |d| (d * rays[a].sin_theta - 2.0 * TOLERANCE).max(0.0))
+        };
+        let c = self.c;
+        let mut line = Line::new(self.relief, p, phi);
+        // Every ray hits the floor (depth) by depth · tan θ on a flat or concave surface; a
+        // convex one's leaves before its end. A cap against rounding only.
+        let cap = rays.last().map_or(0.0, |r| self.relief.depth * r.tan_theta) + 4.0;
+        let (mut sigma, mut a) = (0.0, 0);
+        // The sines at the last σ that needed them.
+        let mut bent = Bent::at(c, 0.0);
+        while a < rays.len() && sigma < cap {
+            if sigma < beyond(out, a) {
+                sigma = beyond(out, a).min(cap);
+                line.jump(sigma);
+            }
+            if sigma >= rays[a].end {
+                // It left the relief, and so does every shallower ray.
+                return a;
+            }
+            // The steepest ray not yet hit lies below every other: where it cannot reach a
+            // block of cells before leaving it, neither can the rest of the fan.
+            let reach = &self.reach[a];
+            let passes =
+                |level: usize, exit: f64| exit < reach[self.blocks.layer(level, line.texel)];
+            let skip = (1..self.blocks.levels())
+                .map(|level| (level, line.block_exit(level).min(cap)))
+                .take_while(|&(level, exit)| passes(level, exit))
+                .last();
+            if let Some((level, exit)) = skip {
+                line.leave_block(level, exit);
+                sigma = exit;
+                continue;
+            }
+            let end = line.cell_exit().min(cap);
+            if passes(0, end) {
+                line.step(end);
+                sigma = end;
+                continue;
+            }
+            // The cell needs a closer look: its piece, and the rays' depths at both ends.
+            bent = bent.advanced(c, sigma);
+            let bent_end = bent.advanced(c, end);
+            let (mut from, mut t_from) = (sigma, rays[a].depth_bent(bent));
+            let mut piece = None;
+            while a < rays.len() {
+                let ray = &rays[a];
+                if from >= ray.end {
+                    return a;
+                }
+                // Just short of a concave surface's asymptote the ray lies below every relief.
+                let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
+                let t_to = if to == end {
+                    ray.depth_bent(bent_end)
+                } else {
+                    ray.depth_bent(bent.advanced(c, to))
+                };
+                if to < self.reach[a][self.blocks.layer(0, line.texel)] {
+                    break;
+                }
+                let piece =
+                    piece.get_or_insert_with(|| line.piece(self.relief, (sigma, bent), end));
+                match first_crossing(piece, ray, (from, t_from), (to, t_to)) {
+                    Some(hit) => {
+                        out[a] = Some(hit / ray.sin_theta);
+                        from = hit;
+                        a += 1;
+                        if a < rays.len() {
+                            from = from.max(beyond(out, a));
+                            if from >= end {
+                                break;
+                            }
+                            t_from = rays[a].depth_bent(bent.advanced(c, from));
+                        }
+                    }
+                    None => break,
+                }
+            }
+            line.step(end);
+            sigma = end;
+            bent = bent_end;
+        }
+        a
     }
 }
 
-/// [`Fan::cast`].
-fn march(relief: Relief, p: [f64; 2], phi: f64, c: f64, rays: &[BentRay], out: &mut [Option<f64>]) {
-    debug_assert_eq!(rays.len(), out.len());
-    out.fill(None);
-    let field = relief.field;
-    let (w, h) = field.size();
-    let (sin_phi, cos_phi) = phi.sin_cos();
-    // The line in grid units (texel centres at integers), per unit of σ.
-    let start = [p[0] * f64::from(w) - 0.5, p[1] * f64::from(h) - 0.5];
-    let speed = [cos_phi * f64::from(w), sin_phi * f64::from(h)];
-    let size = [i64::from(w), i64::from(h)];
-    // The cell the line enters first (where it starts on a cell boundary, the one it moves
-    // into), unwrapped, and its lower corner's texel wrapped into the tile.
-    let mut cell = [0, 1].map(|axis| {
-        let x = start[axis];
-        if speed[axis] < 0.0 {
-            x.ceil() as i64 - 1
-        } else {
-            x.floor() as i64
+/// Where the relief lies above each depth layer: per block of 2ᵏ × 2ᵏ bilinear cells, the
+/// layer of its highest corner, from k = 0 (single cells) up to blocks of 16 × 16 where both
+/// sides of the tile divide into them, periodic like the tile.
+struct Blocks {
+    /// Per level: blocks per row and column, and the blocks' layers.
+    levels: Vec<(i64, i64, Vec<u16>)>,
+}
+
+impl Blocks {
+    fn new(field: &HeightField) -> Blocks {
+        let (w, h) = field.size();
+        let (wu, hu) = (w as usize, h as usize);
+        let heights = field.heights();
+        let at = |i: usize, j: usize| heights[(j % hu) * wu + i % wu];
+        let cells: Vec<u16> = (0..hu)
+            .flat_map(|j| (0..wu).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let top = at(i, j)
+                    .max(at(i + 1, j))
+                    .max(at(i, j + 1))
+                    .max(at(i + 1, j + 1));
+                // The last layer whose top lies at or above the highest corner, for certain.
+                let layer = (1.0 - f64::from(top)) * LAYERS as f64 * (1.0 - 1e-9);
+                layer.clamp(0.0, LAYERS as f64) as u16
+            })
+            .collect();
+        let mut levels = vec![(i64::from(w), i64::from(h), cells)];
+        let top = w.trailing_zeros().min(h.trailing_zeros()).min(4);
+        for _ in 0..top {
+            let (w, h, finer) = levels.last().expect("level 0");
+            let (w2, h2) = (w / 2, h / 2);
+            let at = |i: i64, j: i64| finer[(j * w + i) as usize];
+            let coarser = (0..h2)
+                .flat_map(|j| (0..w2).map(move |i| (i, j)))
+                .map(|(i, j)| {
+                    let (i, j) = (2 * i, 2 * j);
+                    at(i, j)
+                        .min(at(i + 1, j))
+                        .min(at(i, j + 1))
+                        .min(at(i + 1, j + 1))
+                })
+                .collect();
+            levels.push((w2, h2, coarser));
         }
-    });
-    let mut texel = [0, 1].map(|axis| cell[axis].rem_euclid(size[axis]));
-    let step = speed.map(|v| if v > 0.0 { 1 } else { -1 });
-    // Where the line next crosses a cell boundary along each axis.
-    let next_boundary = |axis: usize, cell: i64| {
-        let v = speed[axis];
-        if v == 0.0 {
+        Blocks { levels }
+    }
+
+    fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// The layer of the level's block holding the cell whose lower corner is `texel`.
+    fn layer(&self, level: usize, texel: [i64; 2]) -> usize {
+        let (w, _, layers) = &self.levels[level];
+        usize::from(layers[((texel[1] >> level) * w + (texel[0] >> level)) as usize])
+    }
+}
+
+/// The line p + σ·(cos φ, sin φ) through the tile's bilinear cells, and the cell it is in.
+struct Line {
+    /// In grid units (texel centres at integers), at σ = 0 and per unit of σ.
+    start: [f64; 2],
+    speed: [f64; 2],
+    /// 1 / speed, per axis.
+    slowness: [f64; 2],
+    /// The cell (unwrapped), and its lower corner's texel wrapped into the tile.
+    cell: [i64; 2],
+    texel: [i64; 2],
+    size: [i64; 2],
+    /// The σ where the line leaves the cell through its face across each axis.
+    exits: [f64; 2],
+}
+
+impl Line {
+    fn new(relief: Relief, p: [f64; 2], phi: f64) -> Line {
+        let (w, h) = relief.field.size();
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        let start = [p[0] * f64::from(w) - 0.5, p[1] * f64::from(h) - 0.5];
+        let speed = [cos_phi * f64::from(w), sin_phi * f64::from(h)];
+        let size = [i64::from(w), i64::from(h)];
+        let mut line = Line {
+            start,
+            speed,
+            slowness: speed.map(|v| 1.0 / v),
+            cell: [0; 2],
+            texel: [0; 2],
+            size,
+            exits: [0.0; 2],
+        };
+        line.jump(0.0);
+        line
+    }
+
+    /// Moves to the cell the line is in at `sigma` (where that is on a cell boundary, the one
+    /// it moves into).
+    fn jump(&mut self, sigma: f64) {
+        let cell = [0, 1].map(|axis| {
+            let x = self.start[axis] + self.speed[axis] * sigma;
+            if self.speed[axis] < 0.0 {
+                x.ceil() as i64 - 1
+            } else {
+                x.floor() as i64
+            }
+        });
+        self.enter(cell);
+    }
+
+    /// Moves into `cell`.
+    fn enter(&mut self, cell: [i64; 2]) {
+        self.cell = cell;
+        self.texel = [0, 1].map(|axis| cell[axis].rem_euclid(self.size[axis]));
+        self.exits = [0, 1].map(|axis| self.crossing(axis, self.block_boundary(0, axis)));
+    }
+
+    /// The σ where the line crosses grid line `at` of `axis` (infinity if parallel).
+    fn crossing(&self, axis: usize, at: i64) -> f64 {
+        if self.speed[axis] == 0.0 {
             f64::INFINITY
         } else {
-            let boundary = if v > 0.0 { cell + 1 } else { cell } as f64;
-            (boundary - start[axis]) / v
+            (at as f64 - self.start[axis]) * self.slowness[axis]
         }
-    };
-    // Every ray hits the floor (depth) by depth · tan θ on a flat or concave surface; a convex
-    // one's leaves before its end. A cap against rounding only.
-    let cap = rays.last().map_or(0.0, |r| relief.depth * r.tan_theta) + 4.0;
-    let (mut sigma, mut a) = (0.0, 0);
-    let mut bent = Bent::at(c, 0.0);
-    while a < rays.len() && sigma < cap {
-        let next = [next_boundary(0, cell[0]), next_boundary(1, cell[1])];
-        let end = next[0].min(next[1]).min(cap);
-        let bent_end = Bent::at(c, end);
-        let piece = Piece::new(relief, texel, cell, start, speed, sigma, end);
-        // The fan's rays, steepest first, from where the last one hit.
-        let (mut from, mut t_from) = (sigma, rays[a].depth_bent(bent));
-        while a < rays.len() {
-            let ray = &rays[a];
-            if from >= ray.end {
-                // It left the relief, and so does every shallower ray.
-                return;
-            }
-            // Just short of a concave surface's asymptote the ray lies below every relief.
-            let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
-            let t_to = if to == end {
-                ray.depth_bent(bent_end)
-            } else {
-                ray.depth(to).0
-            };
-            match first_crossing(&piece, ray, (from, t_from), (to, t_to)) {
-                Some(hit) => {
-                    out[a] = Some(hit / ray.sin_theta);
-                    from = hit;
-                    a += 1;
-                    if let Some(next_ray) = rays.get(a) {
-                        t_from = next_ray.depth(hit).0;
-                    }
-                }
-                None => break,
-            }
+    }
+
+    /// The far boundary of the level's block along `axis`, ahead of the line.
+    fn block_boundary(&self, level: usize, axis: usize) -> i64 {
+        let block = self.cell[axis] >> level;
+        if self.speed[axis] > 0.0 {
+            (block + 1) << level
+        } else {
+            block << level
         }
+    }
+
+    /// Where the line leaves the level's block holding its cell.
+    fn block_exit(&self, level: usize) -> f64 {
+        let exit = |axis| self.crossing(axis, self.block_boundary(level, axis));
+        exit(0).min(exit(1))
+    }
+
+    /// Where the line leaves its cell.
+    fn cell_exit(&self) -> f64 {
+        self.exits[0].min(self.exits[1])
+    }
+
+    /// Moves into the next cell, the line having reached its exit at `sigma`.
+    fn step(&mut self, sigma: f64) {
         for axis in 0..2 {
-            if next[axis] == end {
-                cell[axis] += step[axis];
-                texel[axis] = (texel[axis] + step[axis]).rem_euclid(size[axis]);
+            if self.exits[axis] == sigma {
+                let size = self.size[axis];
+                let texel = &mut self.texel[axis];
+                if self.speed[axis] > 0.0 {
+                    self.cell[axis] += 1;
+                    *texel = if *texel + 1 == size { 0 } else { *texel + 1 };
+                } else {
+                    self.cell[axis] -= 1;
+                    *texel = if *texel == 0 { size - 1 } else { *texel - 1 };
+                }
+                self.exits[axis] = self.crossing(axis, self.block_boundary(0, axis));
             }
         }
-        sigma = end;
-        bent = bent_end;
+    }
+
+    /// Moves into the cell beyond the level's block, the line having reached the block's
+    /// boundary at `sigma` (its [`Line::block_exit`]).
+    fn leave_block(&mut self, level: usize, sigma: f64) {
+        let cell = [0, 1].map(|axis| {
+            let boundary = self.block_boundary(level, axis);
+            if self.crossing(axis, boundary) == sigma {
+                // Through this axis's face.
+                if self.speed[axis] > 0.0 {
+                    boundary
+                } else {
+                    boundary - 1
+                }
+            } else {
+                // Along it, within the block.
+                let block = self.cell[axis] >> level;
+                let x = (self.start[axis] + self.speed[axis] * sigma).floor() as i64;
+                x.clamp(block << level, ((block + 1) << level) - 1)
+            }
+        });
+        self.enter(cell);
+    }
+
+    /// The relief's depth along the line in its cell from `from` (with its [`Bent`]) to `to`.
+    fn piece(&self, relief: Relief, (from, bent): (f64, Bent), to: f64) -> Piece {
+        let field = relief.field;
+        let (w, h) = field.size();
+        let (w, h) = (w as usize, h as usize);
+        let [i, j] = self.texel.map(|t| t as usize);
+        let (i1, j1) = (
+            if i + 1 == w { 0 } else { i + 1 },
+            if j + 1 == h { 0 } else { j + 1 },
+        );
+        let heights = field.heights();
+        let at = |i: usize, j: usize| f64::from(heights[j * w + i]);
+        let (h00, h10, h01, h11) = (at(i, j), at(i1, j), at(i, j1), at(i1, j1));
+        // Position within the cell at `from`, and its rate per unit of σ.
+        let x0 = self.start[0] + self.speed[0] * from - self.cell[0] as f64;
+        let y0 = self.start[1] + self.speed[1] * from - self.cell[1] as f64;
+        let [ex, ey] = self.speed;
+        let (bx, by, k) = (h10 - h00, h01 - h00, h11 - h10 - h01 + h00);
+        let height = [
+            h00 + bx * x0 + by * y0 + k * x0 * y0,
+            bx * ex + by * ey + k * (x0 * ey + y0 * ex),
+            k * ex * ey,
+        ];
+        let depth = relief.depth;
+        Piece {
+            from,
+            to,
+            bent,
+            shallowest: depth * (1.0 - h00.max(h10).max(h01).max(h11)),
+            d: [
+                depth * (1.0 - height[0]),
+                -depth * height[1],
+                -depth * height[2],
+            ],
+        }
     }
 }
 
@@ -204,10 +482,29 @@ impl Bent {
         };
         Bent { sigma, sin, cos }
     }
+
+    /// The same at `sigma`, near this σ: within 1/16 radian by the angle-sum formulas and
+    /// Taylor series of the difference (exact to rounding there), else [`Bent::at`]. Saves
+    /// the march a sine per cell and per Newton step.
+    fn advanced(self, c: f64, sigma: f64) -> Bent {
+        let d = (sigma - self.sigma) * c;
+        if d.abs() > 1.0 / 16.0 {
+            return Bent::at(c, sigma);
+        }
+        let d2 = d * d;
+        let sin_d = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
+        let cos_d = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0)));
+        Bent {
+            sigma,
+            sin: self.sin * cos_d + self.cos * sin_d,
+            cos: self.cos * cos_d - self.sin * sin_d,
+        }
+    }
 }
 
 /// One ray of a fan: its depth below the bent reference surface against σ.
 struct BentRay {
+    theta: f64,
     sin_theta: f64,
     cot_theta: f64,
     tan_theta: f64,
@@ -237,6 +534,7 @@ impl BentRay {
             (f64::INFINITY, (f64::INFINITY, f64::INFINITY))
         };
         BentRay {
+            theta,
             sin_theta,
             cot_theta: cos_theta / sin_theta,
             tan_theta: sin_theta / cos_theta,
@@ -248,9 +546,22 @@ impl BentRay {
         }
     }
 
-    /// Depth t and dt/dσ at arc length σ.
-    fn depth(&self, sigma: f64) -> (f64, f64) {
-        let bent = Bent::at(self.c, sigma);
+    /// The first σ where the ray lies `depth` deep (infinity if it never does): where
+    /// sin(θ + σ·c) = sin θ / (1 − depth·c), t(σ) = R·(1 − sin θ / sin(θ + σ·c)).
+    fn reach(&self, depth: f64) -> f64 {
+        if self.c == 0.0 {
+            return depth * self.tan_theta;
+        }
+        let q = self.sin_theta / (1.0 - depth * self.c);
+        if q > 1.0 {
+            f64::INFINITY
+        } else {
+            (q.asin() - self.theta) / self.c
+        }
+    }
+
+    /// Depth t and dt/dσ at the σ of `bent`.
+    fn depth_and_slope(&self, bent: Bent) -> (f64, f64) {
         let x = bent.cos + bent.sin * self.cot_theta;
         (
             self.depth_bent(bent),
@@ -284,57 +595,14 @@ impl BentRay {
 struct Piece {
     from: f64,
     to: f64,
+    /// sin and cos of σ·c at `from`, for the rays' depths inside the piece.
+    bent: Bent,
     d: [f64; 3],
     /// The least depth over the whole cell (at its highest corner).
     shallowest: f64,
 }
 
 impl Piece {
-    /// The piece [`from`, `to`] of the line `start + σ·speed` (grid units) in cell `cell`
-    /// (unwrapped), whose lower corner is texel `texel` of the tile.
-    fn new(
-        relief: Relief,
-        texel: [i64; 2],
-        cell: [i64; 2],
-        start: [f64; 2],
-        speed: [f64; 2],
-        from: f64,
-        to: f64,
-    ) -> Piece {
-        let field = relief.field;
-        let (w, h) = field.size();
-        let (w, h) = (w as usize, h as usize);
-        let [i, j] = texel.map(|t| t as usize);
-        let (i1, j1) = (
-            if i + 1 == w { 0 } else { i + 1 },
-            if j + 1 == h { 0 } else { j + 1 },
-        );
-        let heights = field.heights();
-        let at = |i: usize, j: usize| f64::from(heights[j * w + i]);
-        let (h00, h10, h01, h11) = (at(i, j), at(i1, j), at(i, j1), at(i1, j1));
-        // Position within the cell at `from`, and its rate per unit of σ.
-        let x0 = start[0] + speed[0] * from - cell[0] as f64;
-        let y0 = start[1] + speed[1] * from - cell[1] as f64;
-        let (ex, ey) = (speed[0], speed[1]);
-        let (bx, by, k) = (h10 - h00, h01 - h00, h11 - h10 - h01 + h00);
-        let height = [
-            h00 + bx * x0 + by * y0 + k * x0 * y0,
-            bx * ex + by * ey + k * (x0 * ey + y0 * ex),
-            k * ex * ey,
-        ];
-        let depth = relief.depth;
-        Piece {
-            from,
-            to,
-            shallowest: depth * (1.0 - h00.max(h10).max(h01).max(h11)),
-            d: [
-                depth * (1.0 - height[0]),
-                -depth * height[1],
-                -depth * height[2],
-            ],
-        }
-    }
-
     /// D and dD/dσ at σ.
     fn depth(&self, sigma: f64) -> (f64, f64) {
         let s = sigma - self.from;
@@ -382,14 +650,15 @@ fn first_crossing(
         if b - a < TOLERANCE {
             return None;
         }
-        let mid = (0.5 * (a + b), ray.depth(0.5 * (a + b)).0);
+        let mid = 0.5 * (a + b);
+        let mid = (mid, ray.depth_bent(piece.bent.advanced(ray.c, mid)));
         return first_crossing(piece, ray, (a, t_a), mid)
             .or_else(|| first_crossing(piece, ray, mid, (b, t_b)));
     }
     // Bracketed: Newton steps, falling back to bisection where one would leave the bracket.
     let gap = |sigma: f64| {
         let (d, dd) = piece.depth(sigma);
-        let (t, dt) = ray.depth(sigma);
+        let (t, dt) = ray.depth_and_slope(piece.bent.advanced(ray.c, sigma));
         (d - t, dd - dt)
     };
     let (mut lo, mut hi) = (a, b);
