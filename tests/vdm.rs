@@ -229,6 +229,58 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
 }
 
 #[test]
+fn the_whole_exact_bake_gives_every_sample_what_its_ray_cast_alone_gives() {
+    // The bake starts each curvature's march where the flatter one's rays hit; a ray cast
+    // alone starts from its entry point. Weave at 32² texels: misses on convex surfaces,
+    // hits at every depth, blocks of up to 16 × 16 cells to skip.
+    let limits = Limits::default();
+    let field = reliefs::height_field(ReliefKind::Weave, 32, &limits).unwrap();
+    let relief = Relief {
+        field: &field,
+        depth: 0.125,
+    };
+    let values = exact::bake(relief, GRID, &()).unwrap();
+    let (mut hits, mut misses) = (0, 0);
+    for k in 0..GRID.n_curvature {
+        for a in 0..GRID.n_theta {
+            for b in 0..GRID.n_phi {
+                for texel in 0..32 * 32u32 {
+                    let i = (((k * GRID.n_theta + a) * GRID.n_phi + b) * 1024 + texel) as usize;
+                    let p = [
+                        (f64::from(texel % 32) + 0.5) / 32.0,
+                        (f64::from(texel / 32) + 0.5) / 32.0,
+                    ];
+                    let bend = Bend {
+                        c: GRID.curvature(k),
+                    };
+                    let (theta, phi) = (GRID.theta(a), GRID.phi(b));
+                    match exact::cast(relief, p, theta, phi, bend) {
+                        Some(d) => {
+                            hits += 1;
+                            // Each root to the tolerance, and the value in f32.
+                            let tolerance = 2.0 * exact::TOLERANCE / theta.sin() + 1e-6 * d;
+                            assert!(
+                                (f64::from(values[i]) - d).abs() <= tolerance,
+                                "c {k} θ {a} φ {b} texel {texel}: {} against {d}",
+                                values[i]
+                            );
+                        }
+                        None => {
+                            misses += 1;
+                            assert_eq!(values[i], NO_HIT, "c {k} θ {a} φ {b} texel {texel}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        hits > 100_000 && misses > 1_000,
+        "{hits} hits, {misses} misses"
+    );
+}
+
+#[test]
 fn reliefs_have_their_shapes_and_bound_their_samples_volumes() {
     let limits = Limits::default();
     let bumps = reliefs::height_field(ReliefKind::Bumps, 64, &limits).unwrap();
