@@ -492,8 +492,11 @@ impl Bent {
             return Bent::at(c, sigma);
         }
         let d2 = d * d;
-        let sin_d = d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
-        let cos_d = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0)));
+        // Horner's rule on the series' coefficients (multiplications only).
+        const SIN: [f64; 4] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0];
+        const COS: [f64; 5] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0];
+        let sin_d = d * SIN.iter().rev().fold(0.0, |acc, k| acc * d2 + k);
+        let cos_d = COS.iter().rev().fold(0.0, |acc, k| acc * d2 + k);
         Bent {
             sigma,
             sin: self.sin * cos_d + self.cos * sin_d,
@@ -569,6 +572,15 @@ impl BentRay {
         )
     }
 
+    /// dt/dσ and ½·d²t/dσ² at the σ of `bent`: with x = sin u / sin θ and y = cos u / sin θ
+    /// (u = θ + σc), t′ = y / x² and t″ = −c·(x² + 2y²) / x³.
+    fn slope_and_bending(&self, bent: Bent) -> (f64, f64) {
+        let x = bent.cos + bent.sin * self.cot_theta;
+        let y = bent.cos * self.cot_theta - bent.sin;
+        let slope = y / (x * x);
+        (slope, -0.5 * self.c * (x * x + 2.0 * y * y) / (x * x * x))
+    }
+
     /// Depth at the σ of `bent`.
     fn depth_bent(&self, bent: Bent) -> f64 {
         if self.c == 0.0 {
@@ -609,23 +621,16 @@ impl Piece {
         let [d0, d1, d2] = self.d;
         (d0 + s * (d1 + s * d2), d1 + 2.0 * s * d2)
     }
-
-    /// The least depth over [a, b]: at an end or at the quadratic's vertex.
-    fn shallowest_on(&self, a: f64, b: f64) -> f64 {
-        let ends = self.depth(a).0.min(self.depth(b).0);
-        let [_, d1, d2] = self.d;
-        if d2 > 0.0 {
-            let vertex = self.from - d1 / (2.0 * d2);
-            if (a..=b).contains(&vertex) {
-                return ends.min(self.depth(vertex).0);
-            }
-        }
-        ends
-    }
 }
 
 /// The first σ in [a, b] (within the piece) where `ray` reaches the relief, given that it has
 /// not before a, and the ray's depths `t_a` and `t_b` at the ends.
+///
+/// Inside a piece the gap g(σ) = D(σ) − t(σ) is nearly the quadratic e(s) = g(a) + (D′(a) −
+/// m)·s + d2·s², s = σ − a, with m the slope of a line through the ray at a: the ray's
+/// depth curves up on a flat or concave surface (d²t/dσ² = −c·sin θ·(sin²u + 2cos²u)/sin³u,
+/// u = θ + σc) and down on a convex one, so it lies under its chord in the first case and
+/// under its tangent at a in the second, and then g ≥ e.
 fn first_crossing(
     piece: &Piece,
     ray: &BentRay,
@@ -637,32 +642,58 @@ fn first_crossing(
     if deepest < piece.shallowest {
         return None;
     }
-    let ga = piece.depth(a).0 - t_a;
+    let (d_a, slope_a) = piece.depth(a);
+    let ga = d_a - t_a;
     if ga <= 0.0 {
         return Some(a);
     }
-    if b <= a || piece.shallowest_on(a, b) - deepest > 0.0 {
+    if b <= a {
         return None;
     }
-    let gb = piece.depth(b).0 - t_b;
-    if gb > 0.0 {
-        // Positive at both ends: a crossing needs a dip between them.
-        if b - a < TOLERANCE {
-            return None;
-        }
-        let mid = 0.5 * (a + b);
-        let mid = (mid, ray.depth_bent(piece.bent.advanced(ray.c, mid)));
-        return first_crossing(piece, ray, (a, t_a), mid)
-            .or_else(|| first_crossing(piece, ray, mid, (b, t_b)));
-    }
-    // Bracketed: Newton steps, falling back to bisection where one would leave the bracket.
     let gap = |sigma: f64| {
         let (d, dd) = piece.depth(sigma);
         let (t, dt) = ray.depth_and_slope(piece.bent.advanced(ray.c, sigma));
         (d - t, dd - dt)
     };
-    let (mut lo, mut hi) = (a, b);
-    let mut x = a + (b - a) * ga / (ga - gb);
+    // The ray's slope and half its curvature at a: e with its tangent, and a quadratic
+    // model of the gap with both.
+    let (slope, bending) = ray.slope_and_bending(piece.bent.advanced(ray.c, a));
+    let d2 = piece.d[2];
+    let (mut hi, mut g_hi) = (b, piece.depth(b).0 - t_b);
+    if g_hi > 0.0 {
+        // Positive at both ends: a crossing needs a dip between them, and the gap lies above
+        // e under the line the ray lies under.
+        let m = if ray.c > 0.0 {
+            slope
+        } else {
+            (t_b - t_a) / (b - a)
+        };
+        let (s, least) = least_on(ga, slope_a - m, d2, b - a);
+        if least > 0.0 {
+            return None;
+        }
+        // Where e is least the gap is least, nearly: a bracket if it has dipped there.
+        let x = a + s;
+        let g_x = gap(x).0;
+        if g_x > 0.0 {
+            // A touch within rounding, or a dip too narrow for e to find: halve.
+            if b - a < TOLERANCE {
+                return None;
+            }
+            let mid = 0.5 * (a + b);
+            let mid = (mid, ray.depth_bent(piece.bent.advanced(ray.c, mid)));
+            return first_crossing(piece, ray, (a, t_a), mid)
+                .or_else(|| first_crossing(piece, ray, mid, (b, t_b)));
+        }
+        (hi, g_hi) = (x, g_x);
+    }
+    // Bracketed: Newton steps from the model's root, falling back to bisection where one
+    // would leave the bracket.
+    let mut lo = a;
+    let mut x = first_root(ga, slope_a - slope, d2 - bending)
+        .map(|s| a + s)
+        .filter(|x| *x > lo && *x < hi)
+        .unwrap_or(a + (hi - a) * ga / (ga - g_hi));
     for _ in 0..64 {
         let (g, dg) = gap(x);
         if g > 0.0 {
@@ -685,4 +716,38 @@ fn first_crossing(
         x = next;
     }
     Some(hi)
+}
+
+/// The least of e(s) = e0 + e1·s + e2·s² over [0, len], and where.
+fn least_on(e0: f64, e1: f64, e2: f64, len: f64) -> (f64, f64) {
+    let e = |s: f64| e0 + s * (e1 + s * e2);
+    let mut least = if e(len) < e0 {
+        (len, e(len))
+    } else {
+        (0.0, e0)
+    };
+    if e2 > 0.0 {
+        let vertex = -e1 / (2.0 * e2);
+        if vertex > 0.0 && vertex < len && e(vertex) < least.1 {
+            least = (vertex, e(vertex));
+        }
+    }
+    least
+}
+
+/// The least positive root of e0 + e1·s + e2·s² (e0 > 0), if any.
+fn first_root(e0: f64, e1: f64, e2: f64) -> Option<f64> {
+    if e2 == 0.0 {
+        return (e1 < 0.0).then(|| -e0 / e1);
+    }
+    let disc = e1 * e1 - 4.0 * e0 * e2;
+    if disc < 0.0 {
+        return None;
+    }
+    // Without cancellation: the roots are q / e2 and e0 / q.
+    let q = -0.5 * (e1 + disc.sqrt().copysign(e1));
+    [q / e2, e0 / q]
+        .into_iter()
+        .filter(|s| *s > 0.0)
+        .min_by(f64::total_cmp)
 }
