@@ -105,7 +105,7 @@ pub fn cast(relief: Relief, p: [f64; 2], theta: f64, phi: f64, bend: Bend) -> Op
 /// cast together from any entry point along any azimuth, in one march.
 pub struct Fan<'a> {
     relief: Relief<'a>,
-    blocks: Blocks,
+    layers: Layers,
     c: f64,
     rays: Vec<BentRay>,
     /// Per ray, where it first reaches each of the [`LAYERS`] + 1 depths i·depth/[`LAYERS`]
@@ -132,7 +132,7 @@ impl<'a> Fan<'a> {
             .collect();
         Fan {
             relief,
-            blocks: Blocks::new(relief.field),
+            layers: Layers::new(relief.field),
             c: bend.c,
             rays,
             reach,
@@ -176,22 +176,10 @@ impl<'a> Fan<'a> {
                 // It left the relief, and so does every shallower ray.
                 return a;
             }
-            // The steepest ray not yet hit lies below every other: where it cannot reach a
-            // block of cells before leaving it, neither can the rest of the fan.
-            let reach = &self.reach[a];
-            let passes =
-                |level: usize, exit: f64| exit < reach[self.blocks.layer(level, line.texel)];
-            let skip = (1..self.blocks.levels())
-                .map(|level| (level, line.block_exit(level).min(cap)))
-                .take_while(|&(level, exit)| passes(level, exit))
-                .last();
-            if let Some((level, exit)) = skip {
-                line.leave_block(level, exit);
-                sigma = exit;
-                continue;
-            }
+            // The steepest ray not yet hit lies below every other: where it cannot reach the
+            // cell's highest corner before leaving it, neither can the rest of the fan.
             let end = line.cell_exit().min(cap);
-            if passes(0, end) {
+            if end < self.reach[a][self.layers.of(line.texel)] {
                 line.step(end);
                 sigma = end;
                 continue;
@@ -213,7 +201,7 @@ impl<'a> Fan<'a> {
                 } else {
                     ray.depth_bent(bent.advanced(c, to))
                 };
-                if to < self.reach[a][self.blocks.layer(0, line.texel)] {
+                if to < self.reach[a][self.layers.of(line.texel)] {
                     break;
                 }
                 let piece =
@@ -242,61 +230,39 @@ impl<'a> Fan<'a> {
     }
 }
 
-/// Where the relief lies above each depth layer: per block of 2ᵏ × 2ᵏ bilinear cells, the
-/// layer of its highest corner, from k = 0 (single cells) up to blocks of 16 × 16 where both
-/// sides of the tile divide into them, periodic like the tile.
-struct Blocks {
-    /// Per level: blocks per row and column, and the blocks' layers.
-    levels: Vec<(i64, i64, Vec<u16>)>,
+/// Per bilinear cell, the depth layer of its highest corner: the last layer whose top lies at
+/// or above it.
+struct Layers {
+    width: i64,
+    layers: Vec<u16>,
 }
 
-impl Blocks {
-    fn new(field: &HeightField) -> Blocks {
+impl Layers {
+    fn new(field: &HeightField) -> Layers {
         let (w, h) = field.size();
-        let (wu, hu) = (w as usize, h as usize);
+        let (w, h) = (w as usize, h as usize);
         let heights = field.heights();
-        let at = |i: usize, j: usize| heights[(j % hu) * wu + i % wu];
-        let cells: Vec<u16> = (0..hu)
-            .flat_map(|j| (0..wu).map(move |i| (i, j)))
+        let at = |i: usize, j: usize| heights[(j % h) * w + i % w];
+        let layers = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
             .map(|(i, j)| {
                 let top = at(i, j)
                     .max(at(i + 1, j))
                     .max(at(i, j + 1))
                     .max(at(i + 1, j + 1));
-                // The last layer whose top lies at or above the highest corner, for certain.
                 let layer = (1.0 - f64::from(top)) * LAYERS as f64 * (1.0 - 1e-9);
                 layer.clamp(0.0, LAYERS as f64) as u16
             })
             .collect();
-        let mut levels = vec![(i64::from(w), i64::from(h), cells)];
-        let top = w.trailing_zeros().min(h.trailing_zeros()).min(4);
-        for _ in 0..top {
-            let (w, h, finer) = levels.last().expect("level 0");
-            let (w2, h2) = (w / 2, h / 2);
-            let at = |i: i64, j: i64| finer[(j * w + i) as usize];
-            let coarser = (0..h2)
-                .flat_map(|j| (0..w2).map(move |i| (i, j)))
-                .map(|(i, j)| {
-                    let (i, j) = (2 * i, 2 * j);
-                    at(i, j)
-                        .min(at(i + 1, j))
-                        .min(at(i, j + 1))
-                        .min(at(i + 1, j + 1))
-                })
-                .collect();
-            levels.push((w2, h2, coarser));
+        Layers {
+            width: w as i64,
+            layers,
         }
-        Blocks { levels }
     }
 
-    fn levels(&self) -> usize {
-        self.levels.len()
-    }
-
-    /// The layer of the level's block holding the cell whose lower corner is `texel`.
-    fn layer(&self, level: usize, texel: [i64; 2]) -> usize {
-        let (w, _, layers) = &self.levels[level];
-        usize::from(layers[((texel[1] >> level) * w + (texel[0] >> level)) as usize])
+    /// The layer of the cell whose lower corner is `texel`.
+    fn of(&self, texel: [i64; 2]) -> usize {
+        usize::from(self.layers[(texel[1] * self.width + texel[0]) as usize])
     }
 }
 
@@ -353,7 +319,7 @@ impl Line {
     fn enter(&mut self, cell: [i64; 2]) {
         self.cell = cell;
         self.texel = [0, 1].map(|axis| cell[axis].rem_euclid(self.size[axis]));
-        self.exits = [0, 1].map(|axis| self.crossing(axis, self.block_boundary(0, axis)));
+        self.exits = [0, 1].map(|axis| self.exit(axis));
     }
 
     /// The σ where the line crosses grid line `at` of `axis` (infinity if parallel).
@@ -365,20 +331,17 @@ impl Line {
         }
     }
 
-    /// The far boundary of the level's block along `axis`, ahead of the line.
-    fn block_boundary(&self, level: usize, axis: usize) -> i64 {
-        let block = self.cell[axis] >> level;
-        if self.speed[axis] > 0.0 {
-            (block + 1) << level
-        } else {
-            block << level
-        }
-    }
-
-    /// Where the line leaves the level's block holding its cell.
-    fn block_exit(&self, level: usize) -> f64 {
-        let exit = |axis| self.crossing(axis, self.block_boundary(level, axis));
-        exit(0).min(exit(1))
+    /// Where the line leaves its cell through the face across `axis`.
+    fn exit(&self, axis: usize) -> f64 {
+        let cell = self.cell[axis];
+        self.crossing(
+            axis,
+            if self.speed[axis] > 0.0 {
+                cell + 1
+            } else {
+                cell
+            },
+        )
     }
 
     /// Where the line leaves its cell.
@@ -399,31 +362,9 @@ impl Line {
                     self.cell[axis] -= 1;
                     *texel = if *texel == 0 { size - 1 } else { *texel - 1 };
                 }
-                self.exits[axis] = self.crossing(axis, self.block_boundary(0, axis));
+                self.exits[axis] = self.exit(axis);
             }
         }
-    }
-
-    /// Moves into the cell beyond the level's block, the line having reached the block's
-    /// boundary at `sigma` (its [`Line::block_exit`]).
-    fn leave_block(&mut self, level: usize, sigma: f64) {
-        let cell = [0, 1].map(|axis| {
-            let boundary = self.block_boundary(level, axis);
-            if self.crossing(axis, boundary) == sigma {
-                // Through this axis's face.
-                if self.speed[axis] > 0.0 {
-                    boundary
-                } else {
-                    boundary - 1
-                }
-            } else {
-                // Along it, within the block.
-                let block = self.cell[axis] >> level;
-                let x = (self.start[axis] + self.speed[axis] * sigma).floor() as i64;
-                x.clamp(block << level, ((block + 1) << level) - 1)
-            }
-        });
-        self.enter(cell);
     }
 
     /// The relief's depth along the line in its cell from `from` (with its [`Bent`]) to `to`.
@@ -487,6 +428,9 @@ impl Bent {
     /// Taylor series of the difference (exact to rounding there), else [`Bent::at`]. Saves
     /// the march a sine per cell and per Newton step.
     fn advanced(self, c: f64, sigma: f64) -> Bent {
+        if c == 0.0 {
+            return Bent { sigma, ..self };
+        }
         let d = (sigma - self.sigma) * c;
         if d.abs() > 1.0 / 16.0 {
             return Bent::at(c, sigma);
