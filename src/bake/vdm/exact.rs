@@ -5,17 +5,27 @@
 //! share one line of texture space, p + σ·(cos φ, sin φ). Along that line the relief's depth
 //! D(σ) is quadratic inside each cell of the bilinear interpolation (the patch between four
 //! texel centres). A ray entering at polar angle θ lies at depth
-//! t(σ) = R·(1 − 1 / (cos(σ/R) + sin(σ/R)·cot θ)) below the reference surface bent to radius
-//! R = 1/c (σ·cot θ on the flat surface, c = 0). The march steps once from cell to cell along
-//! the line for the whole fan of θ: rays from one point in one plane never cross, so a
-//! steeper ray lies below a shallower one everywhere and hits no later along the line
-//! ([`Fan`]). In each cell the gap g(σ) = D(σ) − t(σ) is bounded from below (D's
-//! minimum, t's maximum, both exact), and only where the bound does not rule a crossing out is
-//! the first root found: Newton steps kept inside the bracket, to [`TOLERANCE`]; where the
-//! gap is still positive at the cell's end, the cell is halved until its bound rules the
-//! crossing out or it is shorter than [`TOLERANCE`] (a touch, not a crossing). A convex
-//! surface's ray that climbs back out through the reference surface (at σ = R·(π − 2θ))
-//! without meeting the relief is [`NO_HIT`], and so is every shallower ray of its fan.
+//! t(σ) = R·(1 − sin θ / sin(θ + σ/R)) below the reference surface bent to radius R = 1/c
+//! (σ·cot θ on the flat surface, c = 0). The march steps once from cell to cell along the line
+//! for the whole fan of θ ([`Fan`]), and three orderings spare it work:
+//!
+//! - rays from one point in one plane never cross, so a steeper ray lies below a shallower one
+//!   everywhere and hits no later along the line: each ray's search starts where the last hit;
+//! - t(σ) falls as c grows at every σ (a more convex surface curves away from the ray), so a
+//!   ray hits no earlier than on a flatter surface: the bake marches the curvatures of one
+//!   texel and azimuth in ascending order, each ray starting where it hit on the last;
+//! - t rises with σ up to a convex surface's turning point, so the first σ where a ray
+//!   reaches each of `LAYERS` depths, tabled per ray, rules out without a sine every cell
+//!   whose highest corner it cannot reach before leaving the cell.
+//!
+//! In a cell not ruled out, the gap g(σ) = D(σ) − t(σ) is bounded from below (the ray under
+//! its chord or tangent, `first_crossing`), and only where the bound does not rule a
+//! crossing out is the first root found: Newton steps from a quadratic model's root, kept
+//! inside the bracket, to [`TOLERANCE`]; where the gap is positive at both ends and the bound
+//! cannot decide, the cell is halved until it can or is shorter than [`TOLERANCE`] (a touch,
+//! not a crossing). A convex surface's ray that climbs back out through the reference surface
+//! (at σ = R·(π − 2θ)) without meeting the relief is [`NO_HIT`], and so is every shallower ray
+//! of its fan.
 
 use super::bend::Bend;
 use super::{NO_HIT, Relief, VdmGrid};
