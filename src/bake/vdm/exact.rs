@@ -206,14 +206,14 @@ impl<'a> Fan<'a> {
                 }
                 // Just short of a concave surface's asymptote the ray lies below every relief.
                 let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
+                if to < self.reach[a][self.layers.of(line.texel)] {
+                    break;
+                }
                 let t_to = if to == end {
                     ray.depth_bent(bent_end)
                 } else {
                     ray.depth_bent(bent.advanced(c, to))
                 };
-                if to < self.reach[a][self.layers.of(line.texel)] {
-                    break;
-                }
                 let piece =
                     piece.get_or_insert_with(|| line.piece(self.relief, (sigma, bent), end));
                 match first_crossing(piece, ray, (from, t_from), (to, t_to)) {
