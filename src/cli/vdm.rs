@@ -156,11 +156,25 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
         Some(rank) => {
             let start = Instant::now();
             let c = compress(&baked, rank, args.mvm_rank.min(rank), args.quant, limits)?;
-            if let Some(path) = &args.package {
-                let bytes = package::vdm::encode(input, &field, &baked, params_of(args.method), &c);
-                write_atomic(path, &bytes)?;
-                eprintln!("wrote {}: {} bytes", path.display(), bytes.len());
-            }
+            let package = match &args.package {
+                Some(path) => {
+                    let encoding = Instant::now();
+                    let bytes =
+                        package::vdm::encode(input, &field, &baked, params_of(args.method), &c);
+                    let encode_s = encoding.elapsed().as_secs_f64();
+                    let parsing = Instant::now();
+                    let parsed = package::vdm::VdmPackage::parse(bytes.clone())?;
+                    let parse_s = parsing.elapsed().as_secs_f64();
+                    write_atomic(path, &bytes)?;
+                    eprintln!("wrote {}: {} bytes", path.display(), bytes.len());
+                    Some(serde_json::json!({
+                        "bytes": parsed.bytes().len(),
+                        "encode_seconds": encode_s,
+                        "parse_seconds": parse_s,
+                    }))
+                }
+                None => None,
+            };
             let bytes = (c.weights.codes.len() + c.eigen.codes.len()) as u64;
             eprintln!(
                 "compressed to {} + {} components ({}): {bytes} bytes (from {}); silhouette \
@@ -177,6 +191,7 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
                 "mvm_rank": c.mvm_rank,
                 "quantization": args.quant,
                 "bytes": bytes,
+                "package": package,
                 "uncompressed_bytes": 4 * baked.values.len(),
                 "accuracy": c.accuracy,
                 "seconds": start.elapsed().as_secs_f64(),

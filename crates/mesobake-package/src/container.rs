@@ -4,6 +4,7 @@
 
 use super::manifest::{Section, TextureDimension};
 use crate::error::{Error, Result};
+use rayon::prelude::*;
 
 /// The first eight bytes of every package.
 pub const MAGIC: [u8; 8] = *b"\x89MBPKG\r\n";
@@ -45,16 +46,33 @@ struct Head {
     version: u32,
 }
 
-/// Lays out `payloads` (one per entry of the manifest's sections, in order) and the manifest,
-/// filling in each section's offset, length and checksum.
+/// Lays out `payloads` (one per entry of the manifest's sections, in order: each its texture's
+/// texels) and the manifest, filling in each section's offset, length and checksum. A section
+/// marked for supercompression is stored compressed where that is smaller, and unmarked where
+/// it is not.
 pub fn assemble<M: ContainerManifest>(manifest: &mut M, payloads: &[Vec<u8>]) -> Vec<u8> {
     assert_eq!(
         manifest.sections().len(),
         payloads.len(),
         "one payload per section"
     );
+    let stored: Vec<Option<Vec<u8>>> = (manifest.sections().par_iter().zip(payloads))
+        .map(|(section, texels)| {
+            let scheme = section.supercompression?;
+            Some(scheme.compress(&section.texture, texels)).filter(|s| s.len() < texels.len())
+        })
+        .collect();
     let mut file = vec![0u8; HEADER_BYTES];
-    for (section, payload) in manifest.sections_mut().iter_mut().zip(payloads) {
+    for ((section, texels), stored) in manifest
+        .sections_mut()
+        .iter_mut()
+        .zip(payloads)
+        .zip(&stored)
+    {
+        if stored.is_none() {
+            section.supercompression = None;
+        }
+        let payload = stored.as_deref().unwrap_or(texels);
         file.resize(file.len().next_multiple_of(ALIGNMENT as usize), 0);
         section.offset = file.len() as u64;
         section.bytes = payload.len() as u64;
@@ -196,7 +214,8 @@ fn check_sections(bytes: &[u8], sections: &[Section], manifest_offset: u64) -> R
                 "{what} has an invalid texture shape {t:?}"
             )));
         }
-        if t.byte_len() != Some(s.bytes) {
+        if t.byte_len().is_none() || (s.supercompression.is_none() && t.byte_len() != Some(s.bytes))
+        {
             return Err(invalid(format!(
                 "{what} holds {} bytes but its {}×{}×{} texture needs {:?}",
                 s.bytes,
@@ -238,4 +257,50 @@ fn zero_padding(bytes: &[u8], from: u64, to: u64) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+/// A package's bytes, checked by [`parse`], with its supercompressed sections inflated.
+#[derive(Debug)]
+pub struct Contents {
+    file: Vec<u8>,
+    /// Per section of the manifest, in order: its texels where they are stored compressed.
+    inflated: Vec<Option<Vec<u8>>>,
+}
+
+impl Contents {
+    /// Inflates the supercompressed ones among `sections` (the manifest's, as [`parse`]
+    /// returned it from `file`), refusing a stream that is not valid or does not hold exactly
+    /// its texture.
+    pub fn inflate(file: Vec<u8>, sections: &[Section]) -> Result<Contents> {
+        let inflated = sections
+            .par_iter()
+            .map(|s| {
+                let Some(scheme) = s.supercompression else {
+                    return Ok(None);
+                };
+                let stored = &file[s.offset as usize..][..s.bytes as usize];
+                scheme
+                    .decompress(&s.texture, stored)
+                    .map(Some)
+                    .map_err(|e| invalid(format!("section {:?}: {e}", s.name)))
+            })
+            .collect::<Result<_>>()?;
+        Ok(Contents { file, inflated })
+    }
+
+    /// The whole file.
+    pub fn file(&self) -> &[u8] {
+        &self.file
+    }
+
+    /// The texels of section `name` among `sections` (the manifest's), if listed.
+    pub fn section<'a>(&'a self, sections: &[Section], name: &str) -> Option<&'a [u8]> {
+        let i = sections.iter().position(|s| s.name == name)?;
+        let s = &sections[i];
+        Some(
+            self.inflated[i]
+                .as_deref()
+                .unwrap_or(&self.file[s.offset as usize..][..s.bytes as usize]),
+        )
+    }
 }

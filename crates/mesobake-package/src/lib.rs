@@ -23,11 +23,13 @@ pub mod manifest;
 pub mod medium;
 pub mod occupancy;
 pub mod quantize;
+pub mod supercompression;
 pub mod svd;
 pub mod vdm;
 
 pub use error::{Error, Result};
 
+use container::Contents;
 use grid::{Dims, DirectionGrid};
 use manifest::{
     BakeInfo, FORMAT_NAME, FactorInfo, GdmCodec, GiInfo, InputInfo, Manifest, OccupancyInfo,
@@ -42,7 +44,7 @@ use svd::{SvdFactors, SvdGdm};
 #[derive(Debug)]
 pub struct Package {
     manifest: Manifest,
-    bytes: Vec<u8>,
+    contents: Contents,
     dims: Dims,
     dirs: DirectionGrid,
 }
@@ -120,17 +122,11 @@ fn read_limited(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
     std::fs::read(path).map_err(io)
 }
 
-/// The bytes of section `name` of a validated package, if listed.
-fn section<'a>(sections: &[Section], bytes: &'a [u8], name: &str) -> Option<&'a [u8]> {
-    let s = sections.iter().find(|s| s.name == name)?;
-    Some(&bytes[s.offset as usize..][..s.bytes as usize])
-}
-
-/// The bytes and texel format of each named section of a validated package, for
+/// The texels and texel format of each named section of a validated package, for
 /// [`QuantizedFactor::unpack`].
 fn groups<'a>(
     sections: &[Section],
-    bytes: &'a [u8],
+    contents: &'a Contents,
     names: &[String],
 ) -> Vec<(&'a [u8], TexelFormat)> {
     names
@@ -141,7 +137,7 @@ fn groups<'a>(
                 .find(|s| &s.name == name)
                 .expect("validated");
             (
-                &bytes[s.offset as usize..][..s.bytes as usize],
+                contents.section(sections, name).expect("validated"),
                 s.texture.format,
             )
         })
@@ -229,6 +225,7 @@ impl Package {
     /// texture shape, an occupancy field's distances, the radiance transfer's sections).
     pub fn parse(bytes: Vec<u8>) -> Result<Package> {
         let manifest: Manifest = container::parse(&bytes)?;
+        let contents = Contents::inflate(bytes, &manifest.sections)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
         let [x, y, z] = manifest.bake.res;
         let dims = Dims::new(x, y, z).map_err(|e| bad(e.to_string()))?;
@@ -265,7 +262,7 @@ impl Package {
         }
         let package = Package {
             manifest,
-            bytes,
+            contents,
             dims,
             dirs,
         };
@@ -294,14 +291,14 @@ impl Package {
         self.dirs
     }
 
-    /// The bytes of section `name`, if present.
+    /// The texels of section `name`, if present.
     pub fn section(&self, name: &str) -> Option<&[u8]> {
-        section(&self.manifest.sections, &self.bytes, name)
+        self.contents.section(&self.manifest.sections, name)
     }
 
     /// The whole package's bytes.
     pub fn bytes(&self) -> &[u8] {
-        &self.bytes
+        self.contents.file()
     }
 
     /// The quantized weight maps and eigenmaps, unpacked from their textures (codec
@@ -311,7 +308,7 @@ impl Package {
         let rows_w = self.dims.x as usize * self.dims.y as usize * self.dirs.n_phi as usize;
         let rows_e = self.dims.z as usize * self.dirs.n_theta as usize;
         let unpack = |info: &FactorInfo, rows: usize| {
-            let groups = groups(&self.manifest.sections, &self.bytes, &info.sections);
+            let groups = groups(&self.manifest.sections, &self.contents, &info.sections);
             QuantizedFactor::unpack(
                 &groups,
                 rows,

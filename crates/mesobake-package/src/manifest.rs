@@ -3,6 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::quantize::Quantization;
+use crate::supercompression::Supercompression;
 
 /// The value of [`Manifest::format`].
 pub const FORMAT_NAME: &str = "mesobake-package";
@@ -204,12 +205,15 @@ pub struct Section {
     pub name: String,
     /// Byte offset from the start of the file, a multiple of 256.
     pub offset: u64,
-    /// Length in bytes.
+    /// Length in bytes, as stored.
     pub bytes: u64,
-    /// CRC-32 (IEEE 802.3, as zlib's `crc32`) of the section's bytes.
+    /// CRC-32 (IEEE 802.3, as zlib's `crc32`) of the section's stored bytes.
     pub crc32: u32,
     /// The texture the bytes upload to.
     pub texture: Texture,
+    /// How the stored bytes encode the texels; `None` (omitted): they are the texels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub supercompression: Option<Supercompression>,
 }
 
 impl Section {
@@ -221,6 +225,16 @@ impl Section {
             bytes: 0,
             crc32: 0,
             texture,
+            supercompression: None,
+        }
+    }
+
+    /// The same section, stored supercompressed by `scheme` where that makes it smaller (see
+    /// [`crate::container::assemble`]).
+    pub fn supercompressed(self, scheme: Supercompression) -> Section {
+        Section {
+            supercompression: Some(scheme),
+            ..self
         }
     }
 }

@@ -11,7 +11,7 @@
 //! (1 − α_v)^ℓ); level l + 1 halves every side of level l and its opacity is per voxel
 //! length of its own, coarser, voxels.
 
-use crate::container::{self, ContainerManifest};
+use crate::container::{self, ContainerManifest, Contents};
 use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::manifest::{FactorInfo, InputInfo, Section, TexelFormat, Texture, TextureDimension};
@@ -151,7 +151,7 @@ pub fn coarser_res(res: [u32; 3]) -> Option<[u32; 3]> {
 #[derive(Debug)]
 pub struct MediumPackage {
     manifest: MediumManifest,
-    bytes: Vec<u8>,
+    contents: Contents,
     levels: Vec<MediumLevel>,
 }
 
@@ -241,6 +241,7 @@ impl MediumPackage {
     /// colour finite and ≥ 0, normals finite).
     pub fn parse(bytes: Vec<u8>) -> Result<MediumPackage> {
         let manifest: MediumManifest = container::parse(&bytes)?;
+        let contents = Contents::inflate(bytes, &manifest.sections)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
         let info = &manifest.medium;
         if manifest.units != "voxel" {
@@ -287,7 +288,7 @@ impl MediumPackage {
                     )));
                 }
                 crate::expect_section(&manifest.sections, name, texture, bad)?;
-                let group = crate::groups(&manifest.sections, &bytes, &f.sections);
+                let group = crate::groups(&manifest.sections, &contents, &f.sections);
                 Ok(
                     QuantizedFactor::unpack(&group, n, q, f.scale.clone(), f.bias.clone())
                         .dequantize(),
@@ -332,7 +333,7 @@ impl MediumPackage {
         }
         Ok(MediumPackage {
             manifest,
-            bytes,
+            contents,
             levels,
         })
     }
@@ -355,7 +356,7 @@ impl MediumPackage {
 
     /// The whole package's bytes.
     pub fn bytes(&self) -> &[u8] {
-        &self.bytes
+        self.contents.file()
     }
 }
 

@@ -8,10 +8,11 @@
 //! Units are tile units: the tile is 1 × 1 in texture space, distances and the relief's depth
 //! are fractions of its edge, curvatures are in 1/tile.
 
-use crate::container::{self, ContainerManifest};
+use crate::container::{self, ContainerManifest, Contents};
 use crate::error::{Error, Result};
 use crate::manifest::{FactorInfo, InputInfo, Section, TexelFormat, Texture, TextureDimension};
 use crate::quantize::{Quantization, QuantizedFactor};
+use crate::supercompression::Supercompression;
 use crate::svd::CHANNELS;
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::path::Path;
@@ -339,7 +340,7 @@ struct ReliefGrid {
 #[derive(Debug)]
 pub struct VdmPackage {
     manifest: VdmManifest,
-    bytes: Vec<u8>,
+    contents: Contents,
 }
 
 impl VdmPackage {
@@ -352,7 +353,10 @@ impl VdmPackage {
         };
         let (q, rank) = (content.weights.format, content.weights.rank);
         let vdm_rows = (shape.grid.n_curvature * shape.grid.n_theta) as usize;
-        let mut sections = vec![Section::new(HEIGHT_SECTION, height_texture(shape.size))];
+        let section = |name: &str, texture| {
+            Section::new(name, texture).supercompressed(Supercompression::PaethZlib)
+        };
+        let mut sections = vec![section(HEIGHT_SECTION, height_texture(shape.size))];
         let mut payloads = vec![
             content
                 .heights
@@ -376,7 +380,7 @@ impl VdmPackage {
             for (g, name) in names.iter().enumerate() {
                 let texture = factor.texture(q, components, g, &shape);
                 payloads.push(source.pack_group(rows.clone(), components, g, &texture));
-                sections.push(Section::new(name, texture));
+                sections.push(section(name, texture));
             }
             FactorInfo {
                 sections: names,
@@ -417,6 +421,7 @@ impl VdmPackage {
     /// section's texture.
     pub fn parse(bytes: Vec<u8>) -> Result<VdmPackage> {
         let manifest: VdmManifest = container::parse(&bytes)?;
+        let contents = Contents::inflate(bytes, &manifest.sections)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
         let ReliefInfo { size, depth } = manifest.relief;
         if size.iter().any(|&n| n == 0 || n > MAX_SIDE) {
@@ -497,7 +502,7 @@ impl VdmPackage {
             height_texture(size),
             bad,
         )?;
-        let package = VdmPackage { manifest, bytes };
+        let package = VdmPackage { manifest, contents };
         if package.heights().iter().any(|h| !(0.0..=1.0).contains(h)) {
             return Err(bad("the height field holds values outside [0, 1]".into()));
         }
@@ -524,14 +529,14 @@ impl VdmPackage {
         &self.manifest
     }
 
-    /// The bytes of section `name`, if present.
+    /// The texels of section `name`, if present.
     pub fn section(&self, name: &str) -> Option<&[u8]> {
-        crate::section(&self.manifest.sections, &self.bytes, name)
+        self.contents.section(&self.manifest.sections, name)
     }
 
     /// The whole package's bytes.
     pub fn bytes(&self) -> &[u8] {
-        &self.bytes
+        self.contents.file()
     }
 
     /// The quantized factor `factor` as its sections hold it.
@@ -544,7 +549,7 @@ impl VdmPackage {
             Factor::Eigen => (g.n_curvature * g.n_theta) as usize,
             Factor::Mvm => g.n_curvature as usize,
         };
-        let groups = crate::groups(&self.manifest.sections, &self.bytes, &f.sections);
+        let groups = crate::groups(&self.manifest.sections, &self.contents, &f.sections);
         QuantizedFactor::unpack(
             &groups,
             rows,

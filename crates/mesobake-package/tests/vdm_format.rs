@@ -6,6 +6,7 @@ use mesobake_package::Package;
 use mesobake_package::container;
 use mesobake_package::manifest::{FORMAT_NAME, InputInfo, TexelFormat, TextureDimension};
 use mesobake_package::quantize::{Quantization, QuantizedFactor};
+use mesobake_package::supercompression::Supercompression;
 use mesobake_package::vdm::{
     ReliefInfo, VDM_FORMAT_NAME, VdmAccuracy, VdmBakeInfo, VdmContent, VdmGrid, VdmManifest,
     VdmMethod, VdmPackage,
@@ -25,12 +26,27 @@ const GRID: VdmGrid = VdmGrid {
 const RANK: usize = 5; // two texture groups, the second one channel wide
 const MVM_RANK: usize = 3;
 
+/// SplitMix64's finalizer of `n`, in [0, 1): noise with no structure a predictor finds
+/// (`support::noise` is a Weyl sequence, whose differences are constant).
+fn hashed(n: usize) -> f32 {
+    let mut z = (n as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+}
+
 /// W (rows (φ, y, x)) in [0, 1) and E (rows (c, θ), then (c)) in [0, 1.2): a mix of
-/// silhouettes and hits.
-fn factors(q: Quantization) -> (QuantizedFactor, QuantizedFactor) {
+/// silhouettes and hits. Hashed weights do not compress in u8; `repeating` weights, whose rows
+/// repeat with period 2, do.
+fn factors_of(q: Quantization, repeating: bool) -> (QuantizedFactor, QuantizedFactor) {
     let rows = (SIZE[0] * SIZE[1] * GRID.n_phi) as usize;
     let cols = (GRID.n_curvature * (GRID.n_theta + 1)) as usize;
-    let w: Vec<f32> = (0..rows * RANK).map(support::noise).collect();
+    let w: Vec<f32> = (0..rows * RANK)
+        .map(|x| match repeating {
+            true => support::noise(x % (2 * RANK)),
+            false => hashed(x),
+        })
+        .collect();
     let e: Vec<f32> = (0..cols * RANK)
         .map(|x| 1.2 * support::noise(x + 7919))
         .collect();
@@ -38,6 +54,10 @@ fn factors(q: Quantization) -> (QuantizedFactor, QuantizedFactor) {
         QuantizedFactor::new(&w, RANK, q),
         QuantizedFactor::new(&e, RANK, q),
     )
+}
+
+fn factors(q: Quantization) -> (QuantizedFactor, QuantizedFactor) {
+    factors_of(q, false)
 }
 
 fn encode(weights: &QuantizedFactor, eigen: &QuantizedFactor) -> Vec<u8> {
@@ -72,14 +92,33 @@ fn encode(weights: &QuantizedFactor, eigen: &QuantizedFactor) -> Vec<u8> {
     )
 }
 
+/// Both with sections stored as texels and supercompressed: the writer compresses the
+/// repeating weights and stores u8 noise as it is.
 #[test]
 fn vdm_packages_reconstruct_the_shared_weights_svd() {
-    for q in Quantization::ALL {
-        let (w, e) = factors(q);
+    for (q, repeating) in Quantization::ALL
+        .into_iter()
+        .flat_map(|q| [(q, false), (q, true)])
+    {
+        let (w, e) = factors_of(q, repeating);
         let bytes = encode(&w, &e);
         assert_eq!(bytes, encode(&w, &e), "{q}: writing is deterministic");
         let pkg = VdmPackage::parse(bytes).unwrap();
         let m = pkg.manifest();
+        let weights = m
+            .sections
+            .iter()
+            .find(|s| s.name == "vdm.weights.0")
+            .unwrap();
+        let compressed = weights.supercompression == Some(Supercompression::PaethZlib);
+        assert_eq!(
+            compressed,
+            weights.bytes < weights.texture.byte_len().unwrap(),
+            "{q}: stored compressed exactly where smaller"
+        );
+        if repeating || q == Quantization::U8 {
+            assert_eq!(compressed, repeating, "{q}: u8 noise does not compress");
+        }
         assert_eq!((m.vdm.vdm_rank, m.vdm.mvm_rank), (5, 3));
         let texture = |name: &str| {
             let s = m.sections.iter().find(|s| s.name == name).unwrap();
@@ -225,5 +264,51 @@ fn inconsistent_vdm_manifests_are_refused_by_name() {
             Ok(_) => panic!("{what}: accepted"),
             Err(e) => assert!(e.contains(what), "{what}: {e}"),
         }
+    }
+}
+
+/// A supercompressed section whose stream is damaged, with every checksum redone, is refused
+/// naming the section: the stream's own Adler-32 or its length catches what the CRC no longer
+/// can.
+#[test]
+fn a_damaged_supercompressed_stream_is_refused_naming_its_section() {
+    let (w, e) = factors_of(Quantization::U8, true);
+    let bytes = encode(&w, &e);
+    let offset = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+    let mut json: serde_json::Value = serde_json::from_slice(&bytes[offset..]).unwrap();
+    let sections = json["sections"].as_array_mut().unwrap();
+    let section = sections
+        .iter_mut()
+        .find(|s| s["name"] == "vdm.weights.0")
+        .unwrap();
+    assert_eq!(section["supercompression"], "paeth-zlib");
+    let (at, len) = (
+        section["offset"].as_u64().unwrap() as usize,
+        section["bytes"].as_u64().unwrap() as usize,
+    );
+    for flipped in [2, len / 2, len - 1] {
+        let mut bad = bytes[..offset].to_vec();
+        bad[at + flipped] ^= 0x10;
+        let mut json = json.clone();
+        let section = json["sections"]
+            .as_array_mut()
+            .unwrap()
+            .iter_mut()
+            .find(|s| s["name"] == "vdm.weights.0")
+            .unwrap();
+        section["crc32"] = crc32fast::hash(&bad[at..][..len]).into();
+        let text = serde_json::to_vec(&json).unwrap();
+        bad.extend_from_slice(&text);
+        let total = bad.len() as u64;
+        bad[24..32].copy_from_slice(&(text.len() as u64).to_le_bytes());
+        bad[32..36].copy_from_slice(&crc32fast::hash(&text).to_le_bytes());
+        bad[40..48].copy_from_slice(&total.to_le_bytes());
+        let header_crc = crc32fast::hash(&bad[..60]);
+        bad[60..64].copy_from_slice(&header_crc.to_le_bytes());
+        let e = VdmPackage::parse(bad).unwrap_err().to_string();
+        assert!(
+            e.contains("section \"vdm.weights.0\": its stream"),
+            "byte {flipped} of {len}: {e}"
+        );
     }
 }
