@@ -99,12 +99,12 @@ typedef struct MbpkgGrid {
   uint32_t dirs[2];
 } MbpkgGrid;
 
-// One binary section: its name, its bytes and the texture they fill (texels tightly
-// packed, x fastest).
+// One binary section: its name, its texels (inflated where the package stores them
+// supercompressed) and the texture they fill (tightly packed, x fastest).
 typedef struct MbpkgSection {
   // The section's name.
   const char *name;
-  // Its bytes.
+  // Its texels' bytes.
   const uint8_t *data;
   // Their count.
   size_t len;

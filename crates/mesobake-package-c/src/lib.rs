@@ -80,14 +80,14 @@ pub struct MbpkgGrid {
     pub dirs: [u32; 2],
 }
 
-/// One binary section: its name, its bytes and the texture they fill (texels tightly
-/// packed, x fastest).
+/// One binary section: its name, its texels (inflated where the package stores them
+/// supercompressed) and the texture they fill (tightly packed, x fastest).
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
 pub struct MbpkgSection {
     /// The section's name.
     pub name: *const c_char,
-    /// Its bytes.
+    /// Its texels' bytes.
     pub data: *const u8,
     /// Their count.
     pub len: usize,

@@ -48,8 +48,8 @@ struct Head {
 
 /// Lays out `payloads` (one per entry of the manifest's sections, in order: each its texture's
 /// texels) and the manifest, filling in each section's offset, length and checksum. A section
-/// marked for supercompression is stored compressed where that is smaller, and unmarked where
-/// it is not.
+/// marked for supercompression (as [`Section::new`] marks it) is stored compressed where that
+/// is smaller, and unmarked where it is not.
 pub fn assemble<M: ContainerManifest>(manifest: &mut M, payloads: &[Vec<u8>]) -> Vec<u8> {
     assert_eq!(
         manifest.sections().len(),

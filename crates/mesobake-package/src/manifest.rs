@@ -217,7 +217,8 @@ pub struct Section {
 }
 
 impl Section {
-    /// A section named `name` holding `texture`, placed by [`crate::container::assemble`].
+    /// A section named `name` holding `texture`, placed by [`crate::container::assemble`],
+    /// which stores it supercompressed where that is smaller.
     pub fn new(name: &str, texture: Texture) -> Section {
         Section {
             name: name.into(),
@@ -225,16 +226,7 @@ impl Section {
             bytes: 0,
             crc32: 0,
             texture,
-            supercompression: None,
-        }
-    }
-
-    /// The same section, stored supercompressed by `scheme` where that makes it smaller (see
-    /// [`crate::container::assemble`]).
-    pub fn supercompressed(self, scheme: Supercompression) -> Section {
-        Section {
-            supercompression: Some(scheme),
-            ..self
+            supercompression: Some(Supercompression::PaethZlib),
         }
     }
 }

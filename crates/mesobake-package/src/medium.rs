@@ -436,10 +436,11 @@ mod tests {
         let manifest: MediumManifest = container::parse(&bytes).unwrap();
         let rewrite = |edit: &dyn Fn(&mut MediumManifest, &mut Vec<Vec<u8>>)| {
             let mut m = manifest.clone();
+            let contents = Contents::inflate(bytes.clone(), &m.sections).unwrap();
             let mut payloads: Vec<Vec<u8>> = m
                 .sections
                 .iter()
-                .map(|s| bytes[s.offset as usize..][..s.bytes as usize].to_vec())
+                .map(|s| contents.section(&m.sections, &s.name).unwrap().to_vec())
                 .collect();
             edit(&mut m, &mut payloads);
             MediumPackage::parse(container::assemble(&mut m, &payloads))

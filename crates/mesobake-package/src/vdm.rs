@@ -12,7 +12,6 @@ use crate::container::{self, ContainerManifest, Contents};
 use crate::error::{Error, Result};
 use crate::manifest::{FactorInfo, InputInfo, Section, TexelFormat, Texture, TextureDimension};
 use crate::quantize::{Quantization, QuantizedFactor};
-use crate::supercompression::Supercompression;
 use crate::svd::CHANNELS;
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::path::Path;
@@ -353,10 +352,7 @@ impl VdmPackage {
         };
         let (q, rank) = (content.weights.format, content.weights.rank);
         let vdm_rows = (shape.grid.n_curvature * shape.grid.n_theta) as usize;
-        let section = |name: &str, texture| {
-            Section::new(name, texture).supercompressed(Supercompression::PaethZlib)
-        };
-        let mut sections = vec![section(HEIGHT_SECTION, height_texture(shape.size))];
+        let mut sections = vec![Section::new(HEIGHT_SECTION, height_texture(shape.size))];
         let mut payloads = vec![
             content
                 .heights
@@ -380,7 +376,7 @@ impl VdmPackage {
             for (g, name) in names.iter().enumerate() {
                 let texture = factor.texture(q, components, g, &shape);
                 payloads.push(source.pack_group(rows.clone(), components, g, &texture));
-                sections.push(section(name, texture));
+                sections.push(Section::new(name, texture));
             }
             FactorInfo {
                 sections: names,
