@@ -24,6 +24,10 @@ pub const MAX_MANIFEST_BYTES: u64 = 16 << 20;
 /// Most sections accepted.
 pub const MAX_SECTIONS: usize = 4096;
 
+/// Most bytes a package's supercompressed sections may inflate to, in all (checked against
+/// their textures before inflating, so a small file cannot claim more memory than this).
+pub const MAX_INFLATED_BYTES: u64 = 4 << 30;
+
 fn invalid(message: impl Into<String>) -> Error {
     Error::Package(message.into())
 }
@@ -272,6 +276,16 @@ impl Contents {
     /// returned it from `file`), refusing a stream that is not valid or does not hold exactly
     /// its texture.
     pub fn inflate(file: Vec<u8>, sections: &[Section]) -> Result<Contents> {
+        let inflated_bytes = (sections.iter())
+            .filter(|s| s.supercompression.is_some())
+            .try_fold(0u64, |sum, s| sum.checked_add(s.texture.byte_len()?));
+        if inflated_bytes.is_none_or(|n| n > MAX_INFLATED_BYTES) {
+            return Err(invalid(format!(
+                "the supercompressed sections' textures hold {} bytes, over the limit of \
+                 {MAX_INFLATED_BYTES}",
+                inflated_bytes.map_or("more than 2^64".into(), |n| n.to_string())
+            )));
+        }
         let inflated = sections
             .par_iter()
             .map(|s| {

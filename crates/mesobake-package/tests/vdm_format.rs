@@ -267,48 +267,59 @@ fn inconsistent_vdm_manifests_are_refused_by_name() {
     }
 }
 
-/// A supercompressed section whose stream is damaged, with every checksum redone, is refused
-/// naming the section: the stream's own Adler-32 or its length catches what the CRC no longer
-/// can.
-#[test]
-fn a_damaged_supercompressed_stream_is_refused_naming_its_section() {
-    let (w, e) = factors_of(Quantization::U8, true);
-    let bytes = encode(&w, &e);
+/// `bytes` with its manifest's section `name` changed by `edit` and the manifest's and
+/// header's fields and checksums redone; `edit` also gets the section's stored bytes.
+fn with_section_edited(
+    bytes: &[u8],
+    name: &str,
+    edit: impl FnOnce(&mut serde_json::Value, &mut [u8]),
+) -> Vec<u8> {
     let offset = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
     let mut json: serde_json::Value = serde_json::from_slice(&bytes[offset..]).unwrap();
-    let sections = json["sections"].as_array_mut().unwrap();
-    let section = sections
-        .iter_mut()
-        .find(|s| s["name"] == "vdm.weights.0")
+    let mut out = bytes[..offset].to_vec();
+    let section = (json["sections"].as_array_mut().unwrap().iter_mut())
+        .find(|s| s["name"] == name)
         .unwrap();
-    assert_eq!(section["supercompression"], "paeth-zlib");
     let (at, len) = (
         section["offset"].as_u64().unwrap() as usize,
         section["bytes"].as_u64().unwrap() as usize,
     );
-    for flipped in [2, len / 2, len - 1] {
-        let mut bad = bytes[..offset].to_vec();
-        bad[at + flipped] ^= 0x10;
-        let mut json = json.clone();
-        let section = json["sections"]
-            .as_array_mut()
-            .unwrap()
-            .iter_mut()
-            .find(|s| s["name"] == "vdm.weights.0")
-            .unwrap();
-        section["crc32"] = crc32fast::hash(&bad[at..][..len]).into();
-        let text = serde_json::to_vec(&json).unwrap();
-        bad.extend_from_slice(&text);
-        let total = bad.len() as u64;
-        bad[24..32].copy_from_slice(&(text.len() as u64).to_le_bytes());
-        bad[32..36].copy_from_slice(&crc32fast::hash(&text).to_le_bytes());
-        bad[40..48].copy_from_slice(&total.to_le_bytes());
-        let header_crc = crc32fast::hash(&bad[..60]);
-        bad[60..64].copy_from_slice(&header_crc.to_le_bytes());
+    edit(section, &mut out[at..][..len]);
+    section["crc32"] = crc32fast::hash(&out[at..][..len]).into();
+    let text = serde_json::to_vec(&json).unwrap();
+    out.extend_from_slice(&text);
+    let total = out.len() as u64;
+    out[24..32].copy_from_slice(&(text.len() as u64).to_le_bytes());
+    out[32..36].copy_from_slice(&crc32fast::hash(&text).to_le_bytes());
+    out[40..48].copy_from_slice(&total.to_le_bytes());
+    let header_crc = crc32fast::hash(&out[..60]);
+    out[60..64].copy_from_slice(&header_crc.to_le_bytes());
+    out
+}
+
+/// A supercompressed section whose stream is damaged, with every checksum redone, is refused
+/// naming the section: the stream's own Adler-32 or its length catches what the CRC no longer
+/// can. One that claims a texture larger than a reader inflates is refused before inflating.
+#[test]
+fn damaged_or_oversized_supercompressed_sections_are_refused_by_name() {
+    let (w, e) = factors_of(Quantization::U8, true);
+    let bytes = encode(&w, &e);
+    assert!(VdmPackage::parse(with_section_edited(&bytes, "vdm.weights.0", |_, _| {})).is_ok());
+    for at in [0.0, 0.5, 1.0] {
+        let bad = with_section_edited(&bytes, "vdm.weights.0", |s, stored| {
+            assert_eq!(s["supercompression"], "paeth-zlib");
+            let i = ((stored.len() - 1) as f64 * at) as usize;
+            stored[i] ^= 0x10;
+        });
         let e = VdmPackage::parse(bad).unwrap_err().to_string();
         assert!(
             e.contains("section \"vdm.weights.0\": its stream"),
-            "byte {flipped} of {len}: {e}"
+            "byte at {at} of the stream: {e}"
         );
     }
+    let bad = with_section_edited(&bytes, "vdm.weights.0", |s, _| {
+        s["texture"]["depth"] = (1u64 << 28).into();
+    });
+    let e = VdmPackage::parse(bad).unwrap_err().to_string();
+    assert!(e.contains("over the limit of 4294967296"), "{e}");
 }
