@@ -1,6 +1,7 @@
-//! The `.mbpkg` container: a fixed header, 256-byte-aligned binary sections, and the JSON
-//! manifest last. Every byte is covered by a checksum or must be zero, so any corruption is
-//! detected. The byte-exact layout is specified in `docs/package-format.md`.
+//! The `.mbpkg` container: a fixed header, 256-byte-aligned binary sections (each its
+//! texture's texels, or those supercompressed), and the JSON manifest last. Every byte is
+//! covered by a checksum or must be zero, so any corruption is detected. The byte-exact layout
+//! is specified in `docs/package-format.md`.
 
 use super::manifest::{Section, TextureDimension};
 use crate::error::{Error, Result};
