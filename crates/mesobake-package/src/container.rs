@@ -277,15 +277,20 @@ impl Contents {
     /// returned it from `file`), refusing a stream that is not valid or does not hold exactly
     /// its texture.
     pub fn inflate(file: Vec<u8>, sections: &[Section]) -> Result<Contents> {
-        let inflated_bytes = (sections.iter())
-            .filter(|s| s.supercompression.is_some())
-            .try_fold(0u64, |sum, s| sum.checked_add(s.texture.byte_len()?));
-        if inflated_bytes.is_none_or(|n| n > MAX_INFLATED_BYTES) {
-            return Err(invalid(format!(
-                "the supercompressed sections' textures hold {} bytes, over the limit of \
-                 {MAX_INFLATED_BYTES}",
-                inflated_bytes.map_or("more than 2^64".into(), |n| n.to_string())
-            )));
+        let mut inflated_bytes = 0u64;
+        for s in sections.iter().filter(|s| s.supercompression.is_some()) {
+            let texels = s.texture.byte_len();
+            inflated_bytes = match texels.and_then(|n| n.checked_add(inflated_bytes)) {
+                Some(sum) if sum <= MAX_INFLATED_BYTES => sum,
+                _ => {
+                    return Err(invalid(format!(
+                        "section {:?}: its texture ({} bytes) takes the supercompressed \
+                         sections over the limit of {MAX_INFLATED_BYTES} bytes in all",
+                        s.name,
+                        texels.map_or("over 2^64".into(), |n| n.to_string())
+                    )));
+                }
+            };
         }
         let inflated = sections
             .par_iter()
