@@ -232,7 +232,7 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
 fn the_whole_exact_bake_gives_every_sample_what_its_ray_cast_alone_gives() {
     // The bake starts each curvature's march where the flatter one's rays hit; a ray cast
     // alone starts from its entry point. Weave at 32² texels: misses on convex surfaces,
-    // hits at every depth, blocks of up to 16 × 16 cells to skip.
+    // hits at every depth.
     let limits = Limits::default();
     let field = reliefs::height_field(ReliefKind::Weave, 32, &limits).unwrap();
     let relief = Relief {
@@ -653,10 +653,10 @@ fn the_package_at_the_papers_setting_fits_in_4_mb() {
     );
     let g = m.bake.grid;
     assert_eq!((g.n_theta, g.n_phi, g.n_curvature), (8, 32, 16));
-    let weights = m
-        .sections
-        .iter()
-        .filter(|s| s.name.starts_with("vdm.weights."));
+    let weights: Vec<_> = (m.sections.iter())
+        .filter(|s| s.name.starts_with("vdm.weights."))
+        .collect();
+    assert_eq!(weights.len(), 2, "8 components, 4 per texel");
     for s in weights {
         let texels = s.texture.byte_len().unwrap();
         assert_eq!(texels, 128 * 128 * 32 * 4, "{}", s.name);

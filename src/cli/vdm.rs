@@ -163,10 +163,10 @@ pub fn vdm(args: VdmArgs, limits: &Limits) -> Result<()> {
                         package::vdm::encode(input, &field, &baked, params_of(args.method), &c);
                     let encode_s = encoding.elapsed().as_secs_f64();
                     let parsing = Instant::now();
-                    let parsed = package::vdm::VdmPackage::parse(bytes.clone())?;
+                    let parsed = package::vdm::VdmPackage::parse(bytes)?;
                     let parse_s = parsing.elapsed().as_secs_f64();
-                    write_atomic(path, &bytes)?;
-                    eprintln!("wrote {}: {} bytes", path.display(), bytes.len());
+                    write_atomic(path, parsed.bytes())?;
+                    eprintln!("wrote {}: {} bytes", path.display(), parsed.bytes().len());
                     Some(serde_json::json!({
                         "bytes": parsed.bytes().len(),
                         "encode_seconds": encode_s,
