@@ -5,7 +5,9 @@
 // shadow file (`shadows_off.wgsl`, `shadows_local.wgsl` or `shadows_shell.wgsl`:
 // `light_visible`), one environment file (`gi_on.wgsl` or `gi_off.wgsl`) and by the
 // constants REFINEMENTS, CHORDS and JACOBIAN_FRAME, chosen from the package and the scene's
-// effects and quality (`src/realtime/variant.rs`); `common.wgsl` precedes it.
+// effects and quality (`src/realtime/variant.rs`); `common.wgsl` precedes it. Two passes:
+// `vs_main`/`fs_main` find each pixel's nearest hit (steps 2–5) and write it to the hit
+// targets, `vs_fullscreen`/`fs_shade` shade it once (step 6).
 
 // Where the shadow query starts, in voxels from the hit along the texture normal (every
 // renderer's convention: SHADOW_OFFSET in src/render/lighting.rs).
@@ -42,7 +44,7 @@ struct Prism {
 // as the complement of its f32 bits (depths are ≥ 0, so their bits order like them; the
 // buffer is cleared to 0 each frame, "no hit yet"). A fragment whose face lies behind it
 // cannot win the depth test and stops before its march, and one whose hit lies behind it
-// before shading: the depth test done early by hand, whatever order fragments run in (a
+// before writing it: the depth test done early by hand, whatever order fragments run in (a
 // stale value only culls less). The prisms are drawn nearest first, so most hidden
 // fragments find a nearer hit already stored.
 @group(0) @binding(5) var<storage, read_write> nearest_hit: array<atomic<u32>>;
@@ -224,8 +226,15 @@ struct VertexOut {
     @location(3) @interpolate(flat) face: u32,
 }
 
-struct FragmentOut {
-    @location(0) radiance: vec4<f32>,
+// What the hit pass writes per pixel for the shading pass (three rgba32float targets, cleared
+// to zero: texture.w = 0 is "no hit"), under the depth test, so the nearest hit wins.
+struct HitOut {
+    // xyz: the hit's object point; w: its prism's index (the bits of a u32).
+    @location(0) point: vec4<f32>,
+    // xyz: the hit's texture coordinate; w: 1.
+    @location(1) texture: vec4<f32>,
+    // xyz: the texture-space direction of the chord that hit.
+    @location(2) view: vec4<f32>,
     @builtin(frag_depth) depth: f32,
 }
 
@@ -424,8 +433,9 @@ fn shade_hit(pi: u32, hit: FragmentHit, dir: vec3<f32>) -> vec3<f32> {
     return environment_light(pi, t_hit, view_tex) + shade(p_hit, n_obj, base, -dir, start);
 }
 
+// The hit pass: steps 2–5 per fragment; the nearest hit's data to the targets.
 @fragment
-fn fs_main(in: VertexOut) -> FragmentOut {
+fn fs_main(in: VertexOut) -> HitOut {
     let pixel = u32(in.clip.y) * view.width + u32(in.clip.x);
     let stored = atomicLoad(&nearest_hit[pixel]);
     if stored != 0u && in.clip.z >= bitcast<f32>(~stored) {
@@ -440,10 +450,41 @@ fn fs_main(in: VertexOut) -> FragmentOut {
     let depth = clip.z / clip.w;
     let mine = ~bitcast<u32>(max(depth, 0.0));
     if atomicMax(&nearest_hit[pixel], mine) > mine {
-        discard; // a nearer hit is stored already: not shaded
+        discard; // a nearer hit is stored already
     }
-    var out: FragmentOut;
-    out.radiance = vec4<f32>(shade_hit(in.prism, hit, dir), 1.0);
+    var out: HitOut;
+    out.point = vec4<f32>(hit.point, bitcast<f32>(in.prism));
+    out.texture = vec4<f32>(hit.texture, 1.0);
+    out.view = vec4<f32>(hit.view, 0.0);
     out.depth = depth;
     return out;
+}
+
+// The hit pass's targets, read by the shading pass.
+@group(0) @binding(6) var hit_points: texture_2d<f32>;
+@group(0) @binding(7) var hit_textures: texture_2d<f32>;
+@group(0) @binding(8) var hit_views: texture_2d<f32>;
+
+// The shading pass: one triangle over the whole image.
+@vertex
+fn vs_fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let corner = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(corner * 2.0 - 1.0, 0.0, 1.0);
+}
+
+// Step 6 once per pixel, on the hit the hit pass kept (shading in the hit pass ran on the few
+// winning fragments of each small face's blocks: llvmpipe shades a triangle's 4×4 blocks
+// whole).
+@fragment
+fn fs_shade(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
+    let pixel = vec2<i32>(frag.xy);
+    let texture = textureLoad(hit_textures, pixel, 0);
+    if texture.w == 0.0 {
+        discard;
+    }
+    let point = textureLoad(hit_points, pixel, 0);
+    let chord = textureLoad(hit_views, pixel, 0).xyz;
+    let dir = normalize(point.xyz - view.eye.xyz);
+    let hit = FragmentHit(true, point.xyz, texture.xyz, chord);
+    return vec4<f32>(shade_hit(bitcast<u32>(point.w), hit, dir), 1.0);
 }

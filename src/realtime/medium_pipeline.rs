@@ -457,6 +457,7 @@ impl<'g> MediumPreview<'g> {
                         cull: Some(wgpu::Face::Back),
                         depth_tested: false,
                         blend: Some(wgpu::BlendState::PREMULTIPLIED_ALPHA_BLENDING),
+                        colour_targets: 1,
                     };
                     let pipeline = target_pipeline(d, label, &layout, &module, &[], state);
                     (MediaPipeline::PerView(pipeline, sort), group)

@@ -1,6 +1,8 @@
-//! The preview's render pipeline: prism faces rasterized with back faces culled, the GDM
-//! algorithm per fragment (`shaders/gdm_preview.wgsl`), depth written at the hit so that
-//! mesostructure occludes across prisms, escapes discarded. Renders to a linear
+//! The preview's render pipeline, two passes of `shaders/gdm_preview.wgsl`: the hit pass
+//! rasterizes the prism faces with back faces culled and runs the GDM algorithm's steps 2–5
+//! per fragment, writing the hit's depth so that mesostructure occludes across prisms
+//! (escapes discarded) and the nearest hit's data to [`HitTargets`]; the shading pass (one
+//! full-screen triangle) shades each pixel's hit once (step 6). Renders to a linear
 //! `rgba32float` target (alpha = hit mask) and reads it back as an [`Image`].
 
 use super::gpu::Gpu;
@@ -8,7 +10,7 @@ use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
     upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
-use super::target::{Target, time_frames, triangle_pipeline};
+use super::target::{DrawState, HitTargets, Target, target_pipeline, time_frames};
 use super::variant::ShaderVariant;
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -122,8 +124,14 @@ fn view_projection(camera: &Camera, bounds: impl Iterator<Item = DVec3>) -> DMat
 pub struct Preview<'g> {
     gpu: &'g Gpu,
     variant: ShaderVariant,
-    pipeline: wgpu::RenderPipeline,
+    /// Steps 2–5 per fragment, into `hits`.
+    hit_pipeline: wgpu::RenderPipeline,
+    /// Step 6 per pixel, from `hits` into the target.
+    shade_pipeline: wgpu::RenderPipeline,
     scene_group: wgpu::BindGroup,
+    /// The scene's bindings and `hits` to read.
+    shade_group: wgpu::BindGroup,
+    hits: HitTargets,
     package: GpuPackage,
     material: GpuMaterial,
     shell: GpuShell,
@@ -234,6 +242,7 @@ impl<'g> Preview<'g> {
         let variant = ShaderVariant::for_scene(scene, codec, early_depth_test);
         let (width, height) = (scene.camera.width, scene.camera.height);
         let target = Target::new(gpu, width, height)?;
+        let hits = HitTargets::new(gpu, &target);
         let frag = wgpu::ShaderStages::FRAGMENT;
         let d = &gpu.device;
         // The shell-shadow variant also reads the prisms' BVH (bindings 3 and 4); binding 5
@@ -254,6 +263,16 @@ impl<'g> Preview<'g> {
         let scene_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &scene_entries,
+        });
+        // The shading pass also reads the hit pass's targets (bindings 6–8).
+        let shade_entries: Vec<_> = scene_entries
+            .iter()
+            .copied()
+            .chain((6..9).map(|b| layout_entry(b, frag, texture(wgpu::TextureViewDimension::D2))))
+            .collect();
+        let shade_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene and hits"),
+            entries: &shade_entries,
         });
         let package_entries = match codec {
             GdmCodec::PaperSvd => vec![
@@ -325,57 +344,108 @@ impl<'g> Preview<'g> {
         });
         let view = view_uniform(scene, corners);
         let lights = light_records(scene);
-        let (pipeline, scene_group, nearest_hit) = gpu.checked("building the pipeline", || {
-            let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("view"),
-                contents: bytemuck::bytes_of(&view),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-            let lights = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("lights"),
-                contents: bytemuck::cast_slice(&lights),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-            let nearest_hit = d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("nearest hit"),
-                size: width as u64 * height as u64 * 4,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let mut buffers = vec![(0, &view), (1, &lights), (2, &shell.prisms)];
-            buffers.push((5, &nearest_hit));
-            if let Some(bvh) = &bvh {
-                buffers.extend([(3, &bvh.nodes), (4, &bvh.primitives)]);
-            }
-            let entries: Vec<wgpu::BindGroupEntry> = buffers
-                .into_iter()
-                .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                    binding,
-                    resource: buffer.as_entire_binding(),
-                })
-                .collect();
-            let scene_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("scene"),
-                layout: &scene_layout,
-                entries: &entries,
-            });
-            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("gdm preview"),
-                source: wgpu::ShaderSource::Wgsl(variant.source().into()),
-            });
-            let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("gdm preview"),
-                bind_group_layouts: &[
-                    Some(&scene_layout),
-                    Some(&package_layout),
-                    Some(&material_layout),
-                    variant.environment.then_some(&environment_layout),
-                ],
-                immediate_size: 0,
-            });
-            let pipeline = triangle_pipeline(d, "gdm preview", &layout, &module, Vertex::LAYOUT);
-            (pipeline, scene_group, nearest_hit)
-        })?;
+        let (hit_pipeline, shade_pipeline, scene_group, shade_group, nearest_hit) =
+            gpu.checked("building the pipeline", || {
+                let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("view"),
+                    contents: bytemuck::bytes_of(&view),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+                let lights = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("lights"),
+                    contents: bytemuck::cast_slice(&lights),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+                let nearest_hit = d.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("nearest hit"),
+                    size: width as u64 * height as u64 * 4,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                let mut buffers = vec![(0, &view), (1, &lights), (2, &shell.prisms)];
+                buffers.push((5, &nearest_hit));
+                if let Some(bvh) = &bvh {
+                    buffers.extend([(3, &bvh.nodes), (4, &bvh.primitives)]);
+                }
+                let entries: Vec<wgpu::BindGroupEntry> = buffers
+                    .into_iter()
+                    .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                        binding,
+                        resource: buffer.as_entire_binding(),
+                    })
+                    .collect();
+                let scene_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("scene"),
+                    layout: &scene_layout,
+                    entries: &entries,
+                });
+                let shade_group =
+                    d.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("scene and hits"),
+                        layout: &shade_layout,
+                        entries: &entries
+                            .iter()
+                            .cloned()
+                            .chain((6..).zip(&hits.views).map(|(binding, view)| {
+                                wgpu::BindGroupEntry {
+                                    binding,
+                                    resource: wgpu::BindingResource::TextureView(view),
+                                }
+                            }))
+                            .collect::<Vec<_>>(),
+                    });
+                let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("gdm preview"),
+                    source: wgpu::ShaderSource::Wgsl(variant.source().into()),
+                });
+                let layout = |label, scene_layout| {
+                    d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some(label),
+                        bind_group_layouts: &[
+                            Some(scene_layout),
+                            Some(&package_layout),
+                            Some(&material_layout),
+                            variant.environment.then_some(&environment_layout),
+                        ],
+                        immediate_size: 0,
+                    })
+                };
+                let hit_pipeline = target_pipeline(
+                    d,
+                    "gdm preview hits",
+                    &layout("gdm preview hits", &scene_layout),
+                    &module,
+                    &[Some(Vertex::LAYOUT)],
+                    DrawState {
+                        entry_points: ["vs_main", "fs_main"],
+                        cull: Some(wgpu::Face::Back),
+                        depth_tested: true,
+                        blend: None,
+                        colour_targets: hits.views.len(),
+                    },
+                );
+                let shade_pipeline = target_pipeline(
+                    d,
+                    "gdm preview shading",
+                    &layout("gdm preview shading", &shade_layout),
+                    &module,
+                    &[],
+                    DrawState {
+                        entry_points: ["vs_fullscreen", "fs_shade"],
+                        cull: None,
+                        depth_tested: false,
+                        blend: None,
+                        colour_targets: 1,
+                    },
+                );
+                (
+                    hit_pipeline,
+                    shade_pipeline,
+                    scene_group,
+                    shade_group,
+                    nearest_hit,
+                )
+            })?;
         let memory = GpuMemory {
             package: gpu_package.bytes,
             material: material.bytes,
@@ -384,13 +454,16 @@ impl<'g> Preview<'g> {
                 + (lights.len() * std::mem::size_of::<LightRecord>()
                     + std::mem::size_of::<ViewUniform>()) as u64,
             environment: environment.as_ref().map_or(0, |e| e.bytes),
-            targets: target.bytes() + nearest_hit.size(),
+            targets: target.bytes() + hits.bytes + nearest_hit.size(),
         };
         Ok(Preview {
             gpu,
             variant,
-            pipeline,
+            hit_pipeline,
+            shade_pipeline,
             scene_group,
+            shade_group,
+            hits,
             package: gpu_package,
             material,
             shell,
@@ -416,17 +489,27 @@ impl<'g> Preview<'g> {
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.nearest_hit, 0, None);
-        {
-            let mut pass = self.target.pass(&mut encoder, "gdm preview");
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.scene_group, &[]);
+        let bind = |pass: &mut wgpu::RenderPass, scene_group| {
+            pass.set_bind_group(0, scene_group, &[]);
             pass.set_bind_group(1, &self.package.bind_group, &[]);
             pass.set_bind_group(2, &self.material.bind_group, &[]);
             if let Some(environment) = &self.environment {
                 pass.set_bind_group(3, &environment.bind_group, &[]);
             }
+        };
+        {
+            let views: Vec<_> = self.hits.views.iter().collect();
+            let mut pass = self.target.pass_into(&mut encoder, "gdm hits", &views);
+            pass.set_pipeline(&self.hit_pipeline);
+            bind(&mut pass, &self.scene_group);
             pass.set_vertex_buffer(0, self.shell.vertices.slice(..));
             pass.draw(0..self.shell.vertex_count, 0..1);
+        }
+        {
+            let mut pass = self.target.pass(&mut encoder, "gdm shading");
+            pass.set_pipeline(&self.shade_pipeline);
+            bind(&mut pass, &self.shade_group);
+            pass.draw(0..3, 0..1);
         }
         if read_back {
             self.target.copy_out(&mut encoder);

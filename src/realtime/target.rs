@@ -30,6 +30,7 @@ pub fn triangle_pipeline(
         cull: Some(wgpu::Face::Back),
         depth_tested: true,
         blend: None,
+        colour_targets: 1,
     };
     target_pipeline(device, label, layout, module, &[Some(vertices)], state)
 }
@@ -44,6 +45,9 @@ pub struct DrawState {
     pub depth_tested: bool,
     /// How the fragment's colour meets the target's (`None`: replaces it).
     pub blend: Option<wgpu::BlendState>,
+    /// How many `rgba32float` colours the fragment writes: 1 for the target's colour, more
+    /// for a pass into [`HitTargets`].
+    pub colour_targets: usize,
 }
 
 /// A triangle-list pipeline that draws into a [`Target`] as `state` says.
@@ -87,11 +91,14 @@ pub fn target_pipeline(
             module,
             entry_point: Some(fragment),
             compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format: COLOUR_FORMAT,
-                blend: state.blend,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
+            targets: &vec![
+                Some(wgpu::ColorTargetState {
+                    format: COLOUR_FORMAT,
+                    blend: state.blend,
+                    write_mask: wgpu::ColorWrites::ALL,
+                });
+                state.colour_targets
+            ],
         }),
         multiview_mask: None,
         cache: None,
@@ -202,17 +209,34 @@ impl Target {
         encoder: &'e mut wgpu::CommandEncoder,
         label: &str,
     ) -> wgpu::RenderPass<'e> {
+        self.pass_into(encoder, label, &[&self.colour_view])
+    }
+
+    /// A render pass into `colours` (cleared to transparent black) with the target's depth
+    /// (cleared to 1).
+    pub fn pass_into<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        colours: &[&wgpu::TextureView],
+    ) -> wgpu::RenderPass<'e> {
+        let colour_attachments: Vec<_> = colours
+            .iter()
+            .map(|&view| {
+                Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })
+            })
+            .collect();
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some(label),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &self.colour_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
+            color_attachments: &colour_attachments,
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: &self.depth,
                 depth_ops: Some(wgpu::Operations {
@@ -260,6 +284,45 @@ impl Target {
             }
             image
         })
+    }
+}
+
+/// The per-pixel targets a hit pass writes and a shading pass reads (`rgba32float` each, the
+/// target's size; what each holds is the shader's to say).
+pub struct HitTargets {
+    /// The texture views, in the fragment's output order.
+    pub views: [wgpu::TextureView; 3],
+    /// GPU bytes of the three.
+    pub bytes: u64,
+}
+
+impl HitTargets {
+    /// Three targets the size of `target`.
+    pub fn new(gpu: &Gpu, target: &Target) -> HitTargets {
+        let (width, height) = target.size();
+        let views = std::array::from_fn(|_| {
+            gpu.device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some("hit target"),
+                    size: wgpu::Extent3d {
+                        width,
+                        height,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: COLOUR_FORMAT,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                        | wgpu::TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                })
+                .create_view(&Default::default())
+        });
+        HitTargets {
+            views,
+            bytes: 3 * u64::from(width) * u64::from(height) * u64::from(COLOUR_TEXEL),
+        }
     }
 }
 
