@@ -28,7 +28,7 @@ pub struct GpuMemory {
     pub geometry: u64,
     /// Environment lighting: the RTV, the incident light per vertex, per-prism triangles.
     pub environment: u64,
-    /// Colour, depth and read-back targets.
+    /// Colour, depth, hit and read-back targets.
     pub targets: u64,
 }
 
