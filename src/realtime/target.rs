@@ -145,22 +145,7 @@ impl Target {
             )));
         }
         let d = &gpu.device;
-        let texture = |format, usage| {
-            d.create_texture(&wgpu::TextureDescriptor {
-                label: Some("target"),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
+        let texture = |format, usage| image_texture(d, "target", (width, height), format, usage);
         let colour = texture(
             COLOUR_FORMAT,
             wgpu::TextureUsages::RENDER_ATTACHMENT
@@ -287,6 +272,30 @@ impl Target {
     }
 }
 
+/// A 2D texture of one level, `size` pixels.
+fn image_texture(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
 /// The per-pixel targets a hit pass writes and a shading pass reads (`rgba32float` each, the
 /// target's size; what each holds is the shader's to say).
 pub struct HitTargets {
@@ -301,23 +310,14 @@ impl HitTargets {
     pub fn new(gpu: &Gpu, target: &Target) -> HitTargets {
         let (width, height) = target.size();
         let views = std::array::from_fn(|_| {
-            gpu.device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some("hit target"),
-                    size: wgpu::Extent3d {
-                        width,
-                        height,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: COLOUR_FORMAT,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                        | wgpu::TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                })
-                .create_view(&Default::default())
+            image_texture(
+                &gpu.device,
+                "hit target",
+                (width, height),
+                COLOUR_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            )
+            .create_view(&Default::default())
         });
         HitTargets {
             views,
