@@ -50,7 +50,10 @@ struct Taps {
 
 fn wrap(i: i32, n: u32) -> u32 {
     let m = i32(n);
-    return u32(((i % m) + m) % m);
+    var r = i - i32(floor(f32(i) / f32(m))) * m;
+    r = select(r, r + m, r < 0);
+    r = select(r, r - m, r >= m);
+    return u32(clamp(r, 0, m - 1));
 }
 
 fn periodic_taps(coord: f32, n: u32) -> Taps {

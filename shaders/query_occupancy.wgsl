@@ -33,14 +33,19 @@ fn march(o_in: vec3<f32>, v: vec3<f32>, max_s: f32) -> f32 {
     let inv = 1.0 / select(vec3<f32>(1.0), v, moving);
     // A start on a voxel plane, moving down that axis, is in the voxel behind the plane.
     var cell = vec3<i32>(f) - vec3<i32>((o == f) & (v < vec3<f32>(0.0)));
-    if cell.z >= 0 && cell.z < nz && distance_at(cell, dims) == 0u {
-        return 0.0;
+    // The distance stored at `cell`, loaded once per cell entered.
+    var here = 1u;
+    if cell.z >= 0 && cell.z < nz {
+        here = distance_at(cell, dims);
+        if here == 0u {
+            return 0.0;
+        }
     }
     for (var step = 0u; step < MAX_MARCH_STEPS; step++) {
         if cell.z < 0 || cell.z >= nz {
             return -1.0;
         }
-        let r = i32(max(distance_at(cell, dims), 1u));
+        let r = i32(max(here, 1u));
         // Leave the empty box of voxels within r − 1 of `cell` (clipped to the volume in z).
         var plane = select(cell - vec3<i32>(r - 1), cell + vec3<i32>(r), up);
         plane.z = clamp(plane.z, 0, nz);
@@ -60,8 +65,11 @@ fn march(o_in: vec3<f32>, v: vec3<f32>, max_s: f32) -> f32 {
             cell + vec3<i32>(r - 1),
         );
         cell = select(inside, cell + dir * r, exit);
-        if cell.z >= 0 && cell.z < nz && distance_at(cell, dims) == 0u {
-            return t_exit;
+        if cell.z >= 0 && cell.z < nz {
+            here = distance_at(cell, dims);
+            if here == 0u {
+                return t_exit;
+            }
         }
     }
     return -1.0;
