@@ -337,3 +337,106 @@ fn the_pipeline_runs_the_variant_the_scene_calls_for() {
         assert!(preview.render().unwrap().hits() > 0);
     }
 }
+
+/// `wrap` of the shaders' common code (a periodic texel index, computed through an f32
+/// quotient) against Rust's integer `rem_euclid`, exactly, on every adapter: at and beside
+/// every multiple of the periods near zero, near ±10⁶ and across ±2²⁴ (where f32 stops
+/// holding every integer and only the correction steps keep it exact).
+#[test]
+fn the_shaders_periodic_wrap_is_the_integer_remainder() {
+    if !gpu_or_skip() {
+        return;
+    }
+    use mesobake::realtime::variant::COMMON;
+    use wgpu::util::DeviceExt;
+    let gpu = Gpu::open(None).unwrap();
+    let periods: [u32; 9] = [1, 2, 3, 7, 32, 64, 100, 127, 128];
+    let mut cases: Vec<[i32; 2]> = Vec::new();
+    for &n in &periods {
+        let n_i = n as i32;
+        let centres: [i32; 5] = [0, 1_000_000, -1_000_000, (1 << 24) - 200, -(1 << 24) + 200];
+        for centre in centres {
+            let base = centre - centre.rem_euclid(n_i);
+            for i in base - 3 * n_i - 2..=base + 3 * n_i + 2 {
+                cases.push([i, n_i]);
+            }
+        }
+    }
+    let source = format!(
+        "{COMMON}\n@group(1) @binding(0) var<uniform> view: View;\n\
+         @group(0) @binding(0) var<storage, read> cases: array<vec2<i32>>;\n\
+         @group(0) @binding(1) var<storage, read_write> wrapped: array<u32>;\n\
+         @compute @workgroup_size(64)\n\
+         fn main(@builtin(global_invocation_id) id: vec3<u32>) {{\n\
+             if id.x < arrayLength(&cases) {{\n\
+                 wrapped[id.x] = wrap(cases[id.x].x, u32(cases[id.x].y));\n\
+             }}\n\
+         }}\n"
+    );
+    let d = &gpu.device;
+    let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: None,
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: None,
+        layout: None,
+        module: &module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let input = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(&cases),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let size = cases.len() as u64 * 4;
+    let output = d.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let read = d.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let group = d.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: input.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: output.as_entire_binding(),
+            },
+        ],
+    });
+    let mut encoder = d.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups((cases.len() as u32).div_ceil(64), 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&output, 0, &read, 0, size);
+    gpu.queue.submit([encoder.finish()]);
+    let slice = read.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    gpu.wait().unwrap();
+    let wrapped: Vec<u32> = bytemuck::cast_slice(&slice.get_mapped_range().unwrap()).to_vec();
+    let wrong: Vec<_> = cases
+        .iter()
+        .zip(&wrapped)
+        .filter(|([i, n], w)| i.rem_euclid(*n) as u32 != **w)
+        .take(5)
+        .collect();
+    assert!(wrong.is_empty(), "wrap(i, n) against i mod n: {wrong:?}");
+    println!("wrap: {} cases exact", cases.len());
+}

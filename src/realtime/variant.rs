@@ -7,8 +7,8 @@ use crate::render::quality::{MAX_CHORDS, ShadingFrame, ShadowMethod};
 use crate::scene::{Effect, MAX_GDM_REFINEMENTS, Scene};
 use serde::Serialize;
 
-/// What every real-time pipeline's source starts with.
-pub(super) const COMMON: &str = include_str!("../../shaders/common.wgsl");
+/// What every real-time pipeline's source starts with (`shaders/common.wgsl`).
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 const PIPELINE: &str = include_str!("../../shaders/gdm_preview.wgsl");
 const QUERY_SVD: &str = include_str!("../../shaders/query_svd.wgsl");
 const QUERY_OCCUPANCY: &str = include_str!("../../shaders/query_occupancy.wgsl");
