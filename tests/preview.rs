@@ -347,6 +347,7 @@ fn the_shaders_periodic_wrap_is_the_integer_remainder() {
     if !gpu_or_skip() {
         return;
     }
+    use mesobake::realtime::target::read_mapped;
     use mesobake::realtime::variant::COMMON;
     use wgpu::util::DeviceExt;
     let gpu = Gpu::open(None).unwrap();
@@ -427,10 +428,8 @@ fn the_shaders_periodic_wrap_is_the_integer_remainder() {
     }
     encoder.copy_buffer_to_buffer(&output, 0, &read, 0, size);
     gpu.queue.submit([encoder.finish()]);
-    let slice = read.slice(..);
-    slice.map_async(wgpu::MapMode::Read, |r| r.unwrap());
-    gpu.wait().unwrap();
-    let wrapped: Vec<u32> = bytemuck::cast_slice(&slice.get_mapped_range().unwrap()).to_vec();
+    let wrapped: Vec<u32> =
+        read_mapped(&gpu, &read, |data| bytemuck::cast_slice(data).to_vec()).unwrap();
     let wrong: Vec<_> = cases
         .iter()
         .zip(&wrapped)
