@@ -200,7 +200,7 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
             // The fan's shared march gives each of its rays what a march of its own does
             let thetas: Vec<f64> = (0..8).map(|a| GRID.theta(a)).collect();
             let mut fan = vec![None; 8];
-            exact::Fan::new(relief, &thetas, Bend { c }).cast(p, phi, &mut fan);
+            exact::Fans::new(relief, &thetas, &[c]).cast(p, phi, &mut fan);
             // (each root to the tolerance, from its own start).
             match (fan[(n % 8) as usize], got) {
                 (Some(f), Some(g)) => assert!(
@@ -230,8 +230,9 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
 
 #[test]
 fn the_whole_exact_bake_gives_every_sample_what_its_ray_cast_alone_gives() {
-    // The bake starts each curvature's march where the flatter one's rays hit; a ray cast
-    // alone starts from its entry point. Weave at 32² texels: misses on convex surfaces,
+    // The bake marches every curvature together, each ray passing over the cells where its
+    // flatter twin has not hit and starting where it hit; a ray cast alone starts from its
+    // entry point. Weave at 32² texels: misses on convex surfaces,
     // hits at every depth.
     let limits = Limits::default();
     let field = reliefs::height_field(ReliefKind::Weave, 32, &limits).unwrap();

@@ -7,13 +7,14 @@
 //! texel centres). A ray entering at polar angle θ lies at depth
 //! t(σ) = R·(1 − sin θ / sin(θ + σ/R)) below the reference surface bent to radius R = 1/c
 //! (σ·cot θ on the flat surface, c = 0). The march steps once from cell to cell along the line
-//! for the whole fan of θ ([`Fan`]), and three orderings spare it work:
+//! for every ray of every curvature ([`Fans`]), and three orderings spare it work:
 //!
 //! - rays from one point in one plane never cross, so a steeper ray lies below a shallower one
 //!   everywhere and hits no later along the line: each ray's search starts where the last hit;
 //! - t(σ) falls as c grows at every σ (a more convex surface curves away from the ray), so a
-//!   ray hits no earlier than on a flatter surface: the bake marches the curvatures of one
-//!   texel and azimuth in ascending order, each ray starting where it hit on the last;
+//!   ray hits no earlier than on a flatter surface: in each cell the march visits the
+//!   curvatures in ascending order, and a ray whose flatter twin has not hit yet is passed
+//!   over; one whose twin has starts where it hit;
 //! - t rises with σ up to a convex surface's turning point, so the first σ where a ray
 //!   reaches each of `LAYERS` depths, tabled per ray, rules out without a sine every cell
 //!   whose highest corner it cannot reach before leaving the cell.
@@ -40,8 +41,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub const TOLERANCE: f64 = 1e-7;
 
 /// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, a few at a time so
-/// that beside the VDM only theirs are held twice, and at each texel the curvatures in
-/// ascending order, each march starting where the last curvature's rays hit ([`Fan::cast`]).
+/// that beside the VDM only theirs are held twice, and at each texel every curvature in one
+/// march ([`Fans::cast`]).
 pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Result<Vec<f32>> {
     let (w, h) = relief.field.size();
     let texels = (w * h) as usize;
@@ -51,17 +52,8 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
         grid.n_curvature as usize,
     );
     let thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
-    let fans: Vec<Fan> = (0..grid.n_curvature)
-        .map(|k| {
-            Fan::new(
-                relief,
-                &thetas,
-                Bend {
-                    c: grid.curvature(k),
-                },
-            )
-        })
-        .collect();
+    let curvatures: Vec<f64> = (0..grid.n_curvature).map(|k| grid.curvature(k)).collect();
+    let fans = Fans::new(relief, &thetas, &curvatures);
     let done = AtomicU64::new(0);
     let mut values = vec![NO_HIT; n_c * n_theta * n_phi * texels];
     let batch = 2 * rayon::current_num_threads();
@@ -75,19 +67,15 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
                 }
                 let phi = grid.phi(b as u32);
                 let mut block = vec![NO_HIT; n_c * n_theta * texels];
-                let mut hits = vec![None; n_theta];
+                let mut hits = vec![None; n_c * n_theta];
                 for texel in 0..texels {
                     let p = [
                         (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
                         (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                     ];
-                    hits.fill(None);
-                    for (k, fan) in fans.iter().enumerate() {
-                        fan.cast(p, phi, &mut hits);
-                        for (a, hit) in hits.iter().enumerate() {
-                            block[(k * n_theta + a) * texels + texel] =
-                                hit.map_or(NO_HIT, |d| d as f32);
-                        }
+                    fans.cast(p, phi, &mut hits);
+                    for (ka, hit) in hits.iter().enumerate() {
+                        block[ka * texels + texel] = hit.map_or(NO_HIT, |d| d as f32);
                     }
                 }
                 observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
@@ -107,136 +95,179 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
 /// bent by `bend`: l / sin θ, l the arc length to the hit; `None` without a hit.
 pub fn cast(relief: Relief, p: [f64; 2], theta: f64, phi: f64, bend: Bend) -> Option<f64> {
     let mut hit = [None];
-    Fan::new(relief, &[theta], bend).cast(p, phi, &mut hit);
+    Fans::new(relief, &[theta], &[bend.c]).cast(p, phi, &mut hit);
     hit[0]
 }
 
-/// The rays of one set of polar angles θ on one relief bent to one curvature, prepared once:
-/// cast together from any entry point along any azimuth, in one march.
-pub struct Fan<'a> {
+/// The rays of one set of polar angles θ on one relief bent to each of a set of curvatures,
+/// prepared once: cast together from any entry point along any azimuth, in one march along
+/// the line for every curvature.
+pub struct Fans<'a> {
     relief: Relief<'a>,
     layers: Layers,
+    /// Per curvature, ascending.
+    fans: Vec<Fan>,
+    /// Where every march ends: every ray hits the floor (depth) by depth · tan θ on a flat
+    /// or concave surface, and a convex one's leaves before; a cap against rounding only.
+    cap: f64,
+}
+
+/// The rays of a [`Fans`] on one curvature.
+struct Fan {
     c: f64,
     rays: Vec<BentRay>,
     /// Per ray, where it first reaches each of the [`LAYERS`] + 1 depths i·depth/[`LAYERS`]
-    /// (rounded down; infinity for a convex surface's ray that never does).
-    reach: Vec<Vec<f64>>,
+    /// (rounded down; infinity for a convex surface's ray that never does): ray a's at
+    /// a·([`LAYERS`] + 1) + i.
+    reach: Vec<f64>,
+}
+
+impl Fan {
+    /// Where ray `a` first reaches the top of `layer`.
+    fn reach(&self, a: usize, layer: usize) -> f64 {
+        self.reach[a * (LAYERS + 1) + layer]
+    }
 }
 
 /// The depth layers the march's bounds are rounded to (a cell whose highest corner lies in
 /// layer i is passed over by a ray that has not reached layer i's top).
 const LAYERS: usize = 256;
 
-impl<'a> Fan<'a> {
-    /// The fan of `thetas` (ascending, in (0, π/2)) on `relief` bent by `bend`.
-    pub fn new(relief: Relief<'a>, thetas: &[f64], bend: Bend) -> Fan<'a> {
-        debug_assert!(thetas.is_sorted());
-        let rays: Vec<BentRay> = thetas.iter().map(|&th| BentRay::new(th, bend.c)).collect();
-        let reach = rays
+/// Where one curvature's march stands.
+#[derive(Clone, Copy, PartialEq)]
+enum Progress {
+    /// Rays from the given one on have not hit yet.
+    Marching(usize),
+    /// Every ray has hit, or the rays from some one on have left the relief.
+    Finished,
+}
+
+impl<'a> Fans<'a> {
+    /// The fans of `thetas` (ascending, in (0, π/2)) on `relief` bent to each of
+    /// `curvatures` (ascending).
+    pub fn new(relief: Relief<'a>, thetas: &[f64], curvatures: &[f64]) -> Fans<'a> {
+        debug_assert!(thetas.is_sorted() && curvatures.is_sorted());
+        let fans = curvatures
             .iter()
-            .map(|ray| {
-                (0..=LAYERS)
-                    .map(|i| ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9))
-                    .collect()
+            .map(|&c| {
+                let rays: Vec<BentRay> = thetas.iter().map(|&th| BentRay::new(th, c)).collect();
+                let reach = rays
+                    .iter()
+                    .flat_map(|ray| {
+                        (0..=LAYERS).map(move |i| {
+                            ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9)
+                        })
+                    })
+                    .collect();
+                Fan { c, rays, reach }
             })
             .collect();
-        Fan {
+        let cap = thetas.last().map_or(0.0, |th| relief.depth * th.tan()) + 4.0;
+        Fans {
             relief,
             layers: Layers::new(relief.field),
-            c: bend.c,
-            rays,
-            reach,
+            fans,
+            cap,
         }
     }
 
-    /// The VDM values of the fan's rays entering at `p` along azimuth `phi`, written to `out`
-    /// in θ order (as [`cast`] gives them). What `out` holds on entry is where the same rays
-    /// hit on a surface of lesser curvature (or `None`): on a more convex surface a ray lies
-    /// shallower all along (t(σ) falls as c grows), so it hits no earlier, and the march
-    /// starts there.
+    /// The VDM values of every curvature's rays entering at `p` along azimuth `phi`, written
+    /// to `out` by curvature, then θ (as [`cast`] gives them).
+    ///
+    /// The march steps once from cell to cell along the line for every curvature. In each
+    /// cell the curvatures are visited in ascending order, and on a more convex surface a
+    /// ray lies shallower all along (t(σ) falls as c grows), so it hits no earlier than on
+    /// the flatter one: where that ray has not hit by the cell's end, neither has this one,
+    /// and where it has, the search starts there.
     pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>]) {
-        debug_assert_eq!(self.rays.len(), out.len());
-        let hit = self.march(p, phi, out);
-        out[hit..].fill(None);
-    }
-
-    /// [`Fan::cast`], returning how many rays hit (the first ones: `out` beyond them still
-    /// holds what it held on entry).
-    fn march(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>]) -> usize {
-        let rays = &self.rays;
-        // Where a ray not yet hit starts its search: short of the flatter surface's hit by its
-        // tolerance.
-        let beyond = |out: &[Option<f64>], a: usize| {
-            out[a].map_or(0.0, |d| (d * rays[a].sin_theta - 2.0 * TOLERANCE).max(0.0))
-        };
-        let c = self.c;
+        let n = self.fans.first().map_or(0, |fan| fan.rays.len());
+        debug_assert_eq!(out.len(), n * self.fans.len());
+        out.fill(None);
+        let mut progress = vec![Progress::Marching(0); self.fans.len()];
+        // Per curvature, the sines at the last σ that needed them.
+        let mut bents: Vec<Bent> = self.fans.iter().map(|fan| Bent::at(fan.c, 0.0)).collect();
+        let mut marching = self.fans.len() * usize::from(n > 0);
         let mut line = Line::new(self.relief, p, phi);
-        // Every ray hits the floor (depth) by depth · tan θ on a flat or concave surface; a
-        // convex one's leaves before its end. A cap against rounding only.
-        let cap = rays.last().map_or(0.0, |r| self.relief.depth * r.tan_theta) + 4.0;
-        let (mut sigma, mut a) = (0.0, 0);
-        // The sines at the last σ that needed them.
-        let mut bent = Bent::at(c, 0.0);
-        while a < rays.len() && sigma < cap {
-            if sigma < beyond(out, a) {
-                sigma = beyond(out, a).min(cap);
-                line.jump(sigma);
-            }
-            if sigma >= rays[a].end {
-                // It left the relief, and so does every shallower ray.
-                return a;
-            }
-            // The steepest ray not yet hit lies below every other: where it cannot reach the
-            // cell's highest corner before leaving it, neither can the rest of the fan.
-            let end = line.cell_exit().min(cap);
-            if end < self.reach[a][self.layers.of(line.texel)] {
-                line.step(end);
-                sigma = end;
-                continue;
-            }
-            // The cell needs a closer look: its piece, and the rays' depths at both ends.
-            bent = bent.advanced(c, sigma);
-            let bent_end = bent.advanced(c, end);
-            let (mut from, mut t_from) = (sigma, rays[a].depth_bent(bent));
+        let mut sigma = 0.0;
+        while marching > 0 && sigma < self.cap {
+            let end = line.cell_exit().min(self.cap);
+            let layer = self.layers.of(line.texel);
             let mut piece = None;
-            while a < rays.len() {
-                let ray = &rays[a];
-                if from >= ray.end {
-                    return a;
-                }
-                // Just short of a concave surface's asymptote the ray lies below every relief.
-                let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
-                if to < self.reach[a][self.layers.of(line.texel)] {
-                    break;
-                }
-                let t_to = if to == end {
-                    ray.depth_bent(bent_end)
-                } else {
-                    ray.depth_bent(bent.advanced(c, to))
+            for (k, fan) in self.fans.iter().enumerate() {
+                let Progress::Marching(first) = progress[k] else {
+                    continue;
                 };
-                let piece =
-                    piece.get_or_insert_with(|| line.piece(self.relief, (sigma, bent), end));
-                match first_crossing(piece, ray, (from, t_from), (to, t_to)) {
-                    Some(hit) => {
-                        out[a] = Some(hit / ray.sin_theta);
-                        from = hit;
-                        a += 1;
-                        if a < rays.len() {
-                            from = from.max(beyond(out, a));
-                            if from >= end {
-                                break;
-                            }
-                            t_from = rays[a].depth_bent(bent.advanced(c, from));
-                        }
+                // Where the flatter surface's ray `a` hit, short by the tolerance; infinity
+                // while it has not (it has not by this cell's end); 0 if it left the relief.
+                let beyond = |out: &[Option<f64>], a: usize| match k.checked_sub(1) {
+                    None => 0.0,
+                    Some(flatter) => match out[flatter * n + a] {
+                        Some(d) => (d * fan.rays[a].sin_theta - 2.0 * TOLERANCE).max(0.0),
+                        None if matches!(progress[flatter], Progress::Marching(_)) => f64::INFINITY,
+                        None => 0.0,
+                    },
+                };
+                if sigma >= fan.rays[first].end {
+                    // It left the relief, and so does every shallower ray.
+                    progress[k] = Progress::Finished;
+                    marching -= 1;
+                    continue;
+                }
+                // The steepest ray not yet hit lies below every other: where it cannot reach
+                // the cell's highest corner before leaving it, neither can the rest.
+                if end < fan.reach(first, layer) {
+                    continue;
+                }
+                let mut from = sigma.max(beyond(out, first));
+                if from >= end {
+                    continue;
+                }
+                // The cell needs a closer look: its piece, and the rays' depths at both ends.
+                let c = fan.c;
+                let bent = bents[k].advanced(c, sigma);
+                let bent_end = bent.advanced(c, end);
+                bents[k] = bent_end;
+                let piece = piece.get_or_insert_with(|| line.piece(self.relief, sigma, end));
+                let mut a = first;
+                let mut t_from = fan.rays[a].depth_bent(bent.advanced(c, from));
+                progress[k] = loop {
+                    let ray = &fan.rays[a];
+                    if from >= ray.end {
+                        break Progress::Finished;
                     }
-                    None => break,
+                    // Just short of a concave surface's asymptote the ray lies below every
+                    // relief.
+                    let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
+                    if to < fan.reach(a, layer) {
+                        break Progress::Marching(a);
+                    }
+                    let t_to = if to == end {
+                        ray.depth_bent(bent_end)
+                    } else {
+                        ray.depth_bent(bent.advanced(c, to))
+                    };
+                    let Some(hit) = first_crossing(piece, bent, ray, (from, t_from), (to, t_to))
+                    else {
+                        break Progress::Marching(a);
+                    };
+                    out[k * n + a] = Some(hit / ray.sin_theta);
+                    a += 1;
+                    if a == n {
+                        break Progress::Finished;
+                    }
+                    from = hit.max(beyond(out, a));
+                    if from >= end {
+                        break Progress::Marching(a);
+                    }
+                    t_from = fan.rays[a].depth_bent(bent.advanced(c, from));
+                };
+                if progress[k] == Progress::Finished {
+                    marching -= 1;
                 }
             }
             line.step(end);
             sigma = end;
-            bent = bent_end;
         }
-        a
     }
 }
 
@@ -377,8 +408,8 @@ impl Line {
         }
     }
 
-    /// The relief's depth along the line in its cell from `from` (with its [`Bent`]) to `to`.
-    fn piece(&self, relief: Relief, (from, bent): (f64, Bent), to: f64) -> Piece {
+    /// The relief's depth along the line in its cell from `from` to `to`.
+    fn piece(&self, relief: Relief, from: f64, to: f64) -> Piece {
         let field = relief.field;
         let (w, h) = field.size();
         let (w, h) = (w as usize, h as usize);
@@ -404,7 +435,6 @@ impl Line {
         Piece {
             from,
             to,
-            bent,
             shallowest: depth * (1.0 - h00.max(h10).max(h01).max(h11)),
             d: [
                 depth * (1.0 - height[0]),
@@ -438,7 +468,7 @@ impl Bent {
     /// Taylor series of the difference (exact to rounding there), else [`Bent::at`]. Saves
     /// the march a sine per cell and per Newton step.
     fn advanced(self, c: f64, sigma: f64) -> Bent {
-        if c == 0.0 {
+        if c == 0.0 || sigma == self.sigma {
             return Bent { sigma, ..self };
         }
         let d = (sigma - self.sigma) * c;
@@ -561,8 +591,6 @@ impl BentRay {
 struct Piece {
     from: f64,
     to: f64,
-    /// sin and cos of σ·c at `from`, for the rays' depths inside the piece.
-    bent: Bent,
     d: [f64; 3],
     /// The least depth over the whole cell (at its highest corner).
     shallowest: f64,
@@ -578,7 +606,8 @@ impl Piece {
 }
 
 /// The first σ in [a, b] (within the piece) where `ray` reaches the relief, given that it has
-/// not before a, and the ray's depths `t_a` and `t_b` at the ends.
+/// not before a, the ray's depths `t_a` and `t_b` at the ends, and `bent` at the piece's
+/// start.
 ///
 /// Inside a piece the gap g(σ) = D(σ) − t(σ) is nearly the quadratic e(s) = g(a) + (D′(a) −
 /// m)·s + d2·s², s = σ − a, with m the slope of a line through the ray at a: the ray's
@@ -587,6 +616,7 @@ impl Piece {
 /// under its tangent at a in the second, and then g ≥ e.
 fn first_crossing(
     piece: &Piece,
+    bent: Bent,
     ray: &BentRay,
     (a, t_a): (f64, f64),
     (b, t_b): (f64, f64),
@@ -606,12 +636,12 @@ fn first_crossing(
     }
     let gap = |sigma: f64| {
         let (d, dd) = piece.depth(sigma);
-        let (t, dt) = ray.depth_and_slope(piece.bent.advanced(ray.c, sigma));
+        let (t, dt) = ray.depth_and_slope(bent.advanced(ray.c, sigma));
         (d - t, dd - dt)
     };
     // The ray's slope and half its curvature at a: e with its tangent, and a quadratic
     // model of the gap with both.
-    let (slope, bending) = ray.slope_and_bending(piece.bent.advanced(ray.c, a));
+    let (slope, bending) = ray.slope_and_bending(bent.advanced(ray.c, a));
     let d2 = piece.d[2];
     let (mut hi, mut g_hi) = (b, piece.depth(b).0 - t_b);
     if g_hi > 0.0 {
@@ -635,9 +665,9 @@ fn first_crossing(
                 return None;
             }
             let mid = 0.5 * (a + b);
-            let mid = (mid, ray.depth_bent(piece.bent.advanced(ray.c, mid)));
-            return first_crossing(piece, ray, (a, t_a), mid)
-                .or_else(|| first_crossing(piece, ray, mid, (b, t_b)));
+            let mid = (mid, ray.depth_bent(bent.advanced(ray.c, mid)));
+            return first_crossing(piece, bent, ray, (a, t_a), mid)
+                .or_else(|| first_crossing(piece, bent, ray, mid, (b, t_b)));
         }
         (hi, g_hi) = (x, g_x);
     }

@@ -8,7 +8,7 @@
 //! [`NO_HIT`] (no intersection exists) and a flat or concave one holds the last value.
 
 use super::bend::Bend;
-use super::exact::Fan;
+use super::exact::Fans;
 use super::{NO_HIT, Relief, VdmGrid};
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -35,7 +35,7 @@ pub fn bake(
     let thetas: Vec<f64> = (0..casts)
         .map(|m| (f64::from(m) + 0.5) * FRAC_PI_2 / f64::from(casts))
         .collect();
-    let flat_fan = Fan::new(relief, &thetas, Bend { c: 0.0 });
+    let flat_fan = Fans::new(relief, &thetas, &[0.0]);
     let done = AtomicU64::new(0);
     let per_phi: Vec<Vec<f32>> = (0..grid.n_phi)
         .into_par_iter()
@@ -52,7 +52,6 @@ pub fn bake(
                     (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
                     (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                 ];
-                flat.fill(None);
                 flat_fan.cast(p, phi, &mut flat);
                 let hits: Vec<(f64, f64)> = (thetas.iter().zip(&flat))
                     .filter_map(|(&theta, &d)| Some((d? * theta.sin(), d? * theta.cos())))
