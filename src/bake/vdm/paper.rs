@@ -36,6 +36,9 @@ pub fn bake(
         .map(|m| (f64::from(m) + 0.5) * FRAC_PI_2 / f64::from(casts))
         .collect();
     let flat_fan = Fans::new(relief, &thetas, &[0.0]);
+    let sin_cos: Vec<(f64, f64)> = thetas.iter().map(|theta| theta.sin_cos()).collect();
+    let grid_thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
+    let curvatures: Vec<f64> = (0..grid.n_curvature).map(|k| grid.curvature(k)).collect();
     let done = AtomicU64::new(0);
     let per_phi: Vec<Vec<f32>> = (0..grid.n_phi)
         .into_par_iter()
@@ -45,6 +48,8 @@ pub fn bake(
             }
             let phi = grid.phi(b);
             let mut flat = vec![None; thetas.len()];
+            let (mut hits, mut seen) = (Vec::new(), Vec::new());
+            let mut column = vec![NO_HIT; n_theta];
             // [k][a][texel] for this azimuth.
             let mut out = vec![NO_HIT; n_c * n_theta * texels];
             for texel in 0..texels {
@@ -53,19 +58,15 @@ pub fn bake(
                     (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                 ];
                 flat_fan.cast(p, phi, &mut flat);
-                let hits: Vec<(f64, f64)> = (thetas.iter().zip(&flat))
-                    .filter_map(|(&theta, &d)| Some((d? * theta.sin(), d? * theta.cos())))
-                    .collect();
-                for k in 0..grid.n_curvature {
-                    let column = resample(
-                        &hits,
-                        &grid,
-                        Bend {
-                            c: grid.curvature(k),
-                        },
-                    );
-                    for (a, v) in column.into_iter().enumerate() {
-                        out[(k as usize * n_theta + a) * texels + texel] = v;
+                hits.clear();
+                hits.extend(
+                    (sin_cos.iter().zip(&flat))
+                        .filter_map(|(&(sin, cos), &d)| Some((d? * sin, d? * cos))),
+                );
+                for (k, &c) in curvatures.iter().enumerate() {
+                    resample(&hits, &grid_thetas, Bend { c }, &mut seen, &mut column);
+                    for (a, &v) in column.iter().enumerate() {
+                        out[(k * n_theta + a) * texels + texel] = v;
                     }
                 }
             }
@@ -83,34 +84,44 @@ pub fn bake(
     Ok(values)
 }
 
-/// The VDM column over the grid's θ for one curvature, from the flat hits (σ, t) in θ order.
-pub fn resample(hits: &[(f64, f64)], grid: &VdmGrid, bend: Bend) -> Vec<f32> {
+/// The VDM column over the grid's θ (`thetas`) for one curvature, from the flat hits (σ, t)
+/// in θ order, written to `column`; `seen` is scratch space.
+pub fn resample(
+    hits: &[(f64, f64)],
+    thetas: &[f64],
+    bend: Bend,
+    seen: &mut Vec<(f64, f64)>,
+    column: &mut [f32],
+) {
     // (θ′, l / sin θ′) of the hits still seen in order after bending.
-    let mut seen: Vec<(f64, f64)> = Vec::with_capacity(hits.len());
+    seen.clear();
     for &(sigma, t) in hits {
         let q = bend.to_plane(sigma, t);
         let theta = q[0].atan2(-q[1]);
-        let d = if sigma == 0.0 { t } else { sigma / theta.sin() };
+        // sin θ′ = q_u / |q|.
+        let d = if sigma == 0.0 {
+            t
+        } else {
+            sigma * (q[0] * q[0] + q[1] * q[1]).sqrt() / q[0]
+        };
         if seen.last().is_none_or(|&(last, _)| theta > last) {
             seen.push((theta, d));
         }
     }
-    (0..grid.n_theta)
-        .map(|a| {
-            let theta = grid.theta(a);
-            let Some(&(first_theta, first)) = seen.first() else {
-                return NO_HIT;
-            };
-            let &(last_theta, last) = seen.last().expect("non-empty");
-            if theta <= first_theta {
-                return first as f32;
-            }
-            if theta > last_theta {
-                return if bend.c > 0.0 { NO_HIT } else { last as f32 };
-            }
+    let (Some(&(first_theta, first)), Some(&(last_theta, last))) = (seen.first(), seen.last())
+    else {
+        column.fill(NO_HIT);
+        return;
+    };
+    for (value, &theta) in column.iter_mut().zip(thetas) {
+        *value = if theta <= first_theta {
+            first as f32
+        } else if theta > last_theta {
+            if bend.c > 0.0 { NO_HIT } else { last as f32 }
+        } else {
             let q = seen.partition_point(|&(th, _)| th < theta);
             let ((t0, d0), (t1, d1)) = (seen[q - 1], seen[q]);
             (d0 + (d1 - d0) * (theta - t0) / (t1 - t0)) as f32
-        })
-        .collect()
+        };
+    }
 }
