@@ -197,6 +197,10 @@ impl<'a> Fans<'a> {
                 let Progress::Marching(first) = progress[k] else {
                     continue;
                 };
+                // Its steepest ray's flatter twin has not hit by the cell's end: nor has it.
+                if k > 0 && progress[k - 1] == Progress::Marching(first) {
+                    continue;
+                }
                 // Where the flatter surface's ray `a` hit, short by the tolerance; infinity
                 // while it has not (it has not by this cell's end); 0 if it left the relief.
                 let beyond = |out: &[Option<f64>], a: usize| match k.checked_sub(1) {
@@ -229,7 +233,7 @@ impl<'a> Fans<'a> {
                 bents[k] = bent_end;
                 let piece = piece.get_or_insert_with(|| line.piece(self.relief, sigma, end));
                 let mut a = first;
-                let mut t_from = fan.rays[a].depth_bent(bent.advanced(c, from));
+                let mut at_from = fan.rays[a].at(bent.advanced(c, from));
                 progress[k] = loop {
                     let ray = &fan.rays[a];
                     if from >= ray.end {
@@ -246,8 +250,7 @@ impl<'a> Fans<'a> {
                     } else {
                         ray.depth_bent(bent.advanced(c, to))
                     };
-                    let Some(hit) = first_crossing(piece, bent, ray, (from, t_from), (to, t_to))
-                    else {
+                    let Some(hit) = first_crossing(piece, bent, ray, at_from, (to, t_to)) else {
                         break Progress::Marching(a);
                     };
                     out[k * n + a] = Some(hit / ray.sin_theta);
@@ -259,7 +262,7 @@ impl<'a> Fans<'a> {
                     if from >= end {
                         break Progress::Marching(a);
                     }
-                    t_from = fan.rays[a].depth_bent(bent.advanced(c, from));
+                    at_from = fan.rays[a].at(bent.advanced(c, from));
                 };
                 if progress[k] == Progress::Finished {
                     marching -= 1;
@@ -547,22 +550,30 @@ impl BentRay {
         }
     }
 
-    /// Depth t and dt/dσ at the σ of `bent`.
+    /// Depth t and dt/dσ at the σ of `bent` (one division).
     fn depth_and_slope(&self, bent: Bent) -> (f64, f64) {
-        let x = bent.cos + bent.sin * self.cot_theta;
-        (
-            self.depth_bent(bent),
-            (bent.cos * self.cot_theta - bent.sin) / (x * x),
-        )
+        let point = self.at(bent);
+        (point.t, point.slope)
     }
 
-    /// dt/dσ and ½·d²t/dσ² at the σ of `bent`: with x = sin u / sin θ and y = cos u / sin θ
-    /// (u = θ + σc), t′ = y / x² and t″ = −c·(x² + 2y²) / x³.
-    fn slope_and_bending(&self, bent: Bent) -> (f64, f64) {
+    /// The ray at the σ of `bent`, by one division: with x = sin u / sin θ and
+    /// y = cos u / sin θ (u = θ + σc), t = R·(1 − 1/x), t′ = y / x² and
+    /// t″ = −c·(x² + 2y²) / x³.
+    fn at(&self, bent: Bent) -> RayPoint {
         let x = bent.cos + bent.sin * self.cot_theta;
         let y = bent.cos * self.cot_theta - bent.sin;
-        let slope = y / (x * x);
-        (slope, -0.5 * self.c * (x * x + 2.0 * y * y) / (x * x * x))
+        let inv = 1.0 / x;
+        let inv2 = inv * inv;
+        RayPoint {
+            sigma: bent.sigma,
+            t: if self.c == 0.0 {
+                bent.sigma * self.cot_theta
+            } else {
+                self.r * (1.0 - inv)
+            },
+            slope: y * inv2,
+            half_bending: -0.5 * self.c * (x * x + 2.0 * y * y) * (inv2 * inv),
+        }
     }
 
     /// Depth at the σ of `bent`.
@@ -586,6 +597,15 @@ impl BentRay {
     }
 }
 
+/// A ray at one σ: its depth t, dt/dσ and ½·d²t/dσ².
+#[derive(Clone, Copy)]
+struct RayPoint {
+    sigma: f64,
+    t: f64,
+    slope: f64,
+    half_bending: f64,
+}
+
 /// The relief's depth along the line within one bilinear cell: D(σ) = d0 + d1·s + d2·s²,
 /// s = σ − `from`, for σ in [`from`, `to`].
 struct Piece {
@@ -606,7 +626,7 @@ impl Piece {
 }
 
 /// The first σ in [a, b] (within the piece) where `ray` reaches the relief, given that it has
-/// not before a, the ray's depths `t_a` and `t_b` at the ends, and `bent` at the piece's
+/// not before a, the ray at a (`from`), its depth `t_b` at b, and `bent` at the piece's
 /// start.
 ///
 /// Inside a piece the gap g(σ) = D(σ) − t(σ) is nearly the quadratic e(s) = g(a) + (D′(a) −
@@ -618,9 +638,10 @@ fn first_crossing(
     piece: &Piece,
     bent: Bent,
     ray: &BentRay,
-    (a, t_a): (f64, f64),
+    from: RayPoint,
     (b, t_b): (f64, f64),
 ) -> Option<f64> {
+    let (a, t_a) = (from.sigma, from.t);
     debug_assert!(piece.from <= a && b <= piece.to);
     let deepest = ray.deepest_on((a, t_a), (b, t_b));
     if deepest < piece.shallowest {
@@ -641,7 +662,7 @@ fn first_crossing(
     };
     // The ray's slope and half its curvature at a: e with its tangent, and a quadratic
     // model of the gap with both.
-    let (slope, bending) = ray.slope_and_bending(bent.advanced(ray.c, a));
+    let (slope, bending) = (from.slope, from.half_bending);
     let d2 = piece.d[2];
     let (mut hi, mut g_hi) = (b, piece.depth(b).0 - t_b);
     if g_hi > 0.0 {
@@ -665,8 +686,8 @@ fn first_crossing(
                 return None;
             }
             let mid = 0.5 * (a + b);
-            let mid = (mid, ray.depth_bent(bent.advanced(ray.c, mid)));
-            return first_crossing(piece, bent, ray, (a, t_a), mid)
+            let mid = ray.at(bent.advanced(ray.c, mid));
+            return first_crossing(piece, bent, ray, from, (mid.sigma, mid.t))
                 .or_else(|| first_crossing(piece, bent, ray, mid, (b, t_b)));
         }
         (hi, g_hi) = (x, g_x);
@@ -728,10 +749,13 @@ fn first_root(e0: f64, e1: f64, e2: f64) -> Option<f64> {
     if disc < 0.0 {
         return None;
     }
-    // Without cancellation: the roots are q / e2 and e0 / q.
+    // Without cancellation: the roots are q / e2 and e0 / q, of product e0 / e2 and sum
+    // −e1 / e2. With e1 < 0, q > 0 and e0 / q is positive, and the lesser where both are
+    // (q² ≥ e1² / 4 ≥ e0·e2); with e1 ≥ 0, q < 0 and only q / e2 can be, where e2 < 0.
     let q = -0.5 * (e1 + disc.sqrt().copysign(e1));
-    [q / e2, e0 / q]
-        .into_iter()
-        .filter(|s| *s > 0.0)
-        .min_by(f64::total_cmp)
+    if e1 < 0.0 {
+        Some(e0 / q)
+    } else {
+        (e2 < 0.0).then(|| q / e2)
+    }
 }
