@@ -710,15 +710,15 @@ fn first_crossing(
             break;
         }
         let newton = x - g / dg;
-        let next = if newton > lo && newton < hi {
+        if (newton - x).abs() <= TOLERANCE * 0.25 {
+            // Converged (where x is a root to rounding, the step may not leave it).
+            return Some(newton.clamp(lo, hi));
+        }
+        x = if newton > lo && newton < hi {
             newton
         } else {
             0.5 * (lo + hi)
         };
-        if (next - x).abs() <= TOLERANCE * 0.25 {
-            return Some(next);
-        }
-        x = next;
     }
     Some(hi)
 }
