@@ -550,12 +550,6 @@ impl BentRay {
         }
     }
 
-    /// Depth t and dt/dσ at the σ of `bent` (one division).
-    fn depth_and_slope(&self, bent: Bent) -> (f64, f64) {
-        let point = self.at(bent);
-        (point.t, point.slope)
-    }
-
     /// The ray at the σ of `bent`, by one division: with x = sin u / sin θ and
     /// y = cos u / sin θ (u = θ + σc), t = R·(1 − 1/x), t′ = y / x² and
     /// t″ = −c·(x² + 2y²) / x³.
@@ -657,8 +651,8 @@ fn first_crossing(
     }
     let gap = |sigma: f64| {
         let (d, dd) = piece.depth(sigma);
-        let (t, dt) = ray.depth_and_slope(bent.advanced(ray.c, sigma));
-        (d - t, dd - dt)
+        let at = ray.at(bent.advanced(ray.c, sigma));
+        (d - at.t, dd - at.slope)
     };
     // The ray's slope and half its curvature at a: e with its tangent, and a quadratic
     // model of the gap with both.
