@@ -560,11 +560,8 @@ impl BentRay {
         let inv2 = inv * inv;
         RayPoint {
             sigma: bent.sigma,
-            t: if self.c == 0.0 {
-                bent.sigma * self.cot_theta
-            } else {
-                self.r * (1.0 - inv)
-            },
+            // Its division is `inv`'s: the compiler computes it once.
+            t: self.depth_bent(bent),
             slope: y * inv2,
             half_bending: -0.5 * self.c * (x * x + 2.0 * y * y) * (inv2 * inv),
         }
