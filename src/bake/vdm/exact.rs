@@ -184,6 +184,7 @@ impl<'a> Fans<'a> {
         debug_assert_eq!(out.len(), n * self.fans.len());
         out.fill(None);
         let mut progress = vec![Progress::Marching(0); self.fans.len()];
+        let mut leading = Leading::new(self.fans.len());
         // Per curvature, the sines at the last σ that needed them.
         let mut bents: Vec<Bent> = self.fans.iter().map(|fan| Bent::at(fan.c, 0.0)).collect();
         let mut marching = self.fans.len() * usize::from(n > 0);
@@ -193,14 +194,13 @@ impl<'a> Fans<'a> {
             let end = line.cell_exit().min(self.cap);
             let layer = self.layers.of(line.texel);
             let mut piece = None;
-            for (k, fan) in self.fans.iter().enumerate() {
+            let mut after = 0;
+            while let Some(k) = leading.next(after) {
+                after = k + 1;
+                let fan = &self.fans[k];
                 let Progress::Marching(first) = progress[k] else {
-                    continue;
+                    unreachable!("a finished curvature is not leading");
                 };
-                // Its steepest ray's flatter twin has not hit by the cell's end: nor has it.
-                if k > 0 && progress[k - 1] == Progress::Marching(first) {
-                    continue;
-                }
                 // Where the flatter surface's ray `a` hit, short by the tolerance; infinity
                 // while it has not (it has not by this cell's end); 0 if it left the relief.
                 let beyond = |out: &[Option<f64>], a: usize| match k.checked_sub(1) {
@@ -215,6 +215,7 @@ impl<'a> Fans<'a> {
                     // It left the relief, and so does every shallower ray.
                     progress[k] = Progress::Finished;
                     marching -= 1;
+                    leading.update(&progress, k);
                     continue;
                 }
                 // The steepest ray not yet hit lies below every other: where it cannot reach
@@ -267,9 +268,55 @@ impl<'a> Fans<'a> {
                 if progress[k] == Progress::Finished {
                     marching -= 1;
                 }
+                leading.update(&progress, k);
             }
             line.step(end);
             sigma = end;
+        }
+    }
+}
+
+/// The curvatures a cell may need to look at: those still marching at a steeper ray than
+/// their flatter twin (the rest cannot hit before it), as a bit set.
+struct Leading {
+    words: Vec<u64>,
+}
+
+impl Leading {
+    /// Where every curvature marches at its steepest ray: the flattest leads.
+    fn new(curvatures: usize) -> Leading {
+        let mut words = vec![0; curvatures.div_ceil(64)];
+        if let Some(word) = words.first_mut() {
+            *word = 1;
+        }
+        Leading { words }
+    }
+
+    /// The first leading curvature from `k` on.
+    fn next(&self, k: usize) -> Option<usize> {
+        let (mut w, bit) = (k / 64, k % 64);
+        let mut word = self.words.get(w)? & (u64::MAX << bit);
+        while word == 0 {
+            w += 1;
+            word = *self.words.get(w)?;
+        }
+        Some(w * 64 + word.trailing_zeros() as usize)
+    }
+
+    /// Updates curvature `k` and its twin on the next steeper curvature after `progress[k]`
+    /// changed.
+    fn update(&mut self, progress: &[Progress], k: usize) {
+        for j in k..progress.len().min(k + 2) {
+            let leads = match progress[j] {
+                Progress::Marching(first) => j == 0 || progress[j - 1] != Progress::Marching(first),
+                Progress::Finished => false,
+            };
+            let (w, bit) = (j / 64, 1 << (j % 64));
+            if leads {
+                self.words[w] |= bit;
+            } else {
+                self.words[w] &= !bit;
+            }
         }
     }
 }
