@@ -234,7 +234,6 @@ impl<'a> Fans<'a> {
                 bents[k] = bent_end;
                 let piece = piece.get_or_insert_with(|| line.piece(self.relief, sigma, end));
                 let mut a = first;
-                let mut at_from = fan.rays[a].at(bent.advanced(c, from));
                 progress[k] = loop {
                     let ray = &fan.rays[a];
                     if from >= ray.end {
@@ -246,12 +245,18 @@ impl<'a> Fans<'a> {
                     if to < fan.reach(a, layer) {
                         break Progress::Marching(a);
                     }
-                    let t_to = if to == end {
-                        ray.depth_bent(bent_end)
+                    let hit = if let Some(depth) = piece.constant() {
+                        ray.first_at_depth(depth, from, to)
                     } else {
-                        ray.depth_bent(bent.advanced(c, to))
+                        let t_to = if to == end {
+                            ray.depth_bent(bent_end)
+                        } else {
+                            ray.depth_bent(bent.advanced(c, to))
+                        };
+                        let at_from = ray.at(bent.advanced(c, from));
+                        first_crossing(piece, bent, ray, at_from, (to, t_to))
                     };
-                    let Some(hit) = first_crossing(piece, bent, ray, at_from, (to, t_to)) else {
+                    let Some(hit) = hit else {
                         break Progress::Marching(a);
                     };
                     out[k * n + a] = Some(hit / ray.sin_theta);
@@ -263,7 +268,6 @@ impl<'a> Fans<'a> {
                     if from >= end {
                         break Progress::Marching(a);
                     }
-                    at_from = fan.rays[a].at(bent.advanced(c, from));
                 };
                 if progress[k] == Progress::Finished {
                     marching -= 1;
@@ -623,6 +627,21 @@ impl BentRay {
         }
     }
 
+    /// The first σ in [`from`, `to`] where the ray lies at least `depth` deep, given that it
+    /// does not before `from`: where it first reaches that depth, or `from` if it already
+    /// has and has not climbed back above it (a convex surface's ray does, symmetrically
+    /// about its deepest point).
+    fn first_at_depth(&self, depth: f64, from: f64, to: f64) -> Option<f64> {
+        let reach = self.reach(depth);
+        if reach > to {
+            None
+        } else if reach >= from {
+            Some(reach)
+        } else {
+            (from <= 2.0 * self.deepest.0 - reach).then_some(from)
+        }
+    }
+
     /// The greatest depth over [a, b], given the depths at its ends: at an end, or where the
     /// convex surface's ray turns.
     fn deepest_on(&self, (a, t_a): (f64, f64), (b, t_b): (f64, f64)) -> f64 {
@@ -655,6 +674,12 @@ struct Piece {
 }
 
 impl Piece {
+    /// The depth, where it does not change along the line (a flat cell, or a line along a
+    /// level direction of one).
+    fn constant(&self) -> Option<f64> {
+        (self.d[1] == 0.0 && self.d[2] == 0.0).then_some(self.d[0])
+    }
+
     /// D and dD/dσ at σ.
     fn depth(&self, sigma: f64) -> (f64, f64) {
         let s = sigma - self.from;
