@@ -14,12 +14,15 @@
 //! - t(σ) falls as c grows at every σ (a more convex surface curves away from the ray), so a
 //!   ray hits no earlier than on a flatter surface: in each cell the march visits the
 //!   curvatures in ascending order, and a ray whose flatter twin has not hit yet is passed
-//!   over; one whose twin has starts where it hit;
+//!   over (only the curvatures not so blocked are visited, `Leading`); one whose twin has
+//!   starts where it hit;
 //! - t rises with σ up to a convex surface's turning point, so the first σ where a ray
 //!   reaches each of `LAYERS` depths, tabled per ray, rules out without a sine every cell
 //!   whose highest corner it cannot reach before leaving the cell.
 //!
-//! In a cell not ruled out, the gap g(σ) = D(σ) − t(σ) is bounded from below (the ray under
+//! Where the relief's depth does not change along the line in a cell (a flat cell), a ray
+//! hits where it first reaches that depth, in closed form (`BentRay::first_at_depth`).
+//! In any other cell not ruled out, the gap g(σ) = D(σ) − t(σ) is bounded from below (the ray under
 //! its chord or tangent, `first_crossing`), and only where the bound does not rule a
 //! crossing out is the first root found: Newton steps from a quadratic model's root, kept
 //! inside the bracket, to [`TOLERANCE`]; where the gap is positive at both ends and the bound
