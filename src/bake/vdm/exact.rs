@@ -22,9 +22,9 @@
 //!
 //! Where the relief's depth does not change along the line in a cell (a flat cell), a ray
 //! hits where it first reaches that depth, in closed form (`BentRay::first_at_depth`).
-//! In any other cell not ruled out, the gap g(σ) = D(σ) − t(σ) is bounded from below (the ray under
-//! its chord or tangent, `first_crossing`), and only where the bound does not rule a
-//! crossing out is the first root found: Newton steps from a quadratic model's root, kept
+//! In any other cell not ruled out, the gap g(σ) = D(σ) − t(σ) is bounded from below (the
+//! ray under its chord or tangent, `first_crossing`), and only where the bound does not rule
+//! a crossing out is the first root found: Newton steps from a quadratic model's root, kept
 //! inside the bracket, to [`TOLERANCE`]; where the gap is positive at both ends and the bound
 //! cannot decide, the cell is halved until it can or is shorter than [`TOLERANCE`] (a touch,
 //! not a crossing). A convex surface's ray that climbs back out through the reference surface
