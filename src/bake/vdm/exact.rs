@@ -18,7 +18,8 @@
 //!   starts where it hit;
 //! - t rises with σ up to a convex surface's turning point, so the first σ where a ray
 //!   reaches each of `LAYERS` depths, tabled per ray, rules out without a sine every cell
-//!   whose highest corner it cannot reach before leaving the cell.
+//!   whose highest corner it cannot reach before leaving the cell, and, in a cell looked at,
+//!   every ray that cannot reach the relief's highest point along the line there.
 //!
 //! Where the relief's depth does not change along the line in a cell (a flat cell), a ray
 //! hits where it first reaches that depth, in closed form (`BentRay::first_at_depth`).
@@ -245,7 +246,7 @@ impl<'a> Fans<'a> {
                     // Just short of a concave surface's asymptote the ray lies below every
                     // relief.
                     let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
-                    if to < fan.reach(a, layer) {
+                    if to < fan.reach(a, piece.layer) {
                         break Progress::Marching(a);
                     }
                     let hit = if let Some(depth) = piece.constant() {
@@ -489,15 +490,19 @@ impl Line {
             k * ex * ey,
         ];
         let depth = relief.depth;
+        let d = [
+            depth * (1.0 - height[0]),
+            -depth * height[1],
+            -depth * height[2],
+        ];
+        let shallowest = least_on(d[0], d[1], d[2], to - from).1;
         Piece {
             from,
             to,
-            shallowest: depth * (1.0 - h00.max(h10).max(h01).max(h11)),
-            d: [
-                depth * (1.0 - height[0]),
-                -depth * height[1],
-                -depth * height[2],
-            ],
+            d,
+            shallowest,
+            layer: (shallowest / depth * LAYERS as f64 * (1.0 - 1e-9)).clamp(0.0, LAYERS as f64)
+                as usize,
         }
     }
 }
@@ -672,8 +677,10 @@ struct Piece {
     from: f64,
     to: f64,
     d: [f64; 3],
-    /// The least depth over the whole cell (at its highest corner).
+    /// The least depth along the line over [`from`, `to`], and the last of the [`LAYERS`]
+    /// whose top lies at or above it.
     shallowest: f64,
+    layer: usize,
 }
 
 impl Piece {
