@@ -137,6 +137,12 @@ impl Fan {
 /// layer i is passed over by a ray that has not reached layer i's top).
 const LAYERS: usize = 256;
 
+/// The last of the [`LAYERS`] whose top lies at or above `fraction` of the relief's depth
+/// (rounded down).
+fn layer(fraction: f64) -> usize {
+    (fraction * LAYERS as f64 * (1.0 - 1e-9)).clamp(0.0, LAYERS as f64) as usize
+}
+
 /// Where one curvature's march stands.
 #[derive(Clone, Copy, PartialEq)]
 enum Progress {
@@ -349,8 +355,7 @@ impl Layers {
                     .max(at(i + 1, j))
                     .max(at(i, j + 1))
                     .max(at(i + 1, j + 1));
-                let layer = (1.0 - f64::from(top)) * LAYERS as f64 * (1.0 - 1e-9);
-                layer.clamp(0.0, LAYERS as f64) as u16
+                layer(1.0 - f64::from(top)) as u16
             })
             .collect();
         Layers {
@@ -501,8 +506,7 @@ impl Line {
             to,
             d,
             shallowest,
-            layer: (shallowest / depth * LAYERS as f64 * (1.0 - 1e-9)).clamp(0.0, LAYERS as f64)
-                as usize,
+            layer: layer(shallowest / depth),
         }
     }
 }
