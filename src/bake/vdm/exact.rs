@@ -836,3 +836,42 @@ fn first_root(e0: f64, e1: f64, e2: f64) -> Option<f64> {
         (e2 < 0.0).then(|| q / e2)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `first_at_depth` against a plain scan of the ray's depth from `from` in steps of 10⁻⁵
+    /// (tolerance: one step), on concave, flat and convex surfaces, starting before the ray
+    /// reaches the depth, after it, and (convex) after it has climbed back above it.
+    #[test]
+    fn a_rays_first_point_at_a_depth_is_what_a_scan_of_its_depth_finds() {
+        const STEP: f64 = 1e-5;
+        for c in [-2.0, -0.5, 0.0, 1.5, 3.0] {
+            for theta in [0.3, 0.9, 1.4] {
+                let ray = BentRay::new(theta, c);
+                let last = ray.end.min(ray.asymptote * (1.0 - 1e-6)).min(4.0);
+                for depth in [0.01, 0.05, 0.12] {
+                    for from in [0.0, 0.3, 0.7, 0.9, 0.97, 0.995].map(|f| f * last) {
+                        let to = last;
+                        let scan = (0..)
+                            .map(|i| from + STEP * f64::from(i))
+                            .take_while(|sigma| *sigma <= to)
+                            .find(|sigma| ray.depth_bent(Bent::at(c, *sigma)) >= depth);
+                        let got = ray.first_at_depth(depth, from, to);
+                        match (got, scan) {
+                            (Some(got), Some(scan)) => assert!(
+                                (got - scan).abs() <= STEP,
+                                "c {c}, θ {theta}, depth {depth}, from {from}: {got} vs {scan}"
+                            ),
+                            (None, None) => {}
+                            _ => panic!(
+                                "c {c}, θ {theta}, depth {depth}, from {from}: {got:?} vs {scan:?}"
+                            ),
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
