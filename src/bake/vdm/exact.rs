@@ -44,9 +44,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Largest error of a hit's arc length σ along the reference surface (tile units).
 pub const TOLERANCE: f64 = 1e-7;
 
-/// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, a few at a time so
-/// that beside the VDM only theirs are held twice, and at each texel every curvature in one
-/// march ([`Fans::cast`]).
+/// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, each writing its own
+/// images of the VDM, and at each texel every curvature in one march ([`Fans::cast`]).
 pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Result<Vec<f32>> {
     let (w, h) = relief.field.size();
     let texels = (w * h) as usize;
@@ -60,38 +59,35 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
     let fans = Fans::new(relief, &thetas, &curvatures);
     let done = AtomicU64::new(0);
     let mut values = vec![NO_HIT; n_c * n_theta * n_phi * texels];
-    let batch = 2 * rayon::current_num_threads();
-    for first in (0..n_phi).step_by(batch) {
-        // Per azimuth: [k][a][texel].
-        let blocks: Vec<Vec<f32>> = (first..n_phi.min(first + batch))
-            .into_par_iter()
-            .map(|b| {
-                if observer.cancelled() {
-                    return Err(Error::Cancelled);
-                }
-                let phi = grid.phi(b as u32);
-                let mut block = vec![NO_HIT; n_c * n_theta * texels];
-                let mut hits = vec![None; n_c * n_theta];
-                for texel in 0..texels {
-                    let p = [
-                        (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
-                        (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
-                    ];
-                    fans.cast(p, phi, &mut hits);
-                    for (ka, hit) in hits.iter().enumerate() {
-                        block[ka * texels + texel] = hit.map_or(NO_HIT, |d| d as f32);
-                    }
-                }
-                observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
-                Ok(block)
-            })
-            .collect::<Result<_>>()?;
-        for (b, block) in (first..).zip(&blocks) {
-            for (ka, image) in block.chunks_exact(texels).enumerate() {
-                values[(ka * n_phi + b) * texels..][..texels].copy_from_slice(image);
-            }
-        }
+    // Image (k·Nθ + a)·Nφ + b belongs to azimuth b; each azimuth's by curvature, then θ.
+    let mut images: Vec<Vec<&mut [f32]>> = (0..n_phi)
+        .map(|_| Vec::with_capacity(n_c * n_theta))
+        .collect();
+    for (i, image) in values.chunks_exact_mut(texels).enumerate() {
+        images[i % n_phi].push(image);
     }
+    images
+        .into_par_iter()
+        .enumerate()
+        .try_for_each(|(b, mut images)| {
+            if observer.cancelled() {
+                return Err(Error::Cancelled);
+            }
+            let phi = grid.phi(b as u32);
+            let mut hits = vec![None; n_c * n_theta];
+            for texel in 0..texels {
+                let p = [
+                    (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
+                    (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
+                ];
+                fans.cast(p, phi, &mut hits);
+                for (image, hit) in images.iter_mut().zip(&hits) {
+                    image[texel] = hit.map_or(NO_HIT, |d| d as f32);
+                }
+            }
+            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
+            Ok(())
+        })?;
     Ok(values)
 }
 
