@@ -254,13 +254,12 @@ impl<'a> Fans<'a> {
                     let hit = if let Some(depth) = piece.constant() {
                         ray.first_at_depth(depth, from, to)
                     } else {
-                        let t_to = if to == end {
-                            ray.depth_bent(bent_end)
+                        let to = if to == end {
+                            bent_end
                         } else {
-                            ray.depth_bent(bent.advanced(c, to))
+                            bent.advanced(c, to)
                         };
-                        let at_from = ray.at(bent.advanced(c, from));
-                        first_crossing(piece, bent, ray, at_from, (to, t_to))
+                        first_crossing(piece, bent, ray, bent.advanced(c, from), to)
                     };
                     let Some(hit) = hit else {
                         break Progress::Marching(a);
@@ -609,20 +608,34 @@ impl BentRay {
         }
     }
 
-    /// The ray at the σ of `bent`, by one division: with x = sin u / sin θ and
-    /// y = cos u / sin θ (u = θ + σc), t = R·(1 − 1/x), t′ = y / x² and
-    /// t″ = −c·(x² + 2y²) / x³.
-    fn at(&self, bent: Bent) -> RayPoint {
+    /// The ray's depth t and dt/dσ at the σ of `bent`: with x = sin u / sin θ and
+    /// y = cos u / sin θ (u = θ + σc), t = R·(1 − 1/x) and t′ = y / x².
+    fn depth_and_slope(&self, bent: Bent) -> (f64, f64) {
         let x = bent.cos + bent.sin * self.cot_theta;
         let y = bent.cos * self.cot_theta - bent.sin;
-        let inv = 1.0 / x;
-        let inv2 = inv * inv;
-        RayPoint {
-            sigma: bent.sigma,
-            // Its division is `inv`'s: the compiler computes it once.
-            t: self.depth_bent(bent),
-            slope: y * inv2,
-            half_bending: -0.5 * self.c * (x * x + 2.0 * y * y) * (inv2 * inv),
+        // One division: the compiler shares `depth_bent`'s.
+        (self.depth_bent(bent), y / (x * x))
+    }
+
+    /// G = x·(D − t), the gap between `piece` and the ray scaled by x = sin u / sin θ
+    /// (u = θ + σc, x > 0 wherever the ray is defined), at the σ of `bent`, with dG/dσ and
+    /// ½·d²G/dσ²: G = R − (R − D)·x (D − σ·cot θ on the flat surface) needs no division,
+    /// and has the gap's sign. With y = cos u / sin θ (x′ = c·y, y′ = −c·x),
+    /// G′ = D′·x − (1 − c·D)·y and G″ = D″·x + 2c·D′·y + c·(1 − c·D)·x.
+    fn scaled_gap(&self, piece: &Piece, bent: Bent) -> Scaled {
+        let (d, slope, bending) = piece.depth_derivatives(bent.sigma);
+        let x = bent.cos + bent.sin * self.cot_theta;
+        let y = bent.cos * self.cot_theta - bent.sin;
+        let g = if self.c == 0.0 {
+            d - bent.sigma * self.cot_theta
+        } else {
+            self.r - (self.r - d) * x
+        };
+        let shrink = 1.0 - self.c * d;
+        Scaled {
+            g,
+            slope: slope * x - shrink * y,
+            half_bending: 0.5 * (bending * x + 2.0 * self.c * slope * y + self.c * shrink * x),
         }
     }
 
@@ -662,11 +675,10 @@ impl BentRay {
     }
 }
 
-/// A ray at one σ: its depth t, dt/dσ and ½·d²t/dσ².
+/// The scaled gap G at one σ, dG/dσ and ½·d²G/dσ² ([`BentRay::scaled_gap`]).
 #[derive(Clone, Copy)]
-struct RayPoint {
-    sigma: f64,
-    t: f64,
+struct Scaled {
+    g: f64,
     slope: f64,
     half_bending: f64,
 }
@@ -692,89 +704,88 @@ impl Piece {
 
     /// D and dD/dσ at σ.
     fn depth(&self, sigma: f64) -> (f64, f64) {
+        let (d, slope, _) = self.depth_derivatives(sigma);
+        (d, slope)
+    }
+
+    /// D, dD/dσ and d²D/dσ² at σ.
+    fn depth_derivatives(&self, sigma: f64) -> (f64, f64, f64) {
         let s = sigma - self.from;
         let [d0, d1, d2] = self.d;
-        (d0 + s * (d1 + s * d2), d1 + 2.0 * s * d2)
+        (d0 + s * (d1 + s * d2), d1 + 2.0 * s * d2, 2.0 * d2)
     }
 }
 
 /// The first σ in [a, b] (within the piece) where `ray` reaches the relief, given that it has
-/// not before a, the ray at a (`from`), its depth `t_b` at b, and `bent` at the piece's
-/// start.
+/// not before a, the ray's sines at a (`from`) and b (`to`), and `bent` at the piece's start.
 ///
-/// Inside a piece the gap g(σ) = D(σ) − t(σ) is nearly the quadratic e(s) = g(a) + (D′(a) −
-/// m)·s + d2·s², s = σ − a, with m the slope of a line through the ray at a: the ray's
-/// depth curves up on a flat or concave surface (d²t/dσ² = −c·sin θ·(sin²u + 2cos²u)/sin³u,
-/// u = θ + σc) and down on a convex one, so it lies under its chord in the first case and
-/// under its tangent at a in the second, and then g ≥ e.
-fn first_crossing(
-    piece: &Piece,
-    bent: Bent,
-    ray: &BentRay,
-    from: RayPoint,
-    (b, t_b): (f64, f64),
-) -> Option<f64> {
-    let (a, t_a) = (from.sigma, from.t);
+/// The search follows the sign of the scaled gap G = x·g ([`BentRay::scaled_gap`]), which
+/// needs no division. Where G is negative at b, Newton steps on G from the root of its
+/// quadratic model at a, kept inside the bracket, find the crossing to [`TOLERANCE`].
+///
+/// Where the gap is positive at both ends, a crossing needs a dip between them, ruled out by
+/// a bound on the gap g(σ) = D(σ) − t(σ) itself: it is nearly the quadratic
+/// e(s) = g(a) + (D′(a) − m)·s + d2·s², s = σ − a, with m the slope of a line through the ray
+/// at a: the ray's depth curves up on a flat or concave surface (d²t/dσ² =
+/// −c·sin θ·(sin²u + 2cos²u)/sin³u) and down on a convex one, so it lies under its chord in
+/// the first case and under its tangent at a in the second, and then g ≥ e. Where the bound
+/// cannot decide, the piece is halved until it can or is shorter than [`TOLERANCE`] (a
+/// touch, not a crossing).
+fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent) -> Option<f64> {
+    let (a, b) = (from.sigma, to.sigma);
     debug_assert!(piece.from <= a && b <= piece.to);
-    let deepest = ray.deepest_on((a, t_a), (b, t_b));
-    if deepest < piece.shallowest {
-        return None;
-    }
-    let (d_a, slope_a) = piece.depth(a);
-    let ga = d_a - t_a;
-    if ga <= 0.0 {
+    let at_a = ray.scaled_gap(piece, from);
+    if at_a.g <= 0.0 {
         return Some(a);
     }
     if b <= a {
         return None;
     }
-    let gap = |sigma: f64| {
-        let (d, dd) = piece.depth(sigma);
-        let at = ray.at(bent.advanced(ray.c, sigma));
-        (d - at.t, dd - at.slope)
-    };
-    // The ray's slope and half its curvature at a: e with its tangent, and a quadratic
-    // model of the gap with both.
-    let (slope, bending) = (from.slope, from.half_bending);
-    let d2 = piece.d[2];
-    let (mut hi, mut g_hi) = (b, piece.depth(b).0 - t_b);
-    if g_hi > 0.0 {
-        // Positive at both ends: a crossing needs a dip between them, and the gap lies above
-        // e under the line the ray lies under.
+    let g_b = ray.scaled_gap(piece, to).g;
+    let (hi, g_hi) = if g_b <= 0.0 {
+        (b, g_b)
+    } else {
+        // Positive at both ends: a crossing needs a dip between them.
+        let ((t_a, slope), t_b) = (ray.depth_and_slope(from), ray.depth_bent(to));
+        if ray.deepest_on((a, t_a), (b, t_b)) < piece.shallowest {
+            return None;
+        }
+        let (d_a, slope_a) = piece.depth(a);
+        // The gap lies above e under the line the ray lies under.
         let m = if ray.c > 0.0 {
             slope
         } else {
             (t_b - t_a) / (b - a)
         };
-        let (s, least) = least_on(ga, slope_a - m, d2, b - a);
+        let (s, least) = least_on(d_a - t_a, slope_a - m, piece.d[2], b - a);
         if least > 0.0 {
             return None;
         }
         // Where e is least the gap is least, nearly: a bracket if it has dipped there.
         let x = a + s;
-        let g_x = gap(x).0;
+        let at_x = bent.advanced(ray.c, x);
+        let g_x = ray.scaled_gap(piece, at_x).g;
         if g_x > 0.0 {
             // A touch within rounding, or a dip too narrow for e to find: halve.
             if b - a < TOLERANCE {
                 return None;
             }
-            let mid = 0.5 * (a + b);
-            let mid = ray.at(bent.advanced(ray.c, mid));
-            return first_crossing(piece, bent, ray, from, (mid.sigma, mid.t))
-                .or_else(|| first_crossing(piece, bent, ray, mid, (b, t_b)));
+            let mid = bent.advanced(ray.c, 0.5 * (a + b));
+            return first_crossing(piece, bent, ray, from, mid)
+                .or_else(|| first_crossing(piece, bent, ray, mid, to));
         }
-        (hi, g_hi) = (x, g_x);
-    }
+        (x, g_x)
+    };
     // Bracketed: Newton steps from the model's root, falling back to bisection where one
     // would leave the bracket.
-    let mut lo = a;
-    let mut x = first_root(ga, slope_a - slope, d2 - bending)
+    let (mut lo, mut hi) = (a, hi);
+    let mut x = first_root(at_a.g, at_a.slope, at_a.half_bending)
         .map(|s| a + s)
         .filter(|x| *x > lo && *x < hi)
-        .unwrap_or(a + (hi - a) * ga / (ga - g_hi));
+        .unwrap_or(a + (hi - a) * at_a.g / (at_a.g - g_hi));
     for _ in 0..64 {
-        let (g, dg) = gap(x);
-        if g > 0.0 {
+        let at_x = ray.scaled_gap(piece, bent.advanced(ray.c, x));
+        if at_x.g > 0.0 {
             lo = x;
         } else {
             hi = x;
@@ -782,7 +793,7 @@ fn first_crossing(
         if hi - lo <= TOLERANCE {
             break;
         }
-        let newton = x - g / dg;
+        let newton = x - at_x.g / at_x.slope;
         if (newton - x).abs() <= TOLERANCE * 0.25 {
             // Converged (where x is a root to rounding, the step may not leave it).
             return Some(newton.clamp(lo, hi));
@@ -815,6 +826,18 @@ fn least_on(e0: f64, e1: f64, e2: f64, len: f64) -> (f64, f64) {
 
 /// The least positive root of e0 + e1·s + e2·s² (e0 > 0), if any.
 fn first_root(e0: f64, e1: f64, e2: f64) -> Option<f64> {
+    if e1 < 0.0 {
+        // Near the line's root t = e0 / −e1, the root is t·C(ε) with ε = e0·e2 / e1² and
+        // C(ε) = (1 − √(1 − 4ε)) / 2ε = Σ Catalan(n)·εⁿ: by series where |ε| ≤ 1/32 (to
+        // 429·ε⁷ < 1.3·10⁻⁸ relative), without a square root.
+        let r = -1.0 / e1;
+        let t = e0 * r;
+        let eps = t * e2 * r;
+        if eps.abs() <= 1.0 / 32.0 {
+            const CATALAN: [f64; 7] = [1.0, 1.0, 2.0, 5.0, 14.0, 42.0, 132.0];
+            return Some(t * CATALAN.iter().rev().fold(0.0, |acc, k| acc * eps + k));
+        }
+    }
     if e2 == 0.0 {
         return (e1 < 0.0).then(|| -e0 / e1);
     }
