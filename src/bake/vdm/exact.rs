@@ -107,6 +107,8 @@ pub struct Fans<'a> {
     layers: Layers,
     /// Per curvature, ascending.
     fans: Vec<Fan>,
+    /// The depths of the most common flat cells ([`plateaus`]).
+    plateaus: Vec<f64>,
     /// Where every march ends: every ray hits the floor (depth) by depth · tan θ on a flat
     /// or concave surface, and a convex one's leaves before; a cap against rounding only.
     cap: f64,
@@ -120,6 +122,9 @@ struct Fan {
     /// (rounded down; infinity for a convex surface's ray that never does): ray a's at
     /// a·([`LAYERS`] + 1) + i.
     reach: Vec<f64>,
+    /// Per ray, where it first reaches each of the plateaus (exactly): ray a's at
+    /// a·plateaus + i.
+    plateau_reach: Vec<f64>,
 }
 
 impl Fan {
@@ -153,6 +158,7 @@ impl<'a> Fans<'a> {
     /// `curvatures` (ascending).
     pub fn new(relief: Relief<'a>, thetas: &[f64], curvatures: &[f64]) -> Fans<'a> {
         debug_assert!(thetas.is_sorted() && curvatures.is_sorted());
+        let plateaus = plateaus(relief);
         let fans = curvatures
             .iter()
             .map(|&c| {
@@ -165,7 +171,16 @@ impl<'a> Fans<'a> {
                         })
                     })
                     .collect();
-                Fan { c, rays, reach }
+                let plateau_reach = rays
+                    .iter()
+                    .flat_map(|ray| plateaus.iter().map(|&depth| ray.reach(depth)))
+                    .collect();
+                Fan {
+                    c,
+                    rays,
+                    reach,
+                    plateau_reach,
+                }
             })
             .collect();
         let cap = thetas.last().map_or(0.0, |th| relief.depth * th.tan()) + 4.0;
@@ -173,7 +188,16 @@ impl<'a> Fans<'a> {
             relief,
             layers: Layers::new(relief.field),
             fans,
+            plateaus,
             cap,
+        }
+    }
+
+    /// Where ray `a` of `fan` first lies `depth` deep: tabled for the plateaus.
+    fn reach_of(&self, fan: &Fan, a: usize, depth: f64) -> f64 {
+        match self.plateaus.iter().position(|&plateau| plateau == depth) {
+            Some(i) => fan.plateau_reach[a * self.plateaus.len() + i],
+            None => fan.rays[a].reach(depth),
         }
     }
 
@@ -252,7 +276,7 @@ impl<'a> Fans<'a> {
                         break Progress::Marching(a);
                     }
                     let hit = if let Some(depth) = piece.constant() {
-                        ray.first_at_depth(depth, from, to)
+                        ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
                     } else {
                         let to = if to == end {
                             bent_end
@@ -328,6 +352,33 @@ impl Leading {
             }
         }
     }
+}
+
+/// The depths of the flat cells (four equal corners) of `relief` that are most common (up
+/// to four), as [`Line::piece`] computes them.
+fn plateaus(relief: Relief) -> Vec<f64> {
+    let field = relief.field;
+    let (w, h) = field.size();
+    let (w, h) = (w as usize, h as usize);
+    let heights = field.heights();
+    let at = |i: usize, j: usize| heights[(j % h) * w + i % w];
+    let mut counts: Vec<(f32, usize)> = Vec::new();
+    for (i, j) in (0..h).flat_map(|j| (0..w).map(move |i| (i, j))) {
+        let corner = at(i, j);
+        if [at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)] == [corner; 3] {
+            match counts.iter().position(|(height, _)| *height == corner) {
+                Some(i) => counts[i].1 += 1,
+                None if counts.len() < 64 => counts.push((corner, 1)),
+                None => {}
+            }
+        }
+    }
+    counts.sort_by(|a, b| b.1.cmp(&a.1));
+    counts
+        .iter()
+        .take(4)
+        .map(|&(height, _)| relief.depth * (1.0 - f64::from(height)))
+        .collect()
 }
 
 /// Per bilinear cell, the depth layer of its highest corner: the last layer whose top lies at
@@ -648,12 +699,11 @@ impl BentRay {
         }
     }
 
-    /// The first σ in [`from`, `to`] where the ray lies at least `depth` deep, given that it
-    /// does not before `from`: where it first reaches that depth, or `from` if it already
-    /// has and has not climbed back above it (a convex surface's ray does, symmetrically
-    /// about its deepest point).
-    fn first_at_depth(&self, depth: f64, from: f64, to: f64) -> Option<f64> {
-        let reach = self.reach(depth);
+    /// The first σ in [`from`, `to`] where the ray lies at least as deep as a depth it first
+    /// reaches at `reach` ([`BentRay::reach`]), given that it does not before `from`:
+    /// `reach`, or `from` if it already has and has not climbed back above it (a convex
+    /// surface's ray does, symmetrically about its deepest point).
+    fn first_at_depth(&self, reach: f64, from: f64, to: f64) -> Option<f64> {
         if reach > to {
             None
         } else if reach >= from {
@@ -877,7 +927,7 @@ mod tests {
                             .map(|i| from + STEP * f64::from(i))
                             .take_while(|sigma| *sigma <= to)
                             .find(|sigma| ray.depth_bent(Bent::at(c, *sigma)) >= depth);
-                        let got = ray.first_at_depth(depth, from, to);
+                        let got = ray.first_at_depth(ray.reach(depth), from, to);
                         match (got, scan) {
                             (Some(got), Some(scan)) => assert!(
                                 (got - scan).abs() <= STEP,
