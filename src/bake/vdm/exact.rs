@@ -22,13 +22,15 @@
 //!   every ray that cannot reach the relief's highest point along the line there.
 //!
 //! Where the relief's depth does not change along the line in a cell (a flat cell), a ray
-//! hits where it first reaches that depth, in closed form (`BentRay::first_at_depth`).
-//! In any other cell not ruled out, the gap g(σ) = D(σ) − t(σ) is bounded from below (the
-//! ray under its chord or tangent, `first_crossing`), and only where the bound does not rule
-//! a crossing out is the first root found: Newton steps from a quadratic model's root, kept
-//! inside the bracket, to [`TOLERANCE`]; where the gap is positive at both ends and the bound
-//! cannot decide, the cell is halved until it can or is shorter than [`TOLERANCE`] (a touch,
-//! not a crossing). A convex surface's ray that climbs back out through the reference surface
+//! hits where it first reaches that depth, in closed form (`BentRay::first_at_depth`; tabled
+//! per ray for the relief's most common plateaus). In any other cell not ruled out, the
+//! search follows the sign of the gap g(σ) = D(σ) − t(σ) scaled by x = sin(θ + σc)/sin θ > 0,
+//! G = R − (R − D)·x, which needs no division: where G is negative at the cell's end,
+//! Newton steps from the root of G's quadratic model, kept inside the bracket, find the
+//! crossing to [`TOLERANCE`]. Where it is positive at both ends, the gap is bounded from below
+//! (the ray under its chord or tangent, `first_crossing`), and where the bound cannot rule a
+//! dip out, the cell is halved until it can or is shorter than [`TOLERANCE`] (a touch, not a
+//! crossing). A convex surface's ray that climbs back out through the reference surface
 //! (at σ = R·(π − 2θ)) without meeting the relief is [`NO_HIT`], and so is every shallower ray
 //! of its fan.
 
@@ -373,7 +375,7 @@ fn plateaus(relief: Relief) -> Vec<f64> {
             }
         }
     }
-    counts.sort_by(|a, b| b.1.cmp(&a.1));
+    counts.sort_by_key(|&(_, count)| std::cmp::Reverse(count));
     counts
         .iter()
         .take(4)
@@ -909,6 +911,30 @@ fn first_root(e0: f64, e1: f64, e2: f64) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The plateaus of small periodic tiles, counted by hand: the depths of the cells whose
+    /// four corners are equal, the most common first, and nothing for sloped cells.
+    #[test]
+    fn the_plateaus_are_the_depths_of_the_flat_cells_most_common_first() {
+        let plateaus_of = |heights: Vec<f32>| {
+            let field = HeightField::new(4, 4, heights).unwrap();
+            plateaus(Relief {
+                field: &field,
+                depth: 0.25,
+            })
+        };
+        // Rows 0–2 at 0 but texel (1, 1) at 1, row 3 at 0.5: flat only at 0, in cells
+        // (2, 0), (3, 0), (2, 1) and (3, 1).
+        let mut heights = vec![0.0; 16];
+        heights[12..].fill(0.5);
+        heights[5] = 1.0;
+        assert_eq!(plateaus_of(heights), vec![0.25]);
+        // Row 0 and texels (0, 1), (1, 1) at 0, the rest at 0.5: flat at 0.5 in cells
+        // (2, 1) and (0..4, 2), five of them, and at 0 in cell (0, 0) alone.
+        let mut heights = vec![0.5; 16];
+        heights[..6].fill(0.0);
+        assert_eq!(plateaus_of(heights), vec![0.125, 0.25]);
+    }
 
     /// `first_at_depth` against a plain scan of the ray's depth from `from` in steps of 10⁻⁵
     /// (tolerance: one step), on concave, flat and convex surfaces, starting before the ray
