@@ -676,7 +676,7 @@ impl BentRay {
     /// and has the gap's sign. With y = cos u / sin θ (x′ = c·y, y′ = −c·x),
     /// G′ = D′·x − (1 − c·D)·y and G″ = D″·x + 2c·D′·y + c·(1 − c·D)·x.
     fn scaled_gap(&self, piece: &Piece, bent: Bent) -> Scaled {
-        let (d, slope, bending) = piece.depth_derivatives(bent.sigma);
+        let (d, slope, bending) = piece.depth(bent.sigma);
         let x = bent.cos + bent.sin * self.cot_theta;
         let y = bent.cos * self.cot_theta - bent.sin;
         let g = if self.c == 0.0 {
@@ -754,14 +754,8 @@ impl Piece {
         (self.d[1] == 0.0 && self.d[2] == 0.0).then_some(self.d[0])
     }
 
-    /// D and dD/dσ at σ.
-    fn depth(&self, sigma: f64) -> (f64, f64) {
-        let (d, slope, _) = self.depth_derivatives(sigma);
-        (d, slope)
-    }
-
     /// D, dD/dσ and d²D/dσ² at σ.
-    fn depth_derivatives(&self, sigma: f64) -> (f64, f64, f64) {
+    fn depth(&self, sigma: f64) -> (f64, f64, f64) {
         let s = sigma - self.from;
         let [d0, d1, d2] = self.d;
         (d0 + s * (d1 + s * d2), d1 + 2.0 * s * d2, 2.0 * d2)
@@ -802,7 +796,7 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
         if ray.deepest_on((a, t_a), (b, t_b)) < piece.shallowest {
             return None;
         }
-        let (d_a, slope_a) = piece.depth(a);
+        let (d_a, slope_a, _) = piece.depth(a);
         // The gap lies above e under the line the ray lies under.
         let m = if ray.c > 0.0 {
             slope
