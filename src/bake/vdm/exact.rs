@@ -359,15 +359,9 @@ impl Leading {
 /// The depths of the flat cells (four equal corners) of `relief` that are most common (up
 /// to four), as [`Line::piece`] computes them.
 fn plateaus(relief: Relief) -> Vec<f64> {
-    let field = relief.field;
-    let (w, h) = field.size();
-    let (w, h) = (w as usize, h as usize);
-    let heights = field.heights();
-    let at = |i: usize, j: usize| heights[(j % h) * w + i % w];
     let mut counts: Vec<(f32, usize)> = Vec::new();
-    for (i, j) in (0..h).flat_map(|j| (0..w).map(move |i| (i, j))) {
-        let corner = at(i, j);
-        if [at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)] == [corner; 3] {
+    for [corner, rest @ ..] in cell_corners(relief.field) {
+        if rest == [corner; 3] {
             match counts.iter().position(|(height, _)| *height == corner) {
                 Some(i) => counts[i].1 += 1,
                 None if counts.len() < 64 => counts.push((corner, 1)),
@@ -383,6 +377,19 @@ fn plateaus(relief: Relief) -> Vec<f64> {
         .collect()
 }
 
+/// The heights at the four corners of every bilinear cell of `field` (periodic), the cell
+/// whose lower corner is texel (i, j) at j·W + i: (i, j), (i + 1, j), (i, j + 1),
+/// (i + 1, j + 1).
+fn cell_corners(field: &HeightField) -> impl Iterator<Item = [f32; 4]> + '_ {
+    let (w, h) = field.size();
+    let (w, h) = (w as usize, h as usize);
+    let heights = field.heights();
+    let at = move |i: usize, j: usize| heights[(j % h) * w + i % w];
+    (0..h)
+        .flat_map(move |j| (0..w).map(move |i| (i, j)))
+        .map(move |(i, j)| [at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)])
+}
+
 /// Per bilinear cell, the depth layer of its highest corner: the last layer whose top lies at
 /// or above it.
 struct Layers {
@@ -392,22 +399,14 @@ struct Layers {
 
 impl Layers {
     fn new(field: &HeightField) -> Layers {
-        let (w, h) = field.size();
-        let (w, h) = (w as usize, h as usize);
-        let heights = field.heights();
-        let at = |i: usize, j: usize| heights[(j % h) * w + i % w];
-        let layers = (0..h)
-            .flat_map(|j| (0..w).map(move |i| (i, j)))
-            .map(|(i, j)| {
-                let top = at(i, j)
-                    .max(at(i + 1, j))
-                    .max(at(i, j + 1))
-                    .max(at(i + 1, j + 1));
+        let layers = cell_corners(field)
+            .map(|corners| {
+                let top = corners.into_iter().fold(f32::MIN, f32::max);
                 layer(1.0 - f64::from(top)) as u16
             })
             .collect();
         Layers {
-            width: w as i64,
+            width: i64::from(field.size().0),
             layers,
         }
     }
@@ -928,6 +927,45 @@ mod tests {
         let mut heights = vec![0.5; 16];
         heights[..6].fill(0.0);
         assert_eq!(plateaus_of(heights), vec![0.125, 0.25]);
+    }
+
+    /// `first_root` (its series where |ε| ≤ 1/32, its closed form elsewhere) against the
+    /// textbook quadratic formula, on models with both signs of e1 and e2, within 10⁻¹²
+    /// relative (the models on the series' side have |ε| ≤ 10⁻³, where its truncation is
+    /// below 10⁻¹⁸).
+    #[test]
+    fn the_models_first_root_is_the_quadratic_formulas() {
+        for (e0, e1, e2) in [
+            (1e-3f64, -1.0f64, 0.1f64),
+            (1e-3, -1.0, -0.2),
+            (2e-4, -0.5, 0.0),
+            (1e-2, -0.3, 2.0),
+            (1e-2, -0.3, -2.0),
+            (1e-2, 0.4, -3.0),
+            (1e-2, 0.4, 3.0),
+            (1e-2, -0.1, 1.0),
+        ] {
+            let disc = e1 * e1 - 4.0 * e0 * e2;
+            let textbook = if e2 == 0.0 {
+                (e1 < 0.0).then(|| -e0 / e1)
+            } else if disc < 0.0 {
+                None
+            } else {
+                [-1.0, 1.0]
+                    .map(|sign| (-e1 + sign * disc.sqrt()) / (2.0 * e2))
+                    .into_iter()
+                    .filter(|s| *s > 0.0)
+                    .reduce(f64::min)
+            };
+            match (first_root(e0, e1, e2), textbook) {
+                (Some(got), Some(want)) => assert!(
+                    (got - want).abs() <= 1e-12 * want,
+                    "{e0} {e1} {e2}: {got} vs {want}"
+                ),
+                (None, None) => {}
+                (got, want) => panic!("{e0} {e1} {e2}: {got:?} vs {want:?}"),
+            }
+        }
     }
 
     /// `first_at_depth` against a plain scan of the ray's depth from `from` in steps of 10⁻⁵
