@@ -589,15 +589,14 @@ impl Bent {
             return Bent::at(c, sigma);
         }
         let d2 = d * d;
-        // Horner's rule on the series' coefficients (multiplications only).
         const SIN: [f64; 4] = [1.0, -1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0];
         const COS: [f64; 5] = [1.0, -0.5, 1.0 / 24.0, -1.0 / 720.0, 1.0 / 40320.0];
-        let sin_d = d * SIN.iter().rev().fold(0.0, |acc, k| acc * d2 + k);
-        let cos_d = COS.iter().rev().fold(0.0, |acc, k| acc * d2 + k);
+        let sin_d = d * horner(d2, &SIN);
+        let cos_d = horner(d2, &COS);
         Bent {
             sigma,
-            sin: self.sin * cos_d + self.cos * sin_d,
-            cos: self.cos * cos_d - self.sin * sin_d,
+            sin: self.sin.mul_add(cos_d, self.cos * sin_d),
+            cos: self.cos.mul_add(cos_d, -(self.sin * sin_d)),
         }
     }
 }
@@ -663,8 +662,7 @@ impl BentRay {
     /// The ray's depth t and dt/dσ at the σ of `bent`: with x = sin u / sin θ and
     /// y = cos u / sin θ (u = θ + σc), t = R·(1 − 1/x) and t′ = y / x².
     fn depth_and_slope(&self, bent: Bent) -> (f64, f64) {
-        let x = bent.cos + bent.sin * self.cot_theta;
-        let y = bent.cos * self.cot_theta - bent.sin;
+        let (x, y) = self.xy(bent);
         // One division: the compiler shares `depth_bent`'s.
         (self.depth_bent(bent), y / (x * x))
     }
@@ -676,18 +674,18 @@ impl BentRay {
     /// G′ = D′·x − (1 − c·D)·y and G″ = D″·x + 2c·D′·y + c·(1 − c·D)·x.
     fn scaled_gap(&self, piece: &Piece, bent: Bent) -> Scaled {
         let (d, slope, bending) = piece.depth(bent.sigma);
-        let x = bent.cos + bent.sin * self.cot_theta;
-        let y = bent.cos * self.cot_theta - bent.sin;
+        let (x, y) = self.xy(bent);
         let g = if self.c == 0.0 {
-            d - bent.sigma * self.cot_theta
+            (-bent.sigma).mul_add(self.cot_theta, d)
         } else {
-            self.r - (self.r - d) * x
+            (d - self.r).mul_add(x, self.r)
         };
-        let shrink = 1.0 - self.c * d;
+        let shrink = (-self.c).mul_add(d, 1.0);
+        let c = self.c;
         Scaled {
             g,
-            slope: slope * x - shrink * y,
-            half_bending: 0.5 * (bending * x + 2.0 * self.c * slope * y + self.c * shrink * x),
+            slope: slope.mul_add(x, -(shrink * y)),
+            half_bending: 0.5 * bending.mul_add(x, (2.0 * c * slope).mul_add(y, c * shrink * x)),
         }
     }
 
@@ -696,8 +694,16 @@ impl BentRay {
         if self.c == 0.0 {
             bent.sigma * self.cot_theta
         } else {
-            self.r * (1.0 - 1.0 / (bent.cos + bent.sin * self.cot_theta))
+            self.r * (1.0 - 1.0 / self.xy(bent).0)
         }
+    }
+
+    /// x = sin u / sin θ and y = cos u / sin θ (u = θ + σc) at the σ of `bent`.
+    fn xy(&self, bent: Bent) -> (f64, f64) {
+        (
+            bent.sin.mul_add(self.cot_theta, bent.cos),
+            bent.cos.mul_add(self.cot_theta, -bent.sin),
+        )
     }
 
     /// The first σ in [`from`, `to`] where the ray lies at least as deep as a depth it first
@@ -757,7 +763,11 @@ impl Piece {
     fn depth(&self, sigma: f64) -> (f64, f64, f64) {
         let s = sigma - self.from;
         let [d0, d1, d2] = self.d;
-        (d0 + s * (d1 + s * d2), d1 + 2.0 * s * d2, 2.0 * d2)
+        (
+            s.mul_add(s.mul_add(d2, d1), d0),
+            (2.0 * s).mul_add(d2, d1),
+            2.0 * d2,
+        )
     }
 }
 
@@ -852,6 +862,15 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
     Some(hi)
 }
 
+/// The polynomial with `coefficients` (constant first) at `x`, by Horner's rule with fused
+/// multiply-adds.
+fn horner(x: f64, coefficients: &[f64]) -> f64 {
+    let (last, rest) = coefficients
+        .split_last()
+        .expect("a polynomial has a coefficient");
+    rest.iter().rev().fold(*last, |acc, k| acc.mul_add(x, *k))
+}
+
 /// The least of e(s) = e0 + e1·s + e2·s² over [0, len], and where.
 fn least_on(e0: f64, e1: f64, e2: f64, len: f64) -> (f64, f64) {
     let e = |s: f64| e0 + s * (e1 + s * e2);
@@ -880,7 +899,7 @@ fn first_root(e0: f64, e1: f64, e2: f64) -> Option<f64> {
         let eps = t * e2 * r;
         if eps.abs() <= 1.0 / 32.0 {
             const CATALAN: [f64; 7] = [1.0, 1.0, 2.0, 5.0, 14.0, 42.0, 132.0];
-            return Some(t * CATALAN.iter().rev().fold(0.0, |acc, k| acc * eps + k));
+            return Some(t * horner(eps, &CATALAN));
         }
     }
     if e2 == 0.0 {
