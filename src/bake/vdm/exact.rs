@@ -77,12 +77,13 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
             }
             let phi = grid.phi(b as u32);
             let mut hits = vec![None; n_c * n_theta];
+            let mut scratch = Scratch::default();
             for texel in 0..texels {
                 let p = [
                     (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
                     (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                 ];
-                fans.cast(p, phi, &mut hits);
+                fans.cast(p, phi, &mut hits, &mut scratch);
                 for (image, hit) in images.iter_mut().zip(&hits) {
                     image[texel] = hit.map_or(NO_HIT, |d| d as f32);
                 }
@@ -97,7 +98,7 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
 /// bent by `bend`: l / sin θ, l the arc length to the hit; `None` without a hit.
 pub fn cast(relief: Relief, p: [f64; 2], theta: f64, phi: f64, bend: Bend) -> Option<f64> {
     let mut hit = [None];
-    Fans::new(relief, &[theta], &[bend.c]).cast(p, phi, &mut hit);
+    Fans::new(relief, &[theta], &[bend.c]).cast(p, phi, &mut hit, &mut Scratch::default());
     hit[0]
 }
 
@@ -211,14 +212,21 @@ impl<'a> Fans<'a> {
     /// ray lies shallower all along (t(σ) falls as c grows), so it hits no earlier than on
     /// the flatter one: where that ray has not hit by the cell's end, neither has this one,
     /// and where it has, the search starts there.
-    pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>]) {
+    pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>], scratch: &mut Scratch) {
         let n = self.fans.first().map_or(0, |fan| fan.rays.len());
         debug_assert_eq!(out.len(), n * self.fans.len());
         out.fill(None);
-        let mut progress = vec![Progress::Marching(0); self.fans.len()];
-        let mut leading = Leading::new(self.fans.len());
+        let Scratch {
+            progress,
+            leading,
+            bents,
+        } = scratch;
+        progress.clear();
+        progress.resize(self.fans.len(), Progress::Marching(0));
+        leading.reset(self.fans.len());
         // Per curvature, the sines at the last σ that needed them.
-        let mut bents: Vec<Bent> = self.fans.iter().map(|fan| Bent::at(fan.c, 0.0)).collect();
+        bents.clear();
+        bents.extend(self.fans.iter().map(|fan| Bent::at(fan.c, 0.0)));
         let mut marching = self.fans.len() * usize::from(n > 0);
         let mut line = Line::new(self.relief, p, phi);
         let mut sigma = 0.0;
@@ -233,12 +241,12 @@ impl<'a> Fans<'a> {
                 let Progress::Marching(first) = progress[k] else {
                     unreachable!("a finished curvature is not leading");
                 };
-                // Where the flatter surface's ray `a` hit, short by the tolerance; infinity
+                // Where the flatter surface's ray `a` hit (arc length), short by the tolerance; infinity
                 // while it has not (it has not by this cell's end); 0 if it left the relief.
                 let beyond = |out: &[Option<f64>], a: usize| match k.checked_sub(1) {
                     None => 0.0,
                     Some(flatter) => match out[flatter * n + a] {
-                        Some(d) => (d * fan.rays[a].sin_theta - 2.0 * TOLERANCE).max(0.0),
+                        Some(hit) => (hit - 2.0 * TOLERANCE).max(0.0),
                         None if matches!(progress[flatter], Progress::Marching(_)) => f64::INFINITY,
                         None => 0.0,
                     },
@@ -247,7 +255,7 @@ impl<'a> Fans<'a> {
                     // It left the relief, and so does every shallower ray.
                     progress[k] = Progress::Finished;
                     marching -= 1;
-                    leading.update(&progress, k);
+                    leading.update(progress, k);
                     continue;
                 }
                 // The steepest ray not yet hit lies below every other: where it cannot reach
@@ -290,7 +298,7 @@ impl<'a> Fans<'a> {
                     let Some(hit) = hit else {
                         break Progress::Marching(a);
                     };
-                    out[k * n + a] = Some(hit / ray.sin_theta);
+                    out[k * n + a] = Some(hit);
                     a += 1;
                     if a == n {
                         break Progress::Finished;
@@ -303,28 +311,44 @@ impl<'a> Fans<'a> {
                 if progress[k] == Progress::Finished {
                     marching -= 1;
                 }
-                leading.update(&progress, k);
+                leading.update(progress, k);
             }
             line.step(end);
             sigma = end;
         }
+        // Arc lengths to VDM values, l / sin θ.
+        for (fan, out) in self.fans.iter().zip(out.chunks_exact_mut(n)) {
+            for (ray, hit) in fan.rays.iter().zip(out) {
+                *hit = hit.map(|l| l * ray.cosec_theta);
+            }
+        }
     }
+}
+
+/// What a march ([`Fans::cast`]) keeps per curvature, held between marches so that they
+/// allocate nothing.
+#[derive(Default)]
+pub struct Scratch {
+    progress: Vec<Progress>,
+    leading: Leading,
+    bents: Vec<Bent>,
 }
 
 /// The curvatures a cell may need to look at: those still marching at a steeper ray than
 /// their flatter twin (the rest cannot hit before it), as a bit set.
+#[derive(Default)]
 struct Leading {
     words: Vec<u64>,
 }
 
 impl Leading {
-    /// Where every curvature marches at its steepest ray: the flattest leads.
-    fn new(curvatures: usize) -> Leading {
-        let mut words = vec![0; curvatures.div_ceil(64)];
-        if let Some(word) = words.first_mut() {
+    /// Where every one of `curvatures` marches at its steepest ray: the flattest leads.
+    fn reset(&mut self, curvatures: usize) {
+        self.words.clear();
+        self.words.resize(curvatures.div_ceil(64), 0);
+        if let Some(word) = self.words.first_mut() {
             *word = 1;
         }
-        Leading { words }
     }
 
     /// The first leading curvature from `k` on.
@@ -605,6 +629,7 @@ impl Bent {
 struct BentRay {
     theta: f64,
     sin_theta: f64,
+    cosec_theta: f64,
     cot_theta: f64,
     tan_theta: f64,
     /// The curvature, and R = 1/c (0 on the flat surface).
@@ -635,6 +660,7 @@ impl BentRay {
         BentRay {
             theta,
             sin_theta,
+            cosec_theta: 1.0 / sin_theta,
             cot_theta: cos_theta / sin_theta,
             tan_theta: sin_theta / cos_theta,
             c,

@@ -8,7 +8,7 @@
 //! [`NO_HIT`] (no intersection exists) and a flat or concave one holds the last value.
 
 use super::bend::Bend;
-use super::exact::Fans;
+use super::exact::{Fans, Scratch};
 use super::{NO_HIT, Relief, VdmGrid};
 use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
@@ -48,6 +48,7 @@ pub fn bake(
             }
             let phi = grid.phi(b);
             let mut flat = vec![None; thetas.len()];
+            let mut scratch = Scratch::default();
             let (mut hits, mut seen) = (Vec::new(), Vec::new());
             let mut column = vec![NO_HIT; n_theta];
             // [k][a][texel] for this azimuth.
@@ -57,7 +58,7 @@ pub fn bake(
                     (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
                     (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
                 ];
-                flat_fan.cast(p, phi, &mut flat);
+                flat_fan.cast(p, phi, &mut flat, &mut scratch);
                 hits.clear();
                 hits.extend(
                     (sin_cos.iter().zip(&flat))
