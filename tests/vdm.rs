@@ -200,7 +200,7 @@ fn the_exact_bake_agrees_with_a_brute_force_march_on_bumps_and_bricks() {
             // The fan's shared march gives each of its rays what a march of its own does
             let thetas: Vec<f64> = (0..8).map(|a| GRID.theta(a)).collect();
             let mut fan = vec![None; 8];
-            exact::Fans::new(relief, &thetas, &[c]).cast(p, phi, &mut fan);
+            exact::Fans::new(relief, &thetas, &[c]).cast(p, phi, &mut fan, &mut Default::default());
             // (each root to the tolerance, from its own start).
             match (fan[(n % 8) as usize], got) {
                 (Some(f), Some(g)) => assert!(

@@ -274,6 +274,8 @@ impl<'a> Fans<'a> {
                 bents[k] = bent_end;
                 let piece = piece.get_or_insert_with(|| line.piece(self.relief, sigma, end));
                 let mut a = first;
+                // The sines at the last hit in the cell (at its start before one).
+                let mut last = bent;
                 progress[k] = loop {
                     let ray = &fan.rays[a];
                     if from >= ray.end {
@@ -293,7 +295,10 @@ impl<'a> Fans<'a> {
                         } else {
                             bent.advanced(c, to)
                         };
-                        first_crossing(piece, bent, ray, bent.advanced(c, from), to)
+                        first_crossing(piece, bent, ray, last.advanced(c, from), to).map(|at| {
+                            last = at;
+                            at.sigma
+                        })
                     };
                     let Some(hit) = hit else {
                         break Progress::Marching(a);
@@ -797,8 +802,9 @@ impl Piece {
     }
 }
 
-/// The first σ in [a, b] (within the piece) where `ray` reaches the relief, given that it has
-/// not before a, the ray's sines at a (`from`) and b (`to`), and `bent` at the piece's start.
+/// The sines at the first σ in [a, b] (within the piece) where `ray` reaches the relief (to
+/// [`TOLERANCE`]), given that it has not before a, the ray's sines at a (`from`) and b
+/// (`to`), and `bent` at the piece's start.
 ///
 /// The search follows the sign of the scaled gap G = x·g ([`BentRay::scaled_gap`]), which
 /// needs no division. Where G is negative at b, Newton steps on G from the root of its
@@ -812,19 +818,19 @@ impl Piece {
 /// the first case and under its tangent at a in the second, and then g ≥ e. Where the bound
 /// cannot decide, the piece is halved until it can or is shorter than [`TOLERANCE`] (a
 /// touch, not a crossing).
-fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent) -> Option<f64> {
+fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent) -> Option<Bent> {
     let (a, b) = (from.sigma, to.sigma);
     debug_assert!(piece.from <= a && b <= piece.to);
     let at_a = ray.scaled_gap(piece, from);
     if at_a.g <= 0.0 {
-        return Some(a);
+        return Some(from);
     }
     if b <= a {
         return None;
     }
     let g_b = ray.scaled_gap(piece, to).g;
     let (hi, g_hi) = if g_b <= 0.0 {
-        (b, g_b)
+        (to, g_b)
     } else {
         // Positive at both ends: a crossing needs a dip between them.
         let ((t_a, slope), t_b) = (ray.depth_and_slope(from), ray.depth_bent(to));
@@ -855,34 +861,35 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
             return first_crossing(piece, bent, ray, from, mid)
                 .or_else(|| first_crossing(piece, bent, ray, mid, to));
         }
-        (x, g_x)
+        (at_x, g_x)
     };
     // Bracketed: Newton steps from the model's root, falling back to bisection where one
     // would leave the bracket.
     let (mut lo, mut hi) = (a, hi);
     let mut x = first_root(at_a.g, at_a.slope, at_a.half_bending)
         .map(|s| a + s)
-        .filter(|x| *x > lo && *x < hi)
-        .unwrap_or(a + (hi - a) * at_a.g / (at_a.g - g_hi));
+        .filter(|x| *x > lo && *x < hi.sigma)
+        .unwrap_or(a + (hi.sigma - a) * at_a.g / (at_a.g - g_hi));
     for _ in 0..64 {
-        let at_x = ray.scaled_gap(piece, bent.advanced(ray.c, x));
+        let at = bent.advanced(ray.c, x);
+        let at_x = ray.scaled_gap(piece, at);
         if at_x.g > 0.0 {
             lo = x;
         } else {
-            hi = x;
+            hi = at;
         }
-        if hi - lo <= TOLERANCE {
+        if hi.sigma - lo <= TOLERANCE {
             break;
         }
         let newton = x - at_x.g / at_x.slope;
         if (newton - x).abs() <= TOLERANCE * 0.25 {
-            // Converged (where x is a root to rounding, the step may not leave it).
-            return Some(newton.clamp(lo, hi));
+            // Converged: the root lies within a quarter of the tolerance of x.
+            return Some(at);
         }
-        x = if newton > lo && newton < hi {
+        x = if newton > lo && newton < hi.sigma {
             newton
         } else {
-            0.5 * (lo + hi)
+            0.5 * (lo + hi.sigma)
         };
     }
     Some(hi)
