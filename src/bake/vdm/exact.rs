@@ -881,11 +881,12 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
         if hi.sigma - lo <= TOLERANCE {
             break;
         }
-        let newton = x - at_x.g / at_x.slope;
-        if (newton - x).abs() <= TOLERANCE * 0.25 {
-            // Converged: the root lies within a quarter of the tolerance of x.
+        // Converged where Newton's step g / g′ is within a quarter of the tolerance (tested
+        // without the division).
+        if at_x.g.abs() <= TOLERANCE * 0.25 * at_x.slope.abs() {
             return Some(at);
         }
+        let newton = x - at_x.g / at_x.slope;
         x = if newton > lo && newton < hi.sigma {
             newton
         } else {
