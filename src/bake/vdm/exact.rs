@@ -60,7 +60,9 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
     let curvatures: Vec<f64> = (0..grid.n_curvature).map(|k| grid.curvature(k)).collect();
     let fans = Fans::new(relief, &thetas, &curvatures);
     let done = AtomicU64::new(0);
-    let mut values = vec![NO_HIT; n_c * n_theta * n_phi * texels];
+    // Zeroed, which the allocator leaves to the system's untouched pages: every value is
+    // written by its azimuth's task, in parallel.
+    let mut values = vec![0.0; n_c * n_theta * n_phi * texels];
     // Image (k·Nθ + a)·Nφ + b belongs to azimuth b; each azimuth's by curvature, then θ.
     let mut images: Vec<Vec<&mut [f32]>> = (0..n_phi)
         .map(|_| Vec::with_capacity(n_c * n_theta))
