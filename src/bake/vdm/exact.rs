@@ -1004,6 +1004,57 @@ mod tests {
         assert_eq!(plateaus_of(heights), vec![0.125, 0.25]);
     }
 
+    /// `polynomial` (Estrin's scheme) against Horner's rule written out, for every length it
+    /// takes, at points of both signs, within 4·10⁻¹⁶ relative to the sum of the terms'
+    /// magnitudes (a few roundings).
+    #[test]
+    fn estrins_scheme_sums_the_same_polynomial_as_horners_rule() {
+        fn check<const N: usize>(c: [f64; N]) {
+            for x in [-0.7, -0.06, 0.0, 0.03, 0.5, 1.3] {
+                let horner = c.iter().rev().fold(0.0, |acc, k| acc * x + k);
+                let scale: f64 = (0..N).map(|i| (c[i] * x.powi(i as i32)).abs()).sum();
+                let got = polynomial(x, c);
+                assert!(
+                    (got - horner).abs() <= 4e-16 * scale,
+                    "N = {N}, x = {x}: {got} vs {horner}"
+                );
+            }
+        }
+        let c = [0.9, -1.7, 2.3, 0.4, -3.1, 1.1, 0.6, -0.2];
+        check::<1>([c[0]]);
+        check::<2>([c[0], c[1]]);
+        check::<3>([c[0], c[1], c[2]]);
+        check::<4>([c[0], c[1], c[2], c[3]]);
+        check::<5>([c[0], c[1], c[2], c[3], c[4]]);
+        check::<6>([c[0], c[1], c[2], c[3], c[4], c[5]]);
+        check::<7>([c[0], c[1], c[2], c[3], c[4], c[5], c[6]]);
+        check::<8>(c);
+    }
+
+    /// `Bent::advanced` (series of the step, then the angle-sum formulas) against `sin_cos`
+    /// at the new σ, for steps up to its 1/16 radian on curvatures of both signs, within
+    /// 10⁻¹⁵.
+    #[test]
+    fn advanced_sines_are_the_sines_at_the_new_point() {
+        for c in [-2.0, -0.4, 0.7, 3.0] {
+            for sigma in [0.0, 0.1, 0.35] {
+                let start = Bent::at(c, sigma);
+                for step in [-1.0 / 16.0, -0.01, 1e-7, 0.02, 1.0 / 16.0] {
+                    let to = sigma + step / c;
+                    let (got, want) = (start.advanced(c, to), Bent::at(c, to));
+                    assert!(
+                        (got.sin - want.sin).abs() <= 1e-15 && (got.cos - want.cos).abs() <= 1e-15,
+                        "c {c}, σ {sigma} → {to}: ({}, {}) vs ({}, {})",
+                        got.sin,
+                        got.cos,
+                        want.sin,
+                        want.cos
+                    );
+                }
+            }
+        }
+    }
+
     /// `first_root` (its series where |ε| ≤ 1/32, its closed form elsewhere) against the
     /// textbook quadratic formula, on models with both signs of e1 and e2, within 10⁻¹²
     /// relative (the models on the series' side have |ε| ≤ 10⁻³, where its truncation is
