@@ -830,48 +830,71 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
     if b <= a {
         return None;
     }
-    let g_b = ray.scaled_gap(piece, to).g;
-    let (hi, g_hi) = if g_b <= 0.0 {
-        (to, g_b)
-    } else {
-        // Positive at both ends: a crossing needs a dip between them.
-        let ((t_a, slope), t_b) = (ray.depth_and_slope(from), ray.depth_bent(to));
-        if ray.deepest_on((a, t_a), (b, t_b)) < piece.shallowest {
-            return None;
+    // The model's root first: where G there is at a root to the tolerance (negative, or
+    // falling towards one), that is the hit, and G at b is not needed.
+    let (mut lo, mut g_lo, mut guess, mut bracket) = (a, at_a.g, None, None);
+    let model = first_root(at_a.g, at_a.slope, at_a.half_bending).map(|s| a + s);
+    if let Some(x) = model.filter(|x| *x > a && *x < b) {
+        let at = bent.advanced(ray.c, x);
+        let at_x = ray.scaled_gap(piece, at);
+        if converged(&at_x) && (at_x.g <= 0.0 || at_x.slope < 0.0) {
+            return Some(at);
         }
-        let (d_a, slope_a, _) = piece.depth(a);
-        // The gap lies above e under the line the ray lies under.
-        let m = if ray.c > 0.0 {
-            slope
+        if at_x.g <= 0.0 {
+            bracket = Some((at, at_x.g));
         } else {
-            (t_b - t_a) / (b - a)
-        };
-        let (s, least) = least_on(d_a - t_a, slope_a - m, piece.d[2], b - a);
-        if least > 0.0 {
-            return None;
+            (lo, g_lo) = (x, at_x.g);
         }
-        // Where e is least the gap is least, nearly: a bracket if it has dipped there.
-        let x = a + s;
-        let at_x = bent.advanced(ray.c, x);
-        let g_x = ray.scaled_gap(piece, at_x).g;
-        if g_x > 0.0 {
-            // A touch within rounding, or a dip too narrow for e to find: halve.
-            if b - a < TOLERANCE {
-                return None;
+        guess = Some(x - at_x.g / at_x.slope);
+    }
+    let (hi, g_hi) = match bracket {
+        Some(bracket) => bracket,
+        None => {
+            let g_b = ray.scaled_gap(piece, to).g;
+            if g_b <= 0.0 {
+                (to, g_b)
+            } else {
+                // Positive at both ends: a crossing needs a dip between them.
+                let ((t_a, slope), t_b) = (ray.depth_and_slope(from), ray.depth_bent(to));
+                if ray.deepest_on((a, t_a), (b, t_b)) < piece.shallowest {
+                    return None;
+                }
+                let (d_a, slope_a, _) = piece.depth(a);
+                // The gap lies above e under the line the ray lies under.
+                let m = if ray.c > 0.0 {
+                    slope
+                } else {
+                    (t_b - t_a) / (b - a)
+                };
+                let (s, least) = least_on(d_a - t_a, slope_a - m, piece.d[2], b - a);
+                if least > 0.0 {
+                    return None;
+                }
+                // Where e is least the gap is least, nearly: a bracket if it has dipped there.
+                let x = a + s;
+                let at_x = bent.advanced(ray.c, x);
+                let g_x = ray.scaled_gap(piece, at_x).g;
+                if g_x > 0.0 {
+                    // A touch within rounding, or a dip too narrow for e to find: halve.
+                    if b - a < TOLERANCE {
+                        return None;
+                    }
+                    let mid = bent.advanced(ray.c, 0.5 * (a + b));
+                    return first_crossing(piece, bent, ray, from, mid)
+                        .or_else(|| first_crossing(piece, bent, ray, mid, to));
+                }
+                if x <= lo {
+                    (lo, g_lo) = (a, at_a.g);
+                }
+                (at_x, g_x)
             }
-            let mid = bent.advanced(ray.c, 0.5 * (a + b));
-            return first_crossing(piece, bent, ray, from, mid)
-                .or_else(|| first_crossing(piece, bent, ray, mid, to));
         }
-        (at_x, g_x)
     };
-    // Bracketed: Newton steps from the model's root, falling back to bisection where one
-    // would leave the bracket.
-    let (mut lo, mut hi) = (a, hi);
-    let mut x = first_root(at_a.g, at_a.slope, at_a.half_bending)
-        .map(|s| a + s)
+    // Bracketed: Newton steps, falling back to bisection where one would leave the bracket.
+    let (mut lo, mut hi) = (lo, hi);
+    let mut x = guess
         .filter(|x| *x > lo && *x < hi.sigma)
-        .unwrap_or(a + (hi.sigma - a) * at_a.g / (at_a.g - g_hi));
+        .unwrap_or(lo + (hi.sigma - lo) * g_lo / (g_lo - g_hi));
     for _ in 0..64 {
         let at = bent.advanced(ray.c, x);
         let at_x = ray.scaled_gap(piece, at);
@@ -883,9 +906,7 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
         if hi.sigma - lo <= TOLERANCE {
             break;
         }
-        // Converged where Newton's step g / g′ is within a quarter of the tolerance (tested
-        // without the division).
-        if at_x.g.abs() <= TOLERANCE * 0.25 * at_x.slope.abs() {
+        if converged(&at_x) {
             return Some(at);
         }
         let newton = x - at_x.g / at_x.slope;
@@ -925,6 +946,12 @@ fn polynomial<const N: usize>(x: f64, c: [f64; N]) -> f64 {
         pair(6).mul_add(x2, pair(4))
     };
     high.mul_add(x2 * x2, low)
+}
+
+/// Whether Newton's step from a point, g / g′, is within a quarter of [`TOLERANCE`] (tested
+/// without the division).
+fn converged(at: &Scaled) -> bool {
+    at.g.abs() <= TOLERANCE * 0.25 * at.slope.abs()
 }
 
 /// The least of e(s) = e0 + e1·s + e2·s² over [0, len], and where.
