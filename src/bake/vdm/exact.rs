@@ -217,7 +217,6 @@ impl<'a> Fans<'a> {
     pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>], scratch: &mut Scratch) {
         let n = self.fans.first().map_or(0, |fan| fan.rays.len());
         debug_assert_eq!(out.len(), n * self.fans.len());
-        out.fill(None);
         let Scratch {
             progress,
             leading,
@@ -243,18 +242,21 @@ impl<'a> Fans<'a> {
                 let Progress::Marching(first) = progress[k] else {
                     unreachable!("a finished curvature is not leading");
                 };
-                // Where the flatter surface's ray `a` hit (arc length), short by the tolerance; infinity
-                // while it has not (it has not by this cell's end); 0 if it left the relief.
+                // Where the flatter surface's ray `a` hit (arc length), short by the tolerance;
+                // infinity while it has not (it has not by this cell's end); 0 if it left the
+                // relief. (`out` holds a curvature's rays up to where it marches.)
                 let beyond = |out: &[Option<f64>], a: usize| match k.checked_sub(1) {
                     None => 0.0,
-                    Some(flatter) => match out[flatter * n + a] {
-                        Some(hit) => (hit - 2.0 * TOLERANCE).max(0.0),
-                        None if matches!(progress[flatter], Progress::Marching(_)) => f64::INFINITY,
-                        None => 0.0,
+                    Some(flatter) => match progress[flatter] {
+                        Progress::Marching(first) if a >= first => f64::INFINITY,
+                        _ => {
+                            out[flatter * n + a].map_or(0.0, |hit| (hit - 2.0 * TOLERANCE).max(0.0))
+                        }
                     },
                 };
                 if sigma >= fan.rays[first].end {
                     // It left the relief, and so does every shallower ray.
+                    out[k * n + first..(k + 1) * n].fill(None);
                     progress[k] = Progress::Finished;
                     marching -= 1;
                     leading.update(progress, k);
@@ -281,6 +283,7 @@ impl<'a> Fans<'a> {
                 progress[k] = loop {
                     let ray = &fan.rays[a];
                     if from >= ray.end {
+                        out[k * n + a..(k + 1) * n].fill(None);
                         break Progress::Finished;
                     }
                     // Just short of a concave surface's asymptote the ray lies below every
@@ -323,9 +326,15 @@ impl<'a> Fans<'a> {
             line.step(end);
             sigma = end;
         }
-        // Arc lengths to VDM values, l / sin θ.
-        for (fan, out) in self.fans.iter().zip(out.chunks_exact_mut(n)) {
-            for (ray, hit) in fan.rays.iter().zip(out) {
+        // Arc lengths to VDM values, l / sin θ, and no hit for the rays still marching.
+        for ((fan, out), progress) in self.fans.iter().zip(out.chunks_exact_mut(n)).zip(progress) {
+            let marching_from = match progress {
+                Progress::Marching(first) => *first,
+                Progress::Finished => n,
+            };
+            let (hits, marching) = out.split_at_mut(marching_from);
+            marching.fill(None);
+            for (ray, hit) in fan.rays.iter().zip(hits) {
                 *hit = hit.map(|l| l * ray.cosec_theta);
             }
         }
