@@ -25,9 +25,10 @@
 //! hits where it first reaches that depth, in closed form (`BentRay::first_at_depth`; tabled
 //! per ray for the relief's most common plateaus). In any other cell not ruled out, the
 //! search follows the sign of the gap g(σ) = D(σ) − t(σ) scaled by x = sin(θ + σc)/sin θ > 0,
-//! G = R − (R − D)·x, which needs no division: where G is negative at the cell's end,
-//! Newton steps from the root of G's quadratic model, kept inside the bracket, find the
-//! crossing to [`TOLERANCE`]. Where it is positive at both ends, the gap is bounded from below
+//! G = R − (R − D)·x, which needs no division. The root of G's quadratic model is tried
+//! first: where Newton's step from it is within a quarter of [`TOLERANCE`], it is the hit.
+//! Else, where G is negative there or at the cell's end, Newton steps kept inside the bracket
+//! find the crossing to [`TOLERANCE`]. Where it is positive at both ends, the gap is bounded from below
 //! (the ray under its chord or tangent, `first_crossing`), and where the bound cannot rule a
 //! dip out, the cell is halved until it can or is shorter than [`TOLERANCE`] (a touch, not a
 //! crossing). A convex surface's ray that climbs back out through the reference surface
@@ -818,8 +819,11 @@ impl Piece {
 /// (`to`), and `bent` at the piece's start.
 ///
 /// The search follows the sign of the scaled gap G = x·g ([`BentRay::scaled_gap`]), which
-/// needs no division. Where G is negative at b, Newton steps on G from the root of its
-/// quadratic model at a, kept inside the bracket, find the crossing to [`TOLERANCE`].
+/// needs no division. The root of G's quadratic model at a, where it lies in (a, b), is
+/// evaluated first: where G there is negative or falling and Newton's step from it is within
+/// a quarter of [`TOLERANCE`], it is the hit (and G at b is not needed). Else, where G is
+/// negative there or at b, Newton steps kept inside the bracket find the crossing to
+/// [`TOLERANCE`].
 ///
 /// Where the gap is positive at both ends, a crossing needs a dip between them, ruled out by
 /// a bound on the gap g(σ) = D(σ) − t(σ) itself: it is nearly the quadratic
