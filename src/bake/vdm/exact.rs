@@ -28,10 +28,10 @@
 //! G = R − (R − D)·x, which needs no division. The root of G's quadratic model is tried
 //! first: where Newton's step from it is within a quarter of [`TOLERANCE`], it is the hit.
 //! Else, where G is negative there or at the cell's end, Newton steps kept inside the bracket
-//! find the crossing to [`TOLERANCE`]. Where it is positive at both ends, the gap is bounded from below
-//! (the ray under its chord or tangent, `first_crossing`), and where the bound cannot rule a
-//! dip out, the cell is halved until it can or is shorter than [`TOLERANCE`] (a touch, not a
-//! crossing). A convex surface's ray that climbs back out through the reference surface
+//! find the crossing to [`TOLERANCE`]. Where it is positive at both ends, the gap is bounded
+//! from below (the ray under its chord or tangent, `first_crossing`), and where the bound
+//! cannot rule a dip out, the cell is halved until it can or is shorter than [`TOLERANCE`] (a
+//! touch, not a crossing). A convex surface's ray that climbs back out through the reference surface
 //! (at σ = R·(π − 2θ)) without meeting the relief is [`NO_HIT`], and so is every shallower ray
 //! of its fan.
 
