@@ -31,9 +31,9 @@
 //! find the crossing to [`TOLERANCE`]. Where it is positive at both ends, the gap is bounded
 //! from below (the ray under its chord or tangent, `first_crossing`), and where the bound
 //! cannot rule a dip out, the cell is halved until it can or is shorter than [`TOLERANCE`] (a
-//! touch, not a crossing). A convex surface's ray that climbs back out through the reference surface
-//! (at σ = R·(π − 2θ)) without meeting the relief is [`NO_HIT`], and so is every shallower ray
-//! of its fan.
+//! touch, not a crossing). A convex surface's ray that climbs back out through the reference
+//! surface (at σ = R·(π − 2θ)) without meeting the relief is [`NO_HIT`], and so is every
+//! shallower ray of its fan.
 
 use super::bend::Bend;
 use super::{NO_HIT, Relief, VdmGrid};
@@ -718,13 +718,13 @@ impl BentRay {
     fn scaled_gap(&self, piece: &Piece, bent: Bent) -> Scaled {
         let (d, slope, bending) = piece.depth(bent.sigma);
         let (x, y) = self.xy(bent);
-        let g = if self.c == 0.0 {
+        let c = self.c;
+        let g = if c == 0.0 {
             (-bent.sigma).mul_add(self.cot_theta, d)
         } else {
             (d - self.r).mul_add(x, self.r)
         };
-        let shrink = (-self.c).mul_add(d, 1.0);
-        let c = self.c;
+        let shrink = (-c).mul_add(d, 1.0);
         Scaled {
             g,
             slope: slope.mul_add(x, -(shrink * y)),
