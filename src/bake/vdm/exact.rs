@@ -272,11 +272,10 @@ impl<'a> Fans<'a> {
                 if from >= end {
                     continue;
                 }
-                // The cell needs a closer look: its piece, and the rays' depths at both ends.
+                // The cell needs a closer look: its piece, and the sines at its start.
                 let c = fan.c;
                 let bent = bents[k].advanced(c, sigma);
-                let bent_end = bent.advanced(c, end);
-                bents[k] = bent_end;
+                bents[k] = bent;
                 let piece = piece.get_or_insert_with(|| line.piece(self.relief, sigma, end));
                 let mut a = first;
                 // The sines at the last hit in the cell (at its start before one).
@@ -296,11 +295,6 @@ impl<'a> Fans<'a> {
                     let hit = if let Some(depth) = piece.constant() {
                         ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
                     } else {
-                        let to = if to == end {
-                            bent_end
-                        } else {
-                            bent.advanced(c, to)
-                        };
                         first_crossing(piece, bent, ray, last.advanced(c, from), to).map(|at| {
                             last = at;
                             at.sigma
@@ -815,8 +809,8 @@ impl Piece {
 }
 
 /// The sines at the first σ in [a, b] (within the piece) where `ray` reaches the relief (to
-/// [`TOLERANCE`]), given that it has not before a, the ray's sines at a (`from`) and b
-/// (`to`), and `bent` at the piece's start.
+/// [`TOLERANCE`]), given that it has not before a, the ray's sines at a (`from`), and `bent`
+/// at the piece's start (which the sines anywhere else are advanced from).
 ///
 /// The search follows the sign of the scaled gap G = x·g ([`BentRay::scaled_gap`]), which
 /// needs no division. The root of G's quadratic model at a, where it lies in (a, b), is
@@ -833,8 +827,8 @@ impl Piece {
 /// the first case and under its tangent at a in the second, and then g ≥ e. Where the bound
 /// cannot decide, the piece is halved until it can or is shorter than [`TOLERANCE`] (a
 /// touch, not a crossing).
-fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent) -> Option<Bent> {
-    let (a, b) = (from.sigma, to.sigma);
+fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, b: f64) -> Option<Bent> {
+    let a = from.sigma;
     debug_assert!(piece.from <= a && b <= piece.to);
     let at_a = ray.scaled_gap(piece, from);
     if at_a.g <= 0.0 {
@@ -863,6 +857,7 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
     let (hi, g_hi) = match bracket {
         Some(bracket) => bracket,
         None => {
+            let to = bent.advanced(ray.c, b);
             let g_b = ray.scaled_gap(piece, to).g;
             if g_b <= 0.0 {
                 (to, g_b)
@@ -893,8 +888,8 @@ fn first_crossing(piece: &Piece, bent: Bent, ray: &BentRay, from: Bent, to: Bent
                         return None;
                     }
                     let mid = bent.advanced(ray.c, 0.5 * (a + b));
-                    return first_crossing(piece, bent, ray, from, mid)
-                        .or_else(|| first_crossing(piece, bent, ray, mid, to));
+                    return first_crossing(piece, bent, ray, from, mid.sigma)
+                        .or_else(|| first_crossing(piece, bent, ray, mid, b));
                 }
                 if x <= lo {
                     (lo, g_lo) = (a, at_a.g);
