@@ -81,14 +81,23 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
             let phi = grid.phi(b as u32);
             let mut hits = vec![None; n_c * n_theta];
             let mut scratch = Scratch::default();
-            for texel in 0..texels {
-                let p = [
-                    (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
-                    (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
-                ];
-                fans.cast(p, phi, &mut hits, &mut scratch);
-                for (image, hit) in images.iter_mut().zip(&hits) {
-                    image[texel] = hit.map_or(NO_HIT, |d| d as f32);
+            // One row of every image, written out a row at a time: a store per value to each
+            // of the azimuth's images, pages apart, costs more than a march's tail.
+            let width = w as usize;
+            let mut rows = vec![0.0; images.len() * width];
+            for y in 0..h as usize {
+                for x in 0..width {
+                    let p = [
+                        (x as f64 + 0.5) / f64::from(w),
+                        (y as f64 + 0.5) / f64::from(h),
+                    ];
+                    fans.cast(p, phi, &mut hits, &mut scratch);
+                    for (row, hit) in rows.chunks_exact_mut(width).zip(&hits) {
+                        row[x] = hit.map_or(NO_HIT, |d| d as f32);
+                    }
+                }
+                for (image, row) in images.iter_mut().zip(rows.chunks_exact(width)) {
+                    image[y * width..][..width].copy_from_slice(row);
                 }
             }
             observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
