@@ -613,7 +613,8 @@ struct Bent {
 
 impl Bent {
     fn at(c: f64, sigma: f64) -> Bent {
-        let (sin, cos) = if c == 0.0 {
+        // Every march starts at σ = 0, on every curvature.
+        let (sin, cos) = if c == 0.0 || sigma == 0.0 {
             (0.0, 1.0)
         } else {
             (sigma * c).sin_cos()
