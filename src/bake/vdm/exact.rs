@@ -122,6 +122,12 @@ pub struct Fans<'a> {
     layers: Layers,
     /// Per curvature, ascending.
     fans: Vec<Fan>,
+    /// Per ray of every fan (curvature k's ray a at k·Nθ + a), where it leaves the relief
+    /// ([`BentRay::end`]), and where it first reaches each of the [`LAYERS`] + 1 depths
+    /// i·depth/[`LAYERS`] (rounded down; infinity for a convex surface's ray that never
+    /// does) at ray·([`LAYERS`] + 1) + i: what a march looks up at every cell, kept together.
+    ends: Vec<f64>,
+    reach: Vec<f64>,
     /// The depths of the most common flat cells ([`plateaus`]).
     plateaus: Vec<f64>,
     /// Where every march ends: every ray hits the floor (depth) by depth · tan θ on a flat
@@ -133,20 +139,9 @@ pub struct Fans<'a> {
 struct Fan {
     c: f64,
     rays: Vec<BentRay>,
-    /// Per ray, where it first reaches each of the [`LAYERS`] + 1 depths i·depth/[`LAYERS`]
-    /// (rounded down; infinity for a convex surface's ray that never does): ray a's at
-    /// a·([`LAYERS`] + 1) + i.
-    reach: Vec<f64>,
     /// Per ray, where it first reaches each of the plateaus (exactly): ray a's at
     /// a·plateaus + i.
     plateau_reach: Vec<f64>,
-}
-
-impl Fan {
-    /// Where ray `a` first reaches the top of `layer`.
-    fn reach(&self, a: usize, layer: usize) -> f64 {
-        self.reach[a * (LAYERS + 1) + layer]
-    }
 }
 
 /// The depth layers the march's bounds are rounded to (a cell whose highest corner lies in
@@ -178,14 +173,6 @@ impl<'a> Fans<'a> {
             .iter()
             .map(|&c| {
                 let rays: Vec<BentRay> = thetas.iter().map(|&th| BentRay::new(th, c)).collect();
-                let reach = rays
-                    .iter()
-                    .flat_map(|ray| {
-                        (0..=LAYERS).map(move |i| {
-                            ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9)
-                        })
-                    })
-                    .collect();
                 let plateau_reach = rays
                     .iter()
                     .flat_map(|ray| plateaus.iter().map(|&depth| ray.reach(depth)))
@@ -193,9 +180,16 @@ impl<'a> Fans<'a> {
                 Fan {
                     c,
                     rays,
-                    reach,
                     plateau_reach,
                 }
+            })
+            .collect::<Vec<_>>();
+        let rays = || fans.iter().flat_map(|fan| &fan.rays);
+        let ends = rays().map(|ray| ray.end).collect();
+        let reach = rays()
+            .flat_map(|ray| {
+                (0..=LAYERS)
+                    .map(move |i| ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9))
             })
             .collect();
         let cap = thetas.last().map_or(0.0, |th| relief.depth * th.tan()) + 4.0;
@@ -203,9 +197,16 @@ impl<'a> Fans<'a> {
             relief,
             layers: Layers::new(relief.field),
             fans,
+            ends,
+            reach,
             plateaus,
             cap,
         }
+    }
+
+    /// Where `ray` (of every fan's, [`Fans::ends`]) first reaches the top of `layer`.
+    fn reach(&self, ray: usize, layer: usize) -> f64 {
+        self.reach[ray * (LAYERS + 1) + layer]
     }
 
     /// Where ray `a` of `fan` first lies `depth` deep: tabled for the plateaus.
@@ -264,7 +265,7 @@ impl<'a> Fans<'a> {
                         }
                     },
                 };
-                if sigma >= fan.rays[first].end {
+                if sigma >= self.ends[k * n + first] {
                     // It left the relief, and so does every shallower ray.
                     out[k * n + first..(k + 1) * n].fill(None);
                     progress[k] = Progress::Finished;
@@ -274,7 +275,7 @@ impl<'a> Fans<'a> {
                 }
                 // The steepest ray not yet hit lies below every other: where it cannot reach
                 // the cell's highest corner before leaving it, neither can the rest.
-                if end < fan.reach(first, layer) {
+                if end < self.reach(k * n + first, layer) {
                     continue;
                 }
                 let mut from = sigma.max(beyond(out, first));
@@ -298,7 +299,7 @@ impl<'a> Fans<'a> {
                     // Just short of a concave surface's asymptote the ray lies below every
                     // relief.
                     let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
-                    if to < fan.reach(a, piece.layer) {
+                    if to < self.reach(k * n + a, piece.layer) {
                         break Progress::Marching(a);
                     }
                     let hit = if let Some(depth) = piece.constant() {
