@@ -81,8 +81,8 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
             let phi = grid.phi(b as u32);
             let mut hits = vec![None; n_c * n_theta];
             let mut scratch = Scratch::default();
-            // One row of every image, written out a row at a time: a store per value to each
-            // of the azimuth's images, pages apart, costs more than a march's tail.
+            // One row of each of the azimuth's images, copied out whole: storing every texel's
+            // values straight to images an image apart stalls on the scattered stores.
             let width = w as usize;
             let mut rows = vec![0.0; images.len() * width];
             for y in 0..h as usize {
@@ -204,7 +204,8 @@ impl<'a> Fans<'a> {
         }
     }
 
-    /// Where `ray` (of every fan's, [`Fans::ends`]) first reaches the top of `layer`.
+    /// Where a ray (numbered across the fans as in [`Fans::ends`]) first reaches the top of
+    /// `layer`.
     fn reach(&self, ray: usize, layer: usize) -> f64 {
         self.reach[ray * (LAYERS + 1) + layer]
     }
@@ -614,7 +615,7 @@ struct Bent {
 
 impl Bent {
     fn at(c: f64, sigma: f64) -> Bent {
-        // Every march starts at σ = 0, on every curvature.
+        // Every march starts at σ = 0, where no curvature needs a sine.
         let (sin, cos) = if c == 0.0 || sigma == 0.0 {
             (0.0, 1.0)
         } else {
