@@ -239,7 +239,7 @@ impl<'a> Fans<'a> {
         leading.reset(self.fans.len());
         // Per curvature, the sines at the last σ that needed them.
         bents.clear();
-        bents.extend(self.fans.iter().map(|fan| Bent::at(fan.c, 0.0)));
+        bents.resize(self.fans.len(), Bent::START);
         let mut marching = self.fans.len() * usize::from(n > 0);
         let mut line = Line::new(self.relief, p, phi);
         let mut sigma = 0.0;
@@ -614,9 +614,15 @@ struct Bent {
 }
 
 impl Bent {
+    /// At σ = 0, where every march starts, on every curvature.
+    const START: Bent = Bent {
+        sigma: 0.0,
+        sin: 0.0,
+        cos: 1.0,
+    };
+
     fn at(c: f64, sigma: f64) -> Bent {
-        // Every march starts at σ = 0, where no curvature needs a sine.
-        let (sin, cos) = if c == 0.0 || sigma == 0.0 {
+        let (sin, cos) = if c == 0.0 {
             (0.0, 1.0)
         } else {
             (sigma * c).sin_cos()
