@@ -124,6 +124,30 @@ fn bark_height(u: f64, y: f64) -> f64 {
     0.3 + 0.5 * furrow + 0.07 * (TAU * (5.0 * u + 3.0 * y)).sin() + 0.05 * (TAU * 7.0 * y).sin()
 }
 
+/// The least of `dist2` near `s0` (a thread's squared distance to its curve point at s),
+/// whose least lies within `reach` of s0: 33 samples across, then 20 halvings around the best.
+fn scanned_least(dist2: impl Fn(f64) -> f64, s0: f64, reach: f64) -> f64 {
+    let mut best = (s0, dist2(s0));
+    for n in -16..=16 {
+        let s = s0 + reach * n as f64 / 16.0;
+        let d = dist2(s);
+        if d < best.1 {
+            best = (s, d);
+        }
+    }
+    let mut h = reach / 16.0;
+    for _ in 0..20 {
+        for s in [best.0 - h, best.0 + h] {
+            let d = dist2(s);
+            if d < best.1 {
+                best = (s, d);
+            }
+        }
+        h *= 0.5;
+    }
+    best.1
+}
+
 impl Primitive {
     /// Whether design-space point `p` (already wrapped to one periodic copy) is inside.
     fn inside_once(&self, p: [f64; 3]) -> bool {
@@ -155,32 +179,22 @@ impl Primitive {
                 radius,
             } => {
                 let (s0, across) = (p[*axis], p[1 - axis]);
-                let dist2 = |s: f64| {
-                    let z = z0 + amplitude * (TAU * s + phase).sin();
-                    (s - s0).powi(2) + (across - offset).powi(2) + (p[2] - z).powi(2)
-                };
-                // The nearest curve point lies within `radius + amplitude` of s0 along the
-                // axis; scan, then refine around the best sample.
-                let reach = radius + amplitude;
-                let mut best = (s0, dist2(s0));
-                for n in -16..=16 {
-                    let s = s0 + reach * n as f64 / 16.0;
-                    let d = dist2(s);
-                    if d < best.1 {
-                        best = (s, d);
-                    }
+                let across2 = (across - offset).powi(2);
+                let height = |s: f64| z0 + amplitude * (TAU * s + phase).sin();
+                let dist2 = |s: f64| (s - s0).powi(2) + across2 + (p[2] - height(s)).powi(2);
+                // Decided without the scan where the distance at s0 lies within the radius,
+                // or where even the nearest a curve of slope at most L = 2π·amplitude can
+                // come, a² + v²/(1 + L²) (v the height above or below the curve at s0), lies
+                // outside it: the scan's answer either way.
+                let above2 = (p[2] - height(s0)).powi(2);
+                let slope = TAU * amplitude;
+                if across2 + above2 <= radius * radius {
+                    return true;
                 }
-                let mut h = reach / 16.0;
-                for _ in 0..20 {
-                    for s in [best.0 - h, best.0 + h] {
-                        let d = dist2(s);
-                        if d < best.1 {
-                            best = (s, d);
-                        }
-                    }
-                    h *= 0.5;
+                if across2 + above2 / (1.0 + slope * slope) > radius * radius {
+                    return false;
                 }
-                best.1 <= radius * radius
+                scanned_least(dist2, s0, radius + amplitude) <= radius * radius
             }
             Primitive::Bar { axis, lo, hi } => {
                 let across = p[1 - axis];
@@ -589,4 +603,49 @@ pub fn mesh(kind: SampleKind, dims: Dims) -> Result<TriMesh> {
     }
     out.map_positions(|p| [p[0], p[1], p[2] * z_scale]);
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The thread's shortcuts decide as the scan does, on a grid of points over a whole
+    /// period of the thread and across its slab (every point the volume could ask about).
+    #[test]
+    fn a_threads_shortcuts_agree_with_its_scan() {
+        let (z0, amplitude, radius, phase) = (0.25, 0.08, 0.075, 0.7);
+        let thread = Primitive::Thread {
+            axis: 0,
+            offset: 0.5,
+            z0,
+            amplitude,
+            phase,
+            radius,
+        };
+        let (mut inside, mut points) = (0, 0);
+        for i in 0..=200 {
+            for j in 0..=40 {
+                for k in 0..=60 {
+                    let p = [
+                        i as f64 / 200.0,
+                        0.5 + radius * (j as f64 / 20.0 - 1.0),
+                        z0 + (amplitude + radius) * (k as f64 / 30.0 - 1.0),
+                    ];
+                    let dist2 = |s: f64| {
+                        let z = z0 + amplitude * (TAU * s + phase).sin();
+                        (s - p[0]).powi(2) + (p[1] - 0.5).powi(2) + (p[2] - z).powi(2)
+                    };
+                    let scanned = scanned_least(dist2, p[0], radius + amplitude) <= radius * radius;
+                    assert_eq!(thread.inside_once(p), scanned, "at {p:?}");
+                    inside += usize::from(scanned);
+                    points += 1;
+                }
+            }
+        }
+        // Both answers occur often, so both shortcuts were exercised.
+        assert!(
+            inside > points / 10 && inside < points * 9 / 10,
+            "{inside} of {points}"
+        );
+    }
 }
