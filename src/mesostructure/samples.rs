@@ -184,8 +184,8 @@ impl Primitive {
                 let dist2 = |s: f64| (s - s0).powi(2) + across2 + (p[2] - height(s)).powi(2);
                 // Decided without the scan where the distance at s0 lies within the radius,
                 // or where even the nearest a curve of slope at most L = 2π·amplitude can
-                // come, a² + v²/(1 + L²) (v the height above or below the curve at s0), lies
-                // outside it: the scan's answer either way.
+                // come, a² + v²/(1 + L²) (a the distance across, v the height above or below
+                // the curve at s0), lies outside it: the scan's answer either way.
                 let above2 = (p[2] - height(s0)).powi(2);
                 let slope = TAU * amplitude;
                 if across2 + above2 <= radius * radius {
@@ -610,7 +610,7 @@ mod tests {
     use super::*;
 
     /// The thread's shortcuts decide as the scan does, on a grid of points over a whole
-    /// period of the thread and across its slab (every point the volume could ask about).
+    /// period of the thread and across its bounding slab (where `inside` asks).
     #[test]
     fn a_threads_shortcuts_agree_with_its_scan() {
         let (z0, amplitude, radius, phase) = (0.25, 0.08, 0.075, 0.7);
