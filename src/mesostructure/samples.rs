@@ -187,10 +187,10 @@ impl Primitive {
                 // come, a² + v²/(1 + L²) (a the distance across, v the height above or below
                 // the curve at s0), lies outside it: the scan's answer either way.
                 let above2 = (p[2] - height(s0)).powi(2);
-                let slope = TAU * amplitude;
                 if across2 + above2 <= radius * radius {
                     return true;
                 }
+                let slope = TAU * amplitude;
                 if across2 + above2 / (1.0 + slope * slope) > radius * radius {
                     return false;
                 }
@@ -642,7 +642,7 @@ mod tests {
                 }
             }
         }
-        // Both answers occur often, so both shortcuts were exercised.
+        // Both answers occur often: the grid spans the thread, not one side of it.
         assert!(
             inside > points / 10 && inside < points * 9 / 10,
             "{inside} of {points}"

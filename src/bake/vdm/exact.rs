@@ -621,12 +621,9 @@ impl Bent {
         cos: 1.0,
     };
 
+    /// The sines of σ·c at `sigma` on curvature `c`.
     fn at(c: f64, sigma: f64) -> Bent {
-        let (sin, cos) = if c == 0.0 {
-            (0.0, 1.0)
-        } else {
-            (sigma * c).sin_cos()
-        };
+        let (sin, cos) = (sigma * c).sin_cos();
         Bent { sigma, sin, cos }
     }
 
