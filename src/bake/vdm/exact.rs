@@ -154,15 +154,6 @@ fn layer(fraction: f64) -> usize {
     (fraction * LAYERS as f64 * (1.0 - 1e-9)).clamp(0.0, LAYERS as f64) as usize
 }
 
-/// Where one curvature's march stands.
-#[derive(Clone, Copy, PartialEq)]
-enum Progress {
-    /// Rays from the given one on have not hit yet.
-    Marching(usize),
-    /// Every ray has hit, or the rays from some one on have left the relief.
-    Finished,
-}
-
 impl<'a> Fans<'a> {
     /// The fans of `thetas` (ascending, in (0, π/2)) on `relief` bent to each of
     /// `curvatures` (ascending).
@@ -221,184 +212,189 @@ impl<'a> Fans<'a> {
     /// The VDM values of every curvature's rays entering at `p` along azimuth `phi`, written
     /// to `out` by curvature, then θ (as [`cast`] gives them).
     ///
-    /// The march steps once from cell to cell along the line for every curvature. In each
-    /// cell the curvatures are visited in ascending order, and on a more convex surface a
-    /// ray lies shallower all along (t(σ) falls as c grows), so it hits no earlier than on
-    /// the flatter one: where that ray has not hit by the cell's end, neither has this one,
-    /// and where it has, the search starts there.
+    /// The line's cells are walked once, as far as any curvature needs them, and kept; each
+    /// curvature then marches over them in turn, the flattest first. On a more convex surface
+    /// a ray lies shallower all along (t(σ) falls as c grows), so it hits no earlier than on
+    /// the flatter one: its march starts at the cell where that ray was settled, and its
+    /// search where that ray hit.
     pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>], scratch: &mut Scratch) {
         let n = self.fans.first().map_or(0, |fan| fan.rays.len());
         debug_assert_eq!(out.len(), n * self.fans.len());
+        out.fill(None);
         let Scratch {
-            progress,
-            leading,
-            bents,
+            cells,
+            pieces,
+            settled,
         } = scratch;
-        progress.clear();
-        progress.resize(self.fans.len(), Progress::Marching(0));
-        leading.reset(self.fans.len());
-        // Per curvature, the sines at the last σ that needed them.
-        bents.clear();
-        bents.resize(self.fans.len(), Bent::START);
-        let mut marching = self.fans.len() * usize::from(n > 0);
-        let mut line = Line::new(self.relief, p, phi);
-        let mut sigma = 0.0;
-        while marching > 0 && sigma < self.cap {
-            let end = line.cell_exit().min(self.cap);
-            let layer = self.layers.of(line.texel);
-            let mut piece = None;
-            let mut after = 0;
-            while let Some(k) = leading.next(after) {
-                after = k + 1;
-                let fan = &self.fans[k];
-                let Progress::Marching(first) = progress[k] else {
-                    unreachable!("a finished curvature is not leading");
-                };
-                // Where the flatter surface's ray `a` hit (arc length), short by the tolerance;
-                // infinity while it has not (it has not by this cell's end); 0 if it left the
-                // relief. (`out` holds a curvature's rays up to where it marches.)
-                let beyond = |out: &[Option<f64>], a: usize| match k.checked_sub(1) {
-                    None => 0.0,
-                    Some(flatter) => match progress[flatter] {
-                        Progress::Marching(first) if a >= first => f64::INFINITY,
-                        _ => {
-                            out[flatter * n + a].map_or(0.0, |hit| (hit - 2.0 * TOLERANCE).max(0.0))
-                        }
-                    },
-                };
-                if sigma >= self.ends[k * n + first] {
-                    // It left the relief, and so does every shallower ray.
-                    out[k * n + first..(k + 1) * n].fill(None);
-                    progress[k] = Progress::Finished;
-                    marching -= 1;
-                    leading.update(progress, k);
-                    continue;
-                }
-                // The steepest ray not yet hit lies below every other: where it cannot reach
-                // the cell's highest corner before leaving it, neither can the rest.
-                if end < self.reach(k * n + first, layer) {
-                    continue;
-                }
-                let mut from = sigma.max(beyond(out, first));
-                if from >= end {
-                    continue;
-                }
-                // The cell needs a closer look: its piece, and the sines at its start.
-                let c = fan.c;
-                let bent = bents[k].advanced(c, sigma);
-                bents[k] = bent;
-                let piece = piece.get_or_insert_with(|| line.piece(self.relief, sigma, end));
-                let mut a = first;
-                // The sines at the last hit in the cell (at its start before one).
-                let mut last = bent;
-                progress[k] = loop {
-                    let ray = &fan.rays[a];
-                    if from >= ray.end {
-                        out[k * n + a..(k + 1) * n].fill(None);
-                        break Progress::Finished;
-                    }
-                    // Just short of a concave surface's asymptote the ray lies below every
-                    // relief.
-                    let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
-                    if to < self.reach(k * n + a, piece.layer) {
-                        break Progress::Marching(a);
-                    }
-                    let hit = if let Some(depth) = piece.constant() {
-                        ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
-                    } else {
-                        first_crossing(piece, bent, ray, last.advanced(c, from), to).map(|at| {
-                            last = at;
-                            at.sigma
-                        })
-                    };
-                    let Some(hit) = hit else {
-                        break Progress::Marching(a);
-                    };
-                    out[k * n + a] = Some(hit);
-                    a += 1;
-                    if a == n {
-                        break Progress::Finished;
-                    }
-                    from = hit.max(beyond(out, a));
-                    if from >= end {
-                        break Progress::Marching(a);
-                    }
-                };
-                if progress[k] == Progress::Finished {
-                    marching -= 1;
-                }
-                leading.update(progress, k);
-            }
-            line.step(end);
-            sigma = end;
+        settled.clear();
+        settled.resize(out.len(), NEVER);
+        cells.clear();
+        pieces.clear();
+        let mut walk = Walk {
+            line: Line::new(self.relief, p, phi),
+            cells,
+            pieces,
+            cap: self.cap,
+        };
+        for k in 0..self.fans.len() {
+            self.march(k, &mut walk, out, settled);
         }
-        // Arc lengths to VDM values, l / sin θ, and no hit for the rays still marching.
-        for ((fan, out), progress) in self.fans.iter().zip(out.chunks_exact_mut(n)).zip(progress) {
-            let marching_from = match progress {
-                Progress::Marching(first) => *first,
-                Progress::Finished => n,
-            };
-            let (hits, marching) = out.split_at_mut(marching_from);
-            marching.fill(None);
-            for (ray, hit) in fan.rays.iter().zip(hits) {
+        // Arc lengths to VDM values, l / sin θ.
+        for (fan, out) in self.fans.iter().zip(out.chunks_exact_mut(n.max(1))) {
+            for (ray, hit) in fan.rays.iter().zip(out) {
                 *hit = hit.map(|l| l * ray.cosec_theta);
             }
         }
     }
+
+    /// Marches curvature `k`'s rays over the line's cells, the steepest first, each from
+    /// where the one before hit: arc lengths to `out` (`None` for no hit), and the cell where
+    /// each ray was settled (hit, or left the relief) to `settled`. The flatter curvature's
+    /// are settled already.
+    fn march(&self, k: usize, walk: &mut Walk, out: &mut [Option<f64>], settled: &mut [usize]) {
+        let fan = &self.fans[k];
+        let (n, c) = (fan.rays.len(), fan.c);
+        let (flatter, out) = out.split_at_mut(k * n);
+        let flatter = k.checked_sub(1).map(|_| &flatter[(k - 1) * n..]);
+        let (flatter_settled, settled) = settled.split_at_mut(k * n);
+        let flatter_settled = k.checked_sub(1).map(|_| &flatter_settled[(k - 1) * n..]);
+        let (out, settled) = (&mut out[..n], &mut settled[..n]);
+        // The cell the march is in; the sines at the start of the last cell looked at
+        // closely, and at the last hit in it.
+        let mut i = 0;
+        let (mut looked, mut bent, mut last) = (NEVER, Bent::START, Bent::START);
+        let mut previous = 0.0;
+        let mut a = 0;
+        'rays: while a < n {
+            let ray_index = k * n + a;
+            // Where the flatter surface's ray `a` hit, short by the tolerance (0 if it left
+            // the relief); this one is not looked for before the cell where that was settled.
+            let beyond = match (flatter, flatter_settled) {
+                (Some(hits), Some(cells)) => {
+                    if cells[a] == NEVER {
+                        return;
+                    }
+                    i = i.max(cells[a]);
+                    hits[a].map_or(0.0, |hit| (hit - 2.0 * TOLERANCE).max(0.0))
+                }
+                _ => 0.0,
+            };
+            let reach = &self.reach[ray_index * (LAYERS + 1)..][..LAYERS + 1];
+            let leaves = self.ends[ray_index];
+            let ray = &fan.rays[a];
+            while let Some(cell) = walk.cell(&self.layers, i) {
+                if cell.start >= leaves {
+                    // It left the relief, and so does every shallower ray.
+                    settled[a..].fill(i);
+                    return;
+                }
+                // Where the ray cannot reach the cell's highest corner before leaving it, it
+                // passes over the cell.
+                let from = cell.start.max(previous).max(beyond);
+                if cell.end < reach[cell.layer] || from >= cell.end {
+                    i += 1;
+                    continue;
+                }
+                // The cell needs a closer look: its piece, and the sines at its start.
+                let end = cell.end;
+                if looked != i {
+                    bent = bent.advanced(c, cell.start);
+                    (looked, last) = (i, bent);
+                }
+                let piece = walk.piece(self.relief, i);
+                if from >= ray.end {
+                    settled[a..].fill(i);
+                    return;
+                }
+                // Just short of a concave surface's asymptote the ray lies below every
+                // relief.
+                let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
+                let hit = if to < reach[piece.layer] {
+                    None
+                } else if let Some(depth) = piece.constant() {
+                    ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
+                } else {
+                    first_crossing(piece, bent, ray, last.advanced(c, from), to).map(|at| {
+                        last = at;
+                        at.sigma
+                    })
+                };
+                match hit {
+                    Some(hit) => {
+                        (out[a], settled[a], previous) = (Some(hit), i, hit);
+                        a += 1;
+                        continue 'rays;
+                    }
+                    None => i += 1,
+                }
+            }
+            // The line ended first.
+            return;
+        }
+    }
 }
 
-/// What a march ([`Fans::cast`]) keeps per curvature, held between marches so that they
-/// allocate nothing.
+/// The cell index of a ray never settled.
+const NEVER: usize = usize::MAX;
+
+/// What a march ([`Fans::cast`]) keeps, held between marches so that they allocate nothing.
 #[derive(Default)]
 pub struct Scratch {
-    progress: Vec<Progress>,
-    leading: Leading,
-    bents: Vec<Bent>,
+    /// The line's cells walked so far, and the pieces of those looked at closely.
+    cells: Vec<Cell>,
+    pieces: Vec<Option<Piece>>,
+    /// Per ray (as in [`Fans::ends`]), the cell where it was settled, or [`NEVER`].
+    settled: Vec<usize>,
 }
 
-/// The curvatures a cell may need to look at: those still marching at a steeper ray than
-/// their flatter twin (the rest cannot hit before it), as a bit set.
-#[derive(Default)]
-struct Leading {
-    words: Vec<u64>,
+/// One bilinear cell along the march's line.
+struct Cell {
+    /// Where the line enters and leaves it (σ).
+    start: f64,
+    end: f64,
+    /// Its highest corner's layer ([`Layers`]).
+    layer: usize,
+    /// The cell (unwrapped) and its lower corner's texel wrapped into the tile.
+    cell: [i64; 2],
+    texel: [i64; 2],
 }
 
-impl Leading {
-    /// Where every one of `curvatures` marches at its steepest ray: the flattest leads.
-    fn reset(&mut self, curvatures: usize) {
-        self.words.clear();
-        self.words.resize(curvatures.div_ceil(64), 0);
-        if let Some(word) = self.words.first_mut() {
-            *word = 1;
-        }
-    }
+/// The line's cells, walked on as far as a march asks for them (up to the march's cap).
+struct Walk<'s> {
+    line: Line,
+    cells: &'s mut Vec<Cell>,
+    pieces: &'s mut Vec<Option<Piece>>,
+    cap: f64,
+}
 
-    /// The first leading curvature from `k` on.
-    fn next(&self, k: usize) -> Option<usize> {
-        let (mut w, bit) = (k / 64, k % 64);
-        let mut word = self.words.get(w)? & (u64::MAX << bit);
-        while word == 0 {
-            w += 1;
-            word = *self.words.get(w)?;
-        }
-        Some(w * 64 + word.trailing_zeros() as usize)
-    }
-
-    /// Updates curvature `k` and its twin on the next steeper curvature after `progress[k]`
-    /// changed.
-    fn update(&mut self, progress: &[Progress], k: usize) {
-        for j in k..progress.len().min(k + 2) {
-            let leads = match progress[j] {
-                Progress::Marching(first) => j == 0 || progress[j - 1] != Progress::Marching(first),
-                Progress::Finished => false,
-            };
-            let (w, bit) = (j / 64, 1 << (j % 64));
-            if leads {
-                self.words[w] |= bit;
-            } else {
-                self.words[w] &= !bit;
+impl Walk<'_> {
+    /// Cell `i` along the line, or `None` where the line reaches the cap first.
+    fn cell(&mut self, layers: &Layers, i: usize) -> Option<&Cell> {
+        while self.cells.len() <= i {
+            let start = self.cells.last().map_or(0.0, |cell| cell.end);
+            if start >= self.cap {
+                return None;
             }
+            if !self.cells.is_empty() {
+                self.line.step(start);
+            }
+            let line = &self.line;
+            self.cells.push(Cell {
+                start,
+                end: line.cell_exit().min(self.cap),
+                layer: layers.of(line.texel),
+                cell: line.cell,
+                texel: line.texel,
+            });
+            self.pieces.push(None);
         }
+        Some(&self.cells[i])
+    }
+
+    /// The relief's depth along the line in cell `i` (walked already).
+    fn piece(&mut self, relief: Relief, i: usize) -> &Piece {
+        let (line, cell) = (&self.line, &self.cells[i]);
+        self.pieces[i].get_or_insert_with(|| line.piece(relief, cell))
     }
 }
 
@@ -564,12 +560,13 @@ impl Line {
         }
     }
 
-    /// The relief's depth along the line in its cell from `from` to `to`.
-    fn piece(&self, relief: Relief, from: f64, to: f64) -> Piece {
+    /// The relief's depth along the line across `cell`.
+    fn piece(&self, relief: Relief, cell: &Cell) -> Piece {
+        let (from, to) = (cell.start, cell.end);
         let field = relief.field;
         let (w, h) = field.size();
         let (w, h) = (w as usize, h as usize);
-        let [i, j] = self.texel.map(|t| t as usize);
+        let [i, j] = cell.texel.map(|t| t as usize);
         let (i1, j1) = (
             if i + 1 == w { 0 } else { i + 1 },
             if j + 1 == h { 0 } else { j + 1 },
@@ -578,8 +575,8 @@ impl Line {
         let at = |i: usize, j: usize| f64::from(heights[j * w + i]);
         let (h00, h10, h01, h11) = (at(i, j), at(i1, j), at(i, j1), at(i1, j1));
         // Position within the cell at `from`, and its rate per unit of σ.
-        let x0 = self.start[0] + self.speed[0] * from - self.cell[0] as f64;
-        let y0 = self.start[1] + self.speed[1] * from - self.cell[1] as f64;
+        let x0 = self.start[0] + self.speed[0] * from - cell.cell[0] as f64;
+        let y0 = self.start[1] + self.speed[1] * from - cell.cell[1] as f64;
         let [ex, ey] = self.speed;
         let (bx, by, k) = (h10 - h00, h01 - h00, h11 - h10 - h01 + h00);
         let height = [
