@@ -123,9 +123,9 @@ pub struct Fans<'a> {
     /// Per curvature, ascending.
     fans: Vec<Fan>,
     /// Per ray of every fan (curvature k's ray a at k·Nθ + a), where it leaves the relief
-    /// ([`BentRay::end`]), and where it first reaches each of the [`LAYERS`] + 1 depths
+    /// ([`BentRay::end`]), and where it first reaches the top of each of the [`LAYERS`],
     /// i·depth/[`LAYERS`] (rounded down; infinity for a convex surface's ray that never
-    /// does) at ray·([`LAYERS`] + 1) + i: what a march looks up at every cell, kept together.
+    /// does), at ray·[`LAYERS`] + i: what a march looks up at every cell.
     ends: Vec<f64>,
     reach: Vec<f64>,
     /// The depths of the most common flat cells ([`plateaus`]).
@@ -144,14 +144,15 @@ struct Fan {
     plateau_reach: Vec<f64>,
 }
 
-/// The depth layers the march's bounds are rounded to (a cell whose highest corner lies in
-/// layer i is passed over by a ray that has not reached layer i's top).
+/// The depth layers the march's bounds are rounded to, layer i from i·depth/[`LAYERS`] down
+/// (a cell whose highest corner lies in layer i is passed over by a ray that has not reached
+/// layer i's top).
 const LAYERS: usize = 256;
 
 /// The last of the [`LAYERS`] whose top lies at or above `fraction` of the relief's depth
 /// (rounded down).
-fn layer(fraction: f64) -> usize {
-    (fraction * LAYERS as f64 * (1.0 - 1e-9)).clamp(0.0, LAYERS as f64) as usize
+fn layer(fraction: f64) -> u8 {
+    (fraction * LAYERS as f64 * (1.0 - 1e-9)).clamp(0.0, (LAYERS - 1) as f64) as u8
 }
 
 impl<'a> Fans<'a> {
@@ -179,7 +180,7 @@ impl<'a> Fans<'a> {
         let ends = rays().map(|ray| ray.end).collect();
         let reach = rays()
             .flat_map(|ray| {
-                (0..=LAYERS)
+                (0..LAYERS)
                     .map(move |i| ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9))
             })
             .collect();
@@ -193,12 +194,6 @@ impl<'a> Fans<'a> {
             plateaus,
             cap,
         }
-    }
-
-    /// Where a ray (numbered across the fans as in [`Fans::ends`]) first reaches the top of
-    /// `layer`.
-    fn reach(&self, ray: usize, layer: usize) -> f64 {
-        self.reach[ray * (LAYERS + 1) + layer]
     }
 
     /// Where ray `a` of `fan` first lies `depth` deep: tabled for the plateaus.
@@ -223,16 +218,19 @@ impl<'a> Fans<'a> {
         out.fill(None);
         let Scratch {
             cells,
+            places,
             pieces,
             settled,
         } = scratch;
         settled.clear();
         settled.resize(out.len(), NEVER);
         cells.clear();
+        places.clear();
         pieces.clear();
         let mut walk = Walk {
             line: Line::new(self.relief, p, phi),
             cells,
+            places,
             pieces,
             cap: self.cap,
         };
@@ -279,24 +277,38 @@ impl<'a> Fans<'a> {
                 }
                 _ => 0.0,
             };
-            let reach = &self.reach[ray_index * (LAYERS + 1)..][..LAYERS + 1];
+            // The search starts no earlier than this.
+            let floor = if beyond > previous { beyond } else { previous };
+            let reach: &[f64; LAYERS] = self.reach[ray_index * LAYERS..][..LAYERS]
+                .try_into()
+                .expect("a ray's reach row");
             let leaves = self.ends[ray_index];
             let ray = &fan.rays[a];
-            while let Some(cell) = walk.cell(&self.layers, i) {
+            loop {
+                // Past the cells the ray cannot reach before leaving them, or where its
+                // search would start beyond them, to the first it may hit in.
+                let ahead = walk.cells.get(i..).unwrap_or_default();
+                let Some(skip) = ahead.iter().position(|cell| {
+                    cell.start >= leaves
+                        || (cell.end >= reach[usize::from(cell.layer)]
+                            && cell.start.max(floor) < cell.end)
+                }) else {
+                    i = i.max(walk.cells.len());
+                    if walk.extend(&self.layers) {
+                        continue;
+                    }
+                    // The line ended first.
+                    return;
+                };
+                i += skip;
+                let cell = &walk.cells[i];
                 if cell.start >= leaves {
                     // It left the relief, and so does every shallower ray.
                     settled[a..].fill(i);
                     return;
                 }
-                // Where the ray cannot reach the cell's highest corner before leaving it, it
-                // passes over the cell.
-                let from = cell.start.max(previous).max(beyond);
-                if cell.end < reach[cell.layer] || from >= cell.end {
-                    i += 1;
-                    continue;
-                }
                 // The cell needs a closer look: its piece, and the sines at its start.
-                let end = cell.end;
+                let (from, end) = (cell.start.max(floor), cell.end);
                 if looked != i {
                     bent = bent.advanced(c, cell.start);
                     (looked, last) = (i, bent);
@@ -309,7 +321,7 @@ impl<'a> Fans<'a> {
                 // Just short of a concave surface's asymptote the ray lies below every
                 // relief.
                 let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
-                let hit = if to < reach[piece.layer] {
+                let hit = if to < reach[usize::from(piece.layer)] {
                     None
                 } else if let Some(depth) = piece.constant() {
                     ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
@@ -328,8 +340,6 @@ impl<'a> Fans<'a> {
                     None => i += 1,
                 }
             }
-            // The line ended first.
-            return;
         }
     }
 }
@@ -340,21 +350,27 @@ const NEVER: usize = usize::MAX;
 /// What a march ([`Fans::cast`]) keeps, held between marches so that they allocate nothing.
 #[derive(Default)]
 pub struct Scratch {
-    /// The line's cells walked so far, and the pieces of those looked at closely.
+    /// The line's cells walked so far, where they lie, and the pieces of those looked at
+    /// closely.
     cells: Vec<Cell>,
+    places: Vec<Place>,
     pieces: Vec<Option<Piece>>,
     /// Per ray (as in [`Fans::ends`]), the cell where it was settled, or [`NEVER`].
     settled: Vec<usize>,
 }
 
-/// One bilinear cell along the march's line.
+/// One bilinear cell along the march's line: what its march looks at in every cell.
 struct Cell {
     /// Where the line enters and leaves it (σ).
     start: f64,
     end: f64,
     /// Its highest corner's layer ([`Layers`]).
-    layer: usize,
-    /// The cell (unwrapped) and its lower corner's texel wrapped into the tile.
+    layer: u8,
+}
+
+/// Where a [`Cell`] lies in the tile: the cell (unwrapped), and its lower corner's texel
+/// wrapped into the tile; what its piece needs.
+struct Place {
     cell: [i64; 2],
     texel: [i64; 2],
 }
@@ -363,17 +379,23 @@ struct Cell {
 struct Walk<'s> {
     line: Line,
     cells: &'s mut Vec<Cell>,
+    places: &'s mut Vec<Place>,
     pieces: &'s mut Vec<Option<Piece>>,
     cap: f64,
 }
 
 impl Walk<'_> {
-    /// Cell `i` along the line, or `None` where the line reaches the cap first.
-    fn cell(&mut self, layers: &Layers, i: usize) -> Option<&Cell> {
-        while self.cells.len() <= i {
+    /// Cells walked at a time.
+    const STRIDE: usize = 8;
+
+    /// Walks [`Walk::STRIDE`] cells further, or fewer where the line reaches the cap;
+    /// `false` if it had already.
+    fn extend(&mut self, layers: &Layers) -> bool {
+        let walked = self.cells.len();
+        for _ in 0..Self::STRIDE {
             let start = self.cells.last().map_or(0.0, |cell| cell.end);
             if start >= self.cap {
-                return None;
+                break;
             }
             if !self.cells.is_empty() {
                 self.line.step(start);
@@ -383,18 +405,20 @@ impl Walk<'_> {
                 start,
                 end: line.cell_exit().min(self.cap),
                 layer: layers.of(line.texel),
+            });
+            self.places.push(Place {
                 cell: line.cell,
                 texel: line.texel,
             });
             self.pieces.push(None);
         }
-        Some(&self.cells[i])
+        self.cells.len() > walked
     }
 
     /// The relief's depth along the line in cell `i` (walked already).
     fn piece(&mut self, relief: Relief, i: usize) -> &Piece {
-        let (line, cell) = (&self.line, &self.cells[i]);
-        self.pieces[i].get_or_insert_with(|| line.piece(relief, cell))
+        let (line, cell, place) = (&self.line, &self.cells[i], &self.places[i]);
+        self.pieces[i].get_or_insert_with(|| line.piece(relief, cell, place))
     }
 }
 
@@ -436,7 +460,7 @@ fn cell_corners(field: &HeightField) -> impl Iterator<Item = [f32; 4]> + '_ {
 /// or above it.
 struct Layers {
     width: i64,
-    layers: Vec<u16>,
+    layers: Vec<u8>,
 }
 
 impl Layers {
@@ -444,7 +468,7 @@ impl Layers {
         let layers = cell_corners(field)
             .map(|corners| {
                 let top = corners.into_iter().fold(f32::MIN, f32::max);
-                layer(1.0 - f64::from(top)) as u16
+                layer(1.0 - f64::from(top))
             })
             .collect();
         Layers {
@@ -454,8 +478,8 @@ impl Layers {
     }
 
     /// The layer of the cell whose lower corner is `texel`.
-    fn of(&self, texel: [i64; 2]) -> usize {
-        usize::from(self.layers[(texel[1] * self.width + texel[0]) as usize])
+    fn of(&self, texel: [i64; 2]) -> u8 {
+        self.layers[(texel[1] * self.width + texel[0]) as usize]
     }
 }
 
@@ -561,12 +585,12 @@ impl Line {
     }
 
     /// The relief's depth along the line across `cell`.
-    fn piece(&self, relief: Relief, cell: &Cell) -> Piece {
+    fn piece(&self, relief: Relief, cell: &Cell, place: &Place) -> Piece {
         let (from, to) = (cell.start, cell.end);
         let field = relief.field;
         let (w, h) = field.size();
         let (w, h) = (w as usize, h as usize);
-        let [i, j] = cell.texel.map(|t| t as usize);
+        let [i, j] = place.texel.map(|t| t as usize);
         let (i1, j1) = (
             if i + 1 == w { 0 } else { i + 1 },
             if j + 1 == h { 0 } else { j + 1 },
@@ -575,8 +599,8 @@ impl Line {
         let at = |i: usize, j: usize| f64::from(heights[j * w + i]);
         let (h00, h10, h01, h11) = (at(i, j), at(i1, j), at(i, j1), at(i1, j1));
         // Position within the cell at `from`, and its rate per unit of σ.
-        let x0 = self.start[0] + self.speed[0] * from - cell.cell[0] as f64;
-        let y0 = self.start[1] + self.speed[1] * from - cell.cell[1] as f64;
+        let x0 = self.start[0] + self.speed[0] * from - place.cell[0] as f64;
+        let y0 = self.start[1] + self.speed[1] * from - place.cell[1] as f64;
         let [ex, ey] = self.speed;
         let (bx, by, k) = (h10 - h00, h01 - h00, h11 - h10 - h01 + h00);
         let height = [
@@ -798,7 +822,7 @@ struct Piece {
     /// The least depth along the line over [`from`, `to`], and the last of the [`LAYERS`]
     /// whose top lies at or above it.
     shallowest: f64,
-    layer: usize,
+    layer: u8,
 }
 
 impl Piece {
