@@ -307,12 +307,8 @@ impl<'a> Fans<'a> {
                     settled[a..].fill(i);
                     return;
                 }
-                // The cell needs a closer look: its piece, and the sines at its start.
-                let (from, end) = (cell.start.max(floor), cell.end);
-                if looked != i {
-                    bent = bent.advanced(c, cell.start);
-                    (looked, last) = (i, bent);
-                }
+                // The cell needs a closer look: its piece.
+                let (start, from, end) = (cell.start, cell.start.max(floor), cell.end);
                 let piece = walk.piece(self.relief, i);
                 if from >= ray.end {
                     settled[a..].fill(i);
@@ -321,11 +317,16 @@ impl<'a> Fans<'a> {
                 // Just short of a concave surface's asymptote the ray lies below every
                 // relief.
                 let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
-                let hit = if to < reach[usize::from(piece.layer)] {
-                    None
-                } else if let Some(depth) = piece.constant() {
+                let hit = if let Some(depth) = piece.constant() {
                     ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
+                } else if to < reach[usize::from(piece.layer)] {
+                    None
                 } else {
+                    // The sines at the cell's start, where the search first needs them.
+                    if looked != i {
+                        bent = bent.advanced(c, start);
+                        (looked, last) = (i, bent);
+                    }
                     first_crossing(piece, bent, ray, last.advanced(c, from), to).map(|at| {
                         last = at;
                         at.sigma
