@@ -6,16 +6,16 @@
 //! D(σ) is quadratic inside each cell of the bilinear interpolation (the patch between four
 //! texel centres). A ray entering at polar angle θ lies at depth
 //! t(σ) = R·(1 − sin θ / sin(θ + σ/R)) below the reference surface bent to radius R = 1/c
-//! (σ·cot θ on the flat surface, c = 0). The march steps once from cell to cell along the line
-//! for every ray of every curvature ([`Fans`]), and three orderings spare it work:
+//! (σ·cot θ on the flat surface, c = 0). The line's cells are walked once per texel and
+//! azimuth and kept; every curvature's rays then march over them ([`Fans`]), and three
+//! orderings spare the march work:
 //!
 //! - rays from one point in one plane never cross, so a steeper ray lies below a shallower one
 //!   everywhere and hits no later along the line: each ray's search starts where the last hit;
 //! - t(σ) falls as c grows at every σ (a more convex surface curves away from the ray), so a
-//!   ray hits no earlier than on a flatter surface: in each cell the march visits the
-//!   curvatures in ascending order, and a ray whose flatter twin has not hit yet is passed
-//!   over (only the curvatures not so blocked are visited, `Leading`); one whose twin has
-//!   starts where it hit;
+//!   ray hits no earlier than on a flatter surface: the curvatures march in ascending order,
+//!   and a ray's march starts at the cell where its flatter twin was settled and its search
+//!   where that twin hit;
 //! - t rises with σ up to a convex surface's turning point, so the first σ where a ray
 //!   reaches each of `LAYERS` depths, tabled per ray, rules out without a sine every cell
 //!   whose highest corner it cannot reach before leaving the cell, and, in a cell looked at,
@@ -615,13 +615,17 @@ impl Line {
             -depth * height[1],
             -depth * height[2],
         ];
-        let shallowest = least_on(d[0], d[1], d[2], to - from).1;
+        let shallowest = if d[1] == 0.0 && d[2] == 0.0 {
+            d[0]
+        } else {
+            least_on(d[0], d[1], d[2], to - from).1
+        };
         Piece {
             from,
             to,
             d,
             shallowest,
-            layer: layer(shallowest / depth),
+            layer: layer(shallowest * (1.0 / depth)),
         }
     }
 }
