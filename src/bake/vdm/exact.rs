@@ -48,7 +48,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 pub const TOLERANCE: f64 = 1e-7;
 
 /// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, each writing its own
-/// images of the VDM, and at each texel every curvature in one march ([`Fans::cast`]).
+/// images of the VDM, and at each texel every curvature over one walk of the line's cells
+/// ([`Fans::cast`]).
 pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Result<Vec<f32>> {
     let (w, h) = relief.field.size();
     let texels = (w * h) as usize;
@@ -252,13 +253,14 @@ impl<'a> Fans<'a> {
     fn march(&self, k: usize, walk: &mut Walk, out: &mut [Option<f64>], settled: &mut [usize]) {
         let fan = &self.fans[k];
         let (n, c) = (fan.rays.len(), fan.c);
-        let (flatter, out) = out.split_at_mut(k * n);
-        let flatter = k.checked_sub(1).map(|_| &flatter[(k - 1) * n..]);
-        let (flatter_settled, settled) = settled.split_at_mut(k * n);
-        let flatter_settled = k.checked_sub(1).map(|_| &flatter_settled[(k - 1) * n..]);
+        let (out_before, out) = out.split_at_mut(k * n);
+        let (settled_before, settled) = settled.split_at_mut(k * n);
+        let flatter = k
+            .checked_sub(1)
+            .map(|f| (&out_before[f * n..], &settled_before[f * n..]));
         let (out, settled) = (&mut out[..n], &mut settled[..n]);
-        // The cell the march is in; the sines at the start of the last cell looked at
-        // closely, and at the last hit in it.
+        // The cell the march is in; the sines at the start of the last cell searched in, and
+        // at the last hit in it.
         let mut i = 0;
         let (mut looked, mut bent, mut last) = (NEVER, Bent::START, Bent::START);
         let mut previous = 0.0;
@@ -267,15 +269,15 @@ impl<'a> Fans<'a> {
             let ray_index = k * n + a;
             // Where the flatter surface's ray `a` hit, short by the tolerance (0 if it left
             // the relief); this one is not looked for before the cell where that was settled.
-            let beyond = match (flatter, flatter_settled) {
-                (Some(hits), Some(cells)) => {
+            let beyond = match flatter {
+                Some((hits, cells)) => {
                     if cells[a] == NEVER {
                         return;
                     }
                     i = i.max(cells[a]);
                     hits[a].map_or(0.0, |hit| (hit - 2.0 * TOLERANCE).max(0.0))
                 }
-                _ => 0.0,
+                None => 0.0,
             };
             // The search starts no earlier than this.
             let floor = if beyond > previous { beyond } else { previous };
@@ -287,13 +289,12 @@ impl<'a> Fans<'a> {
             loop {
                 // Past the cells the ray cannot reach before leaving them, or where its
                 // search would start beyond them, to the first it may hit in.
-                let ahead = walk.cells.get(i..).unwrap_or_default();
-                let Some(skip) = ahead.iter().position(|cell| {
+                let Some(skip) = walk.cells[i..].iter().position(|cell| {
                     cell.start >= leaves
                         || (cell.end >= reach[usize::from(cell.layer)]
                             && cell.start.max(floor) < cell.end)
                 }) else {
-                    i = i.max(walk.cells.len());
+                    i = walk.cells.len();
                     if walk.extend(&self.layers) {
                         continue;
                     }
@@ -307,13 +308,13 @@ impl<'a> Fans<'a> {
                     settled[a..].fill(i);
                     return;
                 }
-                // The cell needs a closer look: its piece.
                 let (start, from, end) = (cell.start, cell.start.max(floor), cell.end);
-                let piece = walk.piece(self.relief, i);
                 if from >= ray.end {
                     settled[a..].fill(i);
                     return;
                 }
+                // The cell needs a closer look: its piece.
+                let piece = walk.piece(self.relief, i);
                 // Just short of a concave surface's asymptote the ray lies below every
                 // relief.
                 let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
