@@ -126,9 +126,9 @@ pub struct Fans<'a> {
     /// Per ray of every fan (curvature k's ray a at k·Nθ + a), where it leaves the relief
     /// ([`BentRay::end`]), and where it first reaches the top of each of the [`LAYERS`],
     /// i·depth/[`LAYERS`] (rounded down; infinity for a convex surface's ray that never
-    /// does), at ray·[`LAYERS`] + i: what a march looks up at every cell.
+    /// does), per ray: what a march looks up at every cell.
     ends: Vec<f64>,
-    reach: Vec<f64>,
+    reach: Vec<[f64; LAYERS]>,
     /// The depths of the most common flat cells ([`plateaus`]).
     plateaus: Vec<f64>,
     /// Where every march ends: every ray hits the floor (depth) by depth · tan θ on a flat
@@ -180,9 +180,10 @@ impl<'a> Fans<'a> {
         let rays = || fans.iter().flat_map(|fan| &fan.rays);
         let ends = rays().map(|ray| ray.end).collect();
         let reach = rays()
-            .flat_map(|ray| {
-                (0..LAYERS)
-                    .map(move |i| ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9))
+            .map(|ray| {
+                std::array::from_fn(|i| {
+                    ray.reach(relief.depth * i as f64 / LAYERS as f64) * (1.0 - 1e-9)
+                })
             })
             .collect();
         let cap = thetas.last().map_or(0.0, |th| relief.depth * th.tan()) + 4.0;
@@ -281,9 +282,7 @@ impl<'a> Fans<'a> {
             };
             // The search starts no earlier than this.
             let floor = if beyond > previous { beyond } else { previous };
-            let reach: &[f64; LAYERS] = self.reach[ray_index * LAYERS..][..LAYERS]
-                .try_into()
-                .expect("a ray's reach row");
+            let reach = &self.reach[ray_index];
             let leaves = self.ends[ray_index];
             let ray = &fan.rays[a];
             loop {
