@@ -271,11 +271,11 @@ impl<'a> Fans<'a> {
             // Where the flatter surface's ray `a` hit, short by the tolerance (0 if it left
             // the relief); this one is not looked for before the cell where that was settled.
             let beyond = match flatter {
-                Some((hits, cells)) => {
-                    if cells[a] == NEVER {
+                Some((hits, settled_at)) => {
+                    if settled_at[a] == NEVER {
                         return;
                     }
-                    i = i.max(cells[a]);
+                    i = i.max(settled_at[a]);
                     hits[a].map_or(0.0, |hit| (hit - 2.0 * TOLERANCE).max(0.0))
                 }
                 None => 0.0,
@@ -360,7 +360,7 @@ pub struct Scratch {
     settled: Vec<usize>,
 }
 
-/// One bilinear cell along the march's line: what its march looks at in every cell.
+/// One bilinear cell along the line: what a ray's march checks at every cell.
 struct Cell {
     /// Where the line enters and leaves it (σ).
     start: f64,
