@@ -123,11 +123,9 @@ pub struct Fans<'a> {
     layers: Layers,
     /// Per curvature, ascending.
     fans: Vec<Fan>,
-    /// Per ray of every fan (curvature k's ray a at k·Nθ + a), where it leaves the relief
-    /// ([`BentRay::end`]), and where it first reaches the top of each of the [`LAYERS`],
-    /// i·depth/[`LAYERS`] (rounded down; infinity for a convex surface's ray that never
-    /// does), per ray: what a march looks up at every cell.
-    ends: Vec<f64>,
+    /// Per ray of every fan (curvature k's ray a at k·Nθ + a), where it first reaches the
+    /// top of each of the [`LAYERS`], i·depth/[`LAYERS`] (rounded down; infinity for a convex
+    /// surface's ray that never does): what a march looks up at every cell.
     reach: Vec<[f64; LAYERS]>,
     /// The depths of the most common flat cells ([`plateaus`]).
     plateaus: Vec<f64>,
@@ -178,7 +176,6 @@ impl<'a> Fans<'a> {
             })
             .collect::<Vec<_>>();
         let rays = || fans.iter().flat_map(|fan| &fan.rays);
-        let ends = rays().map(|ray| ray.end).collect();
         let reach = rays()
             .map(|ray| {
                 std::array::from_fn(|i| {
@@ -191,7 +188,6 @@ impl<'a> Fans<'a> {
             relief,
             layers: Layers::new(relief.field),
             fans,
-            ends,
             reach,
             plateaus,
             cap,
@@ -283,13 +279,12 @@ impl<'a> Fans<'a> {
             // The search starts no earlier than this.
             let floor = if beyond > previous { beyond } else { previous };
             let reach = &self.reach[ray_index];
-            let leaves = self.ends[ray_index];
             let ray = &fan.rays[a];
             loop {
                 // Past the cells the ray cannot reach before leaving them, or where its
                 // search would start beyond them, to the first it may hit in.
                 let Some(skip) = walk.cells[i..].iter().position(|cell| {
-                    cell.start >= leaves
+                    cell.start >= ray.end
                         || (cell.end >= reach[usize::from(cell.layer)]
                             && cell.start.max(floor) < cell.end)
                 }) else {
@@ -302,13 +297,9 @@ impl<'a> Fans<'a> {
                 };
                 i += skip;
                 let cell = &walk.cells[i];
-                if cell.start >= leaves {
-                    // It left the relief, and so does every shallower ray.
-                    settled[a..].fill(i);
-                    return;
-                }
                 let (start, from, end) = (cell.start, cell.start.max(floor), cell.end);
                 if from >= ray.end {
+                    // It left the relief, and so does every shallower ray.
                     settled[a..].fill(i);
                     return;
                 }
@@ -356,7 +347,7 @@ pub struct Scratch {
     cells: Vec<Cell>,
     places: Vec<Place>,
     pieces: Vec<Option<Piece>>,
-    /// Per ray (as in [`Fans::ends`]), the cell where it was settled, or [`NEVER`].
+    /// Per ray (as in [`Fans::reach`]), the cell where it was settled, or [`NEVER`].
     settled: Vec<usize>,
 }
 
@@ -615,17 +606,13 @@ impl Line {
             -depth * height[1],
             -depth * height[2],
         ];
-        let shallowest = if d[1] == 0.0 && d[2] == 0.0 {
-            d[0]
-        } else {
-            least_on(d[0], d[1], d[2], to - from).1
-        };
+        let shallowest = least_on(d[0], d[1], d[2], to - from).1;
         Piece {
             from,
             to,
             d,
             shallowest,
-            layer: layer(shallowest * (1.0 / depth)),
+            layer: layer(shallowest / depth),
         }
     }
 }
