@@ -16,10 +16,11 @@
 //!   ray hits no earlier than on a flatter surface: the curvatures march in ascending order,
 //!   and a ray's march starts at the cell where its flatter twin was settled and its search
 //!   where that twin hit;
-//! - t rises with σ up to a convex surface's turning point, so the first σ where a ray
-//!   reaches each of `LAYERS` depths, tabled per ray, rules out without a sine every cell
-//!   whose highest corner it cannot reach before leaving the cell, and, in a cell looked at,
-//!   every ray that cannot reach the relief's highest point along the line there.
+//! - t rises with σ up to a convex surface's turning point and falls after it symmetrically,
+//!   so the first σ where a ray reaches each of `LAYERS` depths, tabled per ray, rules out
+//!   without a sine every cell whose highest corner it reaches only after leaving the cell or
+//!   has climbed back above before entering it, and, in a cell looked at, every ray that does
+//!   not lie below the relief's highest point along the line there.
 //!
 //! Where the relief's depth does not change along the line in a cell (a flat cell), a ray
 //! hits where it first reaches that depth, in closed form (`BentRay::first_at_depth`; tabled
@@ -281,12 +282,13 @@ impl<'a> Fans<'a> {
             let reach = &self.reach[ray_index];
             let ray = &fan.rays[a];
             loop {
-                // Past the cells the ray cannot reach before leaving them, or where its
-                // search would start beyond them, to the first it may hit in.
+                // Past the cells the ray does not reach within (it reaches their highest
+                // corner's layer after leaving them, or climbs back above it before entering),
+                // or where its search would start beyond them, to the first it may hit in.
                 let Some(skip) = walk.cells[i..].iter().position(|cell| {
+                    let (from, reached) = (cell.start.max(floor), reach[usize::from(cell.layer)]);
                     cell.start >= ray.end
-                        || (cell.end >= reach[usize::from(cell.layer)]
-                            && cell.start.max(floor) < cell.end)
+                        || (cell.end >= reached && from <= ray.mirror - reached && from < cell.end)
                 }) else {
                     i = walk.cells.len();
                     if walk.extend(&self.layers) {
@@ -310,7 +312,9 @@ impl<'a> Fans<'a> {
                 let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
                 let hit = if let Some(depth) = piece.constant() {
                     ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
-                } else if to < reach[usize::from(piece.layer)] {
+                } else if to < reach[usize::from(piece.layer)]
+                    || from > ray.mirror - reach[usize::from(piece.layer)]
+                {
                     None
                 } else {
                     // The sines at the cell's start, where the search first needs them.
@@ -681,6 +685,9 @@ struct BentRay {
     asymptote: f64,
     /// Where it lies deepest (convex), else infinity; its depth there.
     deepest: (f64, f64),
+    /// Twice that σ (convex), else infinity: the ray lies symmetrically about its deepest
+    /// point, so it climbs back above a depth it first reaches at σ at `mirror` − σ.
+    mirror: f64,
 }
 
 impl BentRay {
@@ -707,6 +714,7 @@ impl BentRay {
             end,
             asymptote,
             deepest,
+            mirror: 2.0 * deepest.0,
         }
     }
 
@@ -781,7 +789,7 @@ impl BentRay {
         } else if reach >= from {
             Some(reach)
         } else {
-            (from <= 2.0 * self.deepest.0 - reach).then_some(from)
+            (from <= self.mirror - reach).then_some(from)
         }
     }
 
