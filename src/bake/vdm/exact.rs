@@ -6,9 +6,11 @@
 //! D(σ) is quadratic inside each cell of the bilinear interpolation (the patch between four
 //! texel centres). A ray entering at polar angle θ lies at depth
 //! t(σ) = R·(1 − sin θ / sin(θ + σ/R)) below the reference surface bent to radius R = 1/c
-//! (σ·cot θ on the flat surface, c = 0). The line's cells are walked once per texel and
-//! azimuth and kept; every curvature's rays then march over them ([`Fans`]), and three
-//! orderings spare the march work:
+//! (σ·cot θ on the flat surface, c = 0). Texel centres lie on grid points, so the lines from
+//! all of them along one azimuth cross the grid at the same σ: the cells are walked once per
+//! azimuth ([`Course`]), and each texel's line only looks up the heights at their corners.
+//! Every curvature's rays then march over them ([`Fans`]), and three orderings spare the
+//! march work:
 //!
 //! - rays from one point in one plane never cross, so a steeper ray lies below a shallower one
 //!   everywhere and hits no later along the line: each ray's search starts where the last hit;
@@ -80,7 +82,7 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
             if observer.cancelled() {
                 return Err(Error::Cancelled);
             }
-            let phi = grid.phi(b as u32);
+            let course = fans.course(grid.phi(b as u32));
             let mut hits = vec![None; n_c * n_theta];
             let mut scratch = Scratch::default();
             // One row of each of the azimuth's images, copied out whole: storing every texel's
@@ -89,11 +91,7 @@ pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Resul
             let mut rows = vec![0.0; images.len() * width];
             for y in 0..h as usize {
                 for x in 0..width {
-                    let p = [
-                        (x as f64 + 0.5) / f64::from(w),
-                        (y as f64 + 0.5) / f64::from(h),
-                    ];
-                    fans.cast(p, phi, &mut hits, &mut scratch);
+                    fans.cast_from(&course, [x as u32, y as u32], &mut hits, &mut scratch);
                     for (row, hit) in rows.chunks_exact_mut(width).zip(&hits) {
                         row[x] = hit.map_or(NO_HIT, |d| d as f32);
                     }
@@ -203,35 +201,58 @@ impl<'a> Fans<'a> {
         }
     }
 
+    /// The cells of the lines from the texel centres along azimuth `phi`, as far as a march
+    /// may need them ([`Fans::cast_from`]).
+    pub fn course(&self, phi: f64) -> Course {
+        Course::new(self.relief.field.size(), [0.0; 2], phi, self.cap)
+    }
+
     /// The VDM values of every curvature's rays entering at `p` along azimuth `phi`, written
     /// to `out` by curvature, then θ (as [`cast`] gives them).
+    pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>], scratch: &mut Scratch) {
+        let (w, h) = self.relief.field.size();
+        // In grid units (texel centres at integers): the grid point at or below, wrapped
+        // into the tile, and how far past it.
+        let start = [p[0] * f64::from(w) - 0.5, p[1] * f64::from(h) - 0.5];
+        let below = start.map(f64::floor);
+        let texel = [0, 1].map(|axis| (below[axis] as i64).rem_euclid([w, h][axis].into()) as u32);
+        let fraction = [0, 1].map(|axis| start[axis] - below[axis]);
+        let course = Course::new((w, h), fraction, phi, self.cap);
+        self.cast_from(&course, texel, out, scratch);
+    }
+
+    /// The VDM values of every curvature's rays entering along `course` from the grid point
+    /// at `texel`, written to `out` by curvature, then θ.
     ///
     /// The line's cells are walked once, as far as any curvature needs them, and kept; each
     /// curvature then marches over them in turn, the flattest first. On a more convex surface
     /// a ray lies shallower all along (t(σ) falls as c grows), so it hits no earlier than on
     /// the flatter one: its march starts at the cell where that ray was settled, and its
     /// search where that ray hit.
-    pub fn cast(&self, p: [f64; 2], phi: f64, out: &mut [Option<f64>], scratch: &mut Scratch) {
+    pub fn cast_from(
+        &self,
+        course: &Course,
+        texel: [u32; 2],
+        out: &mut [Option<f64>],
+        scratch: &mut Scratch,
+    ) {
         let n = self.fans.first().map_or(0, |fan| fan.rays.len());
         debug_assert_eq!(out.len(), n * self.fans.len());
         out.fill(None);
         let Scratch {
             cells,
-            places,
             pieces,
             settled,
         } = scratch;
         settled.clear();
         settled.resize(out.len(), NEVER);
         cells.clear();
-        places.clear();
         pieces.clear();
         let mut walk = Walk {
-            line: Line::new(self.relief, p, phi),
+            course,
+            texel,
             cells,
-            places,
             pieces,
-            cap: self.cap,
         };
         for k in 0..self.fans.len() {
             self.march(k, &mut walk, out, settled);
@@ -346,10 +367,8 @@ const NEVER: usize = usize::MAX;
 /// What a march ([`Fans::cast`]) keeps, held between marches so that they allocate nothing.
 #[derive(Default)]
 pub struct Scratch {
-    /// The line's cells walked so far, where they lie, and the pieces of those looked at
-    /// closely.
+    /// The line's cells walked so far, and the pieces of those looked at closely.
     cells: Vec<Cell>,
-    places: Vec<Place>,
     pieces: Vec<Option<Piece>>,
     /// Per ray (as in [`Fans::reach`]), the cell where it was settled, or [`NEVER`].
     settled: Vec<usize>,
@@ -364,62 +383,144 @@ struct Cell {
     layer: u8,
 }
 
-/// Where a [`Cell`] lies in the tile: the cell (unwrapped), and its lower corner's texel
-/// wrapped into the tile; what its piece needs.
-struct Place {
-    cell: [i64; 2],
-    texel: [i64; 2],
+/// The cells a line crosses from `fraction` of a cell past a grid point along one azimuth:
+/// the same for every grid point, so walked once per azimuth and shared by the lines from
+/// every texel centre.
+pub struct Course {
+    /// Where the line enters and leaves each cell (σ).
+    spans: Vec<[f64; 2]>,
+    places: Vec<Place>,
+    /// The line's speed (grid units per unit of σ), and the tile's size (texels).
+    speed: [f64; 2],
+    size: [u32; 2],
 }
 
-/// The line's cells, walked on as far as a march asks for them (up to the march's cap).
+/// Where a cell of a [`Course`] lies: its lower corner, offset from the grid point the line
+/// starts from and wrapped into the tile, and the line's position within it where it enters.
+struct Place {
+    offset: [u32; 2],
+    entry: [f64; 2],
+}
+
+impl Course {
+    fn new((w, h): (u32, u32), fraction: [f64; 2], phi: f64, cap: f64) -> Course {
+        let mut line = Line::new([w, h], fraction, phi);
+        let (mut spans, mut places) = (Vec::new(), Vec::new());
+        let mut start = 0.0;
+        while start < cap {
+            let end = line.cell_exit().min(cap);
+            spans.push([start, end]);
+            places.push(Place {
+                offset: line.texel.map(|t| t as u32),
+                entry: [0, 1].map(|axis| {
+                    line.start[axis] + line.speed[axis] * start - line.cell[axis] as f64
+                }),
+            });
+            line.step(end);
+            start = end;
+        }
+        Course {
+            spans,
+            places,
+            speed: line.speed,
+            size: [w, h],
+        }
+    }
+
+    /// The relief's depth along the line across its cell `cell`, whose lower corner lies at
+    /// texel `corner`.
+    fn piece(&self, relief: Relief, cell: usize, corner: [usize; 2]) -> Piece {
+        let [from, to] = self.spans[cell];
+        let field = relief.field;
+        let [w, h] = self.size.map(|n| n as usize);
+        let [i, j] = corner;
+        let (i1, j1) = (
+            if i + 1 == w { 0 } else { i + 1 },
+            if j + 1 == h { 0 } else { j + 1 },
+        );
+        let heights = field.heights();
+        let at = |i: usize, j: usize| f64::from(heights[j * w + i]);
+        let (h00, h10, h01, h11) = (at(i, j), at(i1, j), at(i, j1), at(i1, j1));
+        // Position within the cell at `from`, and its rate per unit of σ.
+        let [x0, y0] = self.places[cell].entry;
+        let [ex, ey] = self.speed;
+        let (bx, by, k) = (h10 - h00, h01 - h00, h11 - h10 - h01 + h00);
+        let height = [
+            h00 + bx * x0 + by * y0 + k * x0 * y0,
+            bx * ex + by * ey + k * (x0 * ey + y0 * ex),
+            k * ex * ey,
+        ];
+        let depth = relief.depth;
+        let d = [
+            depth * (1.0 - height[0]),
+            -depth * height[1],
+            -depth * height[2],
+        ];
+        let shallowest = least_on(d[0], d[1], d[2], to - from).1;
+        Piece {
+            from,
+            to,
+            d,
+            shallowest,
+            layer: layer(shallowest / depth),
+        }
+    }
+}
+
+/// The cells of one texel's line along a [`Course`], walked on as far as a march asks for
+/// them.
 struct Walk<'s> {
-    line: Line,
+    course: &'s Course,
+    /// The grid point the line starts from.
+    texel: [u32; 2],
     cells: &'s mut Vec<Cell>,
-    places: &'s mut Vec<Place>,
     pieces: &'s mut Vec<Option<Piece>>,
-    cap: f64,
 }
 
 impl Walk<'_> {
     /// Cells walked at a time.
     const STRIDE: usize = 8;
 
-    /// Walks [`Walk::STRIDE`] cells further, or fewer where the line reaches the cap;
-    /// `false` if it had already.
+    /// Walks [`Walk::STRIDE`] cells further, or fewer where the course ends; `false` if it
+    /// had already.
     fn extend(&mut self, layers: &Layers) -> bool {
         let walked = self.cells.len();
-        for _ in 0..Self::STRIDE {
-            let start = self.cells.last().map_or(0.0, |cell| cell.end);
-            if start >= self.cap {
-                break;
-            }
-            if !self.cells.is_empty() {
-                self.line.step(start);
-            }
-            let line = &self.line;
+        let course = self.course;
+        let to = (walked + Self::STRIDE).min(course.spans.len());
+        for (&[start, end], place) in course.spans[walked..to]
+            .iter()
+            .zip(&course.places[walked..])
+        {
             self.cells.push(Cell {
                 start,
-                end: line.cell_exit().min(self.cap),
-                layer: layers.of(line.texel),
-            });
-            self.places.push(Place {
-                cell: line.cell,
-                texel: line.texel,
+                end,
+                layer: layers.of(self.corner(place)),
             });
             self.pieces.push(None);
         }
-        self.cells.len() > walked
+        to > walked
+    }
+
+    /// The texel at the lower corner of the cell at `place`.
+    fn corner(&self, place: &Place) -> [usize; 2] {
+        [0, 1].map(|axis| {
+            let (texel, size) = (
+                self.texel[axis] + place.offset[axis],
+                self.course.size[axis],
+            );
+            (if texel >= size { texel - size } else { texel }) as usize
+        })
     }
 
     /// The relief's depth along the line in cell `i` (walked already).
     fn piece(&mut self, relief: Relief, i: usize) -> &Piece {
-        let (line, cell, place) = (&self.line, &self.cells[i], &self.places[i]);
-        self.pieces[i].get_or_insert_with(|| line.piece(relief, cell, place))
+        let (course, corner) = (self.course, self.corner(&self.course.places[i]));
+        self.pieces[i].get_or_insert_with(|| course.piece(relief, i, corner))
     }
 }
 
 /// The depths of the flat cells (four equal corners) of `relief` that are most common (up
-/// to four), as [`Line::piece`] computes them.
+/// to four), as [`Course::piece`] computes them.
 fn plateaus(relief: Relief) -> Vec<f64> {
     let mut counts: Vec<(f32, usize)> = Vec::new();
     for [corner, rest @ ..] in cell_corners(relief.field) {
@@ -455,7 +556,7 @@ fn cell_corners(field: &HeightField) -> impl Iterator<Item = [f32; 4]> + '_ {
 /// Per bilinear cell, the depth layer of its highest corner: the last layer whose top lies at
 /// or above it.
 struct Layers {
-    width: i64,
+    width: usize,
     layers: Vec<u8>,
 }
 
@@ -468,14 +569,14 @@ impl Layers {
             })
             .collect();
         Layers {
-            width: i64::from(field.size().0),
+            width: field.size().0 as usize,
             layers,
         }
     }
 
     /// The layer of the cell whose lower corner is `texel`.
-    fn of(&self, texel: [i64; 2]) -> u8 {
-        self.layers[(texel[1] * self.width + texel[0]) as usize]
+    fn of(&self, texel: [usize; 2]) -> u8 {
+        self.layers[texel[1] * self.width + texel[0]]
     }
 }
 
@@ -495,10 +596,9 @@ struct Line {
 }
 
 impl Line {
-    fn new(relief: Relief, p: [f64; 2], phi: f64) -> Line {
-        let (w, h) = relief.field.size();
+    /// The line from `start` (grid units) along azimuth `phi` in a tile of `size` texels.
+    fn new([w, h]: [u32; 2], start: [f64; 2], phi: f64) -> Line {
         let (sin_phi, cos_phi) = phi.sin_cos();
-        let start = [p[0] * f64::from(w) - 0.5, p[1] * f64::from(h) - 0.5];
         let speed = [cos_phi * f64::from(w), sin_phi * f64::from(h)];
         let size = [i64::from(w), i64::from(h)];
         let mut line = Line {
@@ -577,46 +677,6 @@ impl Line {
                 }
                 self.exits[axis] = self.exit(axis);
             }
-        }
-    }
-
-    /// The relief's depth along the line across `cell`.
-    fn piece(&self, relief: Relief, cell: &Cell, place: &Place) -> Piece {
-        let (from, to) = (cell.start, cell.end);
-        let field = relief.field;
-        let (w, h) = field.size();
-        let (w, h) = (w as usize, h as usize);
-        let [i, j] = place.texel.map(|t| t as usize);
-        let (i1, j1) = (
-            if i + 1 == w { 0 } else { i + 1 },
-            if j + 1 == h { 0 } else { j + 1 },
-        );
-        let heights = field.heights();
-        let at = |i: usize, j: usize| f64::from(heights[j * w + i]);
-        let (h00, h10, h01, h11) = (at(i, j), at(i1, j), at(i, j1), at(i1, j1));
-        // Position within the cell at `from`, and its rate per unit of σ.
-        let x0 = self.start[0] + self.speed[0] * from - place.cell[0] as f64;
-        let y0 = self.start[1] + self.speed[1] * from - place.cell[1] as f64;
-        let [ex, ey] = self.speed;
-        let (bx, by, k) = (h10 - h00, h01 - h00, h11 - h10 - h01 + h00);
-        let height = [
-            h00 + bx * x0 + by * y0 + k * x0 * y0,
-            bx * ex + by * ey + k * (x0 * ey + y0 * ex),
-            k * ex * ey,
-        ];
-        let depth = relief.depth;
-        let d = [
-            depth * (1.0 - height[0]),
-            -depth * height[1],
-            -depth * height[2],
-        ];
-        let shallowest = least_on(d[0], d[1], d[2], to - from).1;
-        Piece {
-            from,
-            to,
-            d,
-            shallowest,
-            layer: layer(shallowest / depth),
         }
     }
 }

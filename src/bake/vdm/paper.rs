@@ -46,7 +46,7 @@ pub fn bake(
             if observer.cancelled() {
                 return Err(Error::Cancelled);
             }
-            let phi = grid.phi(b);
+            let course = flat_fan.course(grid.phi(b));
             let mut flat = vec![None; thetas.len()];
             let mut scratch = Scratch::default();
             let (mut hits, mut seen) = (Vec::new(), Vec::new());
@@ -54,11 +54,8 @@ pub fn bake(
             // [k][a][texel] for this azimuth.
             let mut out = vec![NO_HIT; n_c * n_theta * texels];
             for texel in 0..texels {
-                let p = [
-                    (f64::from(texel as u32 % w) + 0.5) / f64::from(w),
-                    (f64::from(texel as u32 / w) + 0.5) / f64::from(h),
-                ];
-                flat_fan.cast(p, phi, &mut flat, &mut scratch);
+                let texel_at = [texel as u32 % w, texel as u32 / w];
+                flat_fan.cast_from(&course, texel_at, &mut flat, &mut scratch);
                 hits.clear();
                 hits.extend(
                     (sin_cos.iter().zip(&flat))
