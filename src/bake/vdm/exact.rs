@@ -299,7 +299,7 @@ impl<'a> Fans<'a> {
                 None => 0.0,
             };
             // The search starts no earlier than this.
-            let floor = if beyond > previous { beyond } else { previous };
+            let floor = later(beyond, previous);
             let reach = &self.reach[ray_index];
             let ray = &fan.rays[a];
             loop {
@@ -307,7 +307,8 @@ impl<'a> Fans<'a> {
                 // corner's layer after leaving them, or climbs back above it before entering),
                 // or where its search would start beyond them, to the first it may hit in.
                 let Some(skip) = walk.cells[i..].iter().position(|cell| {
-                    let (from, reached) = (cell.start.max(floor), reach[usize::from(cell.layer)]);
+                    let (from, reached) =
+                        (later(cell.start, floor), reach[usize::from(cell.layer)]);
                     cell.start >= ray.end
                         || (cell.end >= reached && from <= ray.mirror - reached && from < cell.end)
                 }) else {
@@ -320,7 +321,7 @@ impl<'a> Fans<'a> {
                 };
                 i += skip;
                 let cell = &walk.cells[i];
-                let (start, from, end) = (cell.start, cell.start.max(floor), cell.end);
+                let (start, from, end) = (cell.start, later(cell.start, floor), cell.end);
                 if from >= ray.end {
                     // It left the relief, and so does every shallower ray.
                     settled[a..].fill(i);
@@ -328,9 +329,7 @@ impl<'a> Fans<'a> {
                 }
                 // The cell needs a closer look: its piece.
                 let piece = walk.piece(self.relief, i);
-                // Just short of a concave surface's asymptote the ray lies below every
-                // relief.
-                let to = end.min(ray.end).min(ray.asymptote * (1.0 - 1e-12));
+                let to = if end < ray.last { end } else { ray.last };
                 let hit = if let Some(depth) = piece.constant() {
                     ray.first_at_depth(self.reach_of(fan, a, depth), from, to)
                 } else if to < reach[usize::from(piece.layer)]
@@ -359,6 +358,12 @@ impl<'a> Fans<'a> {
             }
         }
     }
+}
+
+/// The later of two σ (never NaN), without `f64::max`'s care for NaN, in the march's inner
+/// loops.
+fn later(a: f64, b: f64) -> f64 {
+    if a > b { a } else { b }
 }
 
 /// The cell index of a ray never settled.
@@ -427,13 +432,23 @@ impl Course {
         }
     }
 
-    /// The relief's depth along the line across its cell `cell`, whose lower corner lies at
-    /// texel `corner`.
-    fn piece(&self, relief: Relief, cell: usize, corner: [usize; 2]) -> Piece {
+    /// The texel at the lower corner of cell `cell` of the line from the grid point at
+    /// `texel`.
+    fn corner(&self, texel: [u32; 2], cell: usize) -> [usize; 2] {
+        let offset = self.places[cell].offset;
+        [0, 1].map(|axis| {
+            let (texel, size) = (texel[axis] + offset[axis], self.size[axis]);
+            (if texel >= size { texel - size } else { texel }) as usize
+        })
+    }
+
+    /// The relief's depth along the line from the grid point at `texel` across its cell
+    /// `cell`.
+    fn piece(&self, relief: Relief, texel: [u32; 2], cell: usize) -> Piece {
         let [from, to] = self.spans[cell];
         let field = relief.field;
         let [w, h] = self.size.map(|n| n as usize);
-        let [i, j] = corner;
+        let [i, j] = self.corner(texel, cell);
         let (i1, j1) = (
             if i + 1 == w { 0 } else { i + 1 },
             if j + 1 == h { 0 } else { j + 1 },
@@ -487,35 +502,21 @@ impl Walk<'_> {
         let walked = self.cells.len();
         let course = self.course;
         let to = (walked + Self::STRIDE).min(course.spans.len());
-        for (&[start, end], place) in course.spans[walked..to]
-            .iter()
-            .zip(&course.places[walked..])
-        {
+        for (i, &[start, end]) in course.spans.iter().enumerate().take(to).skip(walked) {
             self.cells.push(Cell {
                 start,
                 end,
-                layer: layers.of(self.corner(place)),
+                layer: layers.of(course.corner(self.texel, i)),
             });
             self.pieces.push(None);
         }
         to > walked
     }
 
-    /// The texel at the lower corner of the cell at `place`.
-    fn corner(&self, place: &Place) -> [usize; 2] {
-        [0, 1].map(|axis| {
-            let (texel, size) = (
-                self.texel[axis] + place.offset[axis],
-                self.course.size[axis],
-            );
-            (if texel >= size { texel - size } else { texel }) as usize
-        })
-    }
-
     /// The relief's depth along the line in cell `i` (walked already).
     fn piece(&mut self, relief: Relief, i: usize) -> &Piece {
-        let (course, corner) = (self.course, self.corner(&self.course.places[i]));
-        self.pieces[i].get_or_insert_with(|| course.piece(relief, i, corner))
+        let (course, texel) = (self.course, self.texel);
+        self.pieces[i].get_or_insert_with(|| course.piece(relief, texel, i))
     }
 }
 
@@ -740,9 +741,10 @@ struct BentRay {
     r: f64,
     /// Where it climbs back through the reference surface (convex), else infinity.
     end: f64,
-    /// Where it lies infinitely deep (concave: R·θ, the arc its line never passes), else
-    /// infinity.
-    asymptote: f64,
+    /// Where a search for its hit ends: where it climbs out (convex), or just short of
+    /// where it lies infinitely deep (concave: R·θ, the arc its line never passes), below
+    /// every relief.
+    last: f64,
     /// Where it lies deepest (convex), else infinity; its depth there.
     deepest: (f64, f64),
     /// Twice that σ (convex), else infinity: the ray lies symmetrically about its deepest
@@ -772,7 +774,7 @@ impl BentRay {
             c,
             r,
             end,
-            asymptote,
+            last: end.min(asymptote * (1.0 - 1e-12)),
             deepest,
             mirror: 2.0 * deepest.0,
         }
