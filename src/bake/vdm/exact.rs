@@ -408,6 +408,8 @@ struct Place {
 }
 
 impl Course {
+    /// The cells of a tile of `w` × `h` texels crossed by the line from `fraction` (grid
+    /// units) past a grid point along azimuth `phi`, up to σ = `cap`.
     fn new((w, h): (u32, u32), fraction: [f64; 2], phi: f64, cap: f64) -> Course {
         let mut line = Line::new([w, h], fraction, phi);
         let (mut spans, mut places) = (Vec::new(), Vec::new());
