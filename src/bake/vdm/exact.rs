@@ -204,7 +204,14 @@ impl<'a> Fans<'a> {
     /// The cells of the lines from the texel centres along azimuth `phi`, as far as a march
     /// may need them ([`Fans::cast_from`]).
     pub fn course(&self, phi: f64) -> Course {
-        Course::new(self.relief.field.size(), [0.0; 2], phi, self.cap)
+        self.course_from([0.0; 2], phi)
+    }
+
+    /// The same from `fraction` of a cell past any grid point (grid units).
+    fn course_from(&self, fraction: [f64; 2], phi: f64) -> Course {
+        let curvatures: Vec<f64> = self.fans.iter().map(|fan| fan.c).collect();
+        let size = self.relief.field.size();
+        Course::new(size, fraction, phi, self.cap, &curvatures)
     }
 
     /// The VDM values of every curvature's rays entering at `p` along azimuth `phi`, written
@@ -217,7 +224,7 @@ impl<'a> Fans<'a> {
         let below = start.map(f64::floor);
         let texel = [0, 1].map(|axis| (below[axis] as i64).rem_euclid([w, h][axis].into()) as u32);
         let fraction = [0, 1].map(|axis| start[axis] - below[axis]);
-        let course = Course::new((w, h), fraction, phi, self.cap);
+        let course = self.course_from(fraction, phi);
         self.cast_from(&course, texel, out, scratch);
     }
 
@@ -278,6 +285,7 @@ impl<'a> Fans<'a> {
             .checked_sub(1)
             .map(|f| (&out_before[f * n..], &settled_before[f * n..]));
         let (out, settled) = (&mut out[..n], &mut settled[..n]);
+        let course = walk.course;
         // The cell the march is in; the sines at the start of the last cell searched in, and
         // at the last hit in it.
         let mut i = 0;
@@ -321,7 +329,7 @@ impl<'a> Fans<'a> {
                 };
                 i += skip;
                 let cell = &walk.cells[i];
-                let (start, from, end) = (cell.start, later(cell.start, floor), cell.end);
+                let (from, end) = (later(cell.start, floor), cell.end);
                 if from >= ray.end {
                     // It left the relief, and so does every shallower ray.
                     settled[a..].fill(i);
@@ -339,7 +347,7 @@ impl<'a> Fans<'a> {
                 } else {
                     // The sines at the cell's start, where the search first needs them.
                     if looked != i {
-                        bent = bent.advanced(c, start);
+                        bent = course.bent(k, i);
                         (looked, last) = (i, bent);
                     }
                     first_crossing(piece, bent, ray, last.advanced(c, from), to).map(|at| {
@@ -395,6 +403,9 @@ pub struct Course {
     /// Where the line enters and leaves each cell (σ).
     spans: Vec<[f64; 2]>,
     places: Vec<Place>,
+    /// sin and cos of σ·c where the line enters each cell, on each of the fans' curvatures
+    /// (curvature k's at k·cells + i): where a search starts from.
+    sines: Vec<[f64; 2]>,
     /// The line's speed (grid units per unit of σ), and the tile's size (texels).
     speed: [f64; 2],
     size: [u32; 2],
@@ -409,8 +420,15 @@ struct Place {
 
 impl Course {
     /// The cells of a tile of `w` × `h` texels crossed by the line from `fraction` (grid
-    /// units) past a grid point along azimuth `phi`, up to σ = `cap`.
-    fn new((w, h): (u32, u32), fraction: [f64; 2], phi: f64, cap: f64) -> Course {
+    /// units) past a grid point along azimuth `phi`, up to σ = `cap`, with the sines on each
+    /// of `curvatures`.
+    fn new(
+        (w, h): (u32, u32),
+        fraction: [f64; 2],
+        phi: f64,
+        cap: f64,
+        curvatures: &[f64],
+    ) -> Course {
         let mut line = Line::new([w, h], fraction, phi);
         let (mut spans, mut places) = (Vec::new(), Vec::new());
         let mut start = 0.0;
@@ -426,11 +444,31 @@ impl Course {
             line.step(end);
             start = end;
         }
+        let sines = curvatures
+            .iter()
+            .flat_map(|&c| {
+                spans.iter().map(move |&[start, _]| {
+                    let Bent { sin, cos, .. } = Bent::at(c, start);
+                    [sin, cos]
+                })
+            })
+            .collect();
         Course {
             spans,
             places,
+            sines,
             speed: line.speed,
             size: [w, h],
+        }
+    }
+
+    /// The sines of σ·c where the line enters cell `cell`, on curvature `k`.
+    fn bent(&self, k: usize, cell: usize) -> Bent {
+        let [sin, cos] = self.sines[k * self.spans.len() + cell];
+        Bent {
+            sigma: self.spans[cell][0],
+            sin,
+            cos,
         }
     }
 
@@ -709,7 +747,7 @@ impl Bent {
 
     /// The same at `sigma`, near this σ: within 1/16 radian by the angle-sum formulas and
     /// Taylor series of the difference (exact to rounding there), else [`Bent::at`]. Saves
-    /// the march a sine per cell and per Newton step.
+    /// the search a sine per step.
     fn advanced(self, c: f64, sigma: f64) -> Bent {
         if c == 0.0 || sigma == self.sigma {
             return Bent { sigma, ..self };
