@@ -377,7 +377,7 @@ fn later(a: f64, b: f64) -> f64 {
 /// The cell index of a ray never settled.
 const NEVER: usize = usize::MAX;
 
-/// What a march ([`Fans::cast`]) keeps, held between marches so that they allocate nothing.
+/// What a march ([`Fans::cast_from`]) keeps, held between marches so that they allocate nothing.
 #[derive(Default)]
 pub struct Scratch {
     /// The line's cells walked so far, and the pieces of those looked at closely.
@@ -387,7 +387,8 @@ pub struct Scratch {
     settled: Vec<usize>,
 }
 
-/// One bilinear cell along the line: what a ray's march checks at every cell.
+/// One bilinear cell along the line: what a ray's march checks at every cell (its span
+/// copied from the [`Course`] beside the line's own layer, so that the scan reads one array).
 struct Cell {
     /// Where the line enters and leaves it (σ).
     start: f64,
@@ -402,6 +403,7 @@ struct Cell {
 pub struct Course {
     /// Where the line enters and leaves each cell (σ).
     spans: Vec<[f64; 2]>,
+    /// Where each cell lies.
     places: Vec<Place>,
     /// sin and cos of σ·c where the line enters each cell, on each of the fans' curvatures
     /// (curvature k's at k·cells + i): where a search starts from.
