@@ -15,12 +15,17 @@ pub struct Bend {
 impl Bend {
     /// The 2D point of relief coordinates (σ, t).
     pub fn to_plane(self, sigma: f64, t: f64) -> [f64; 2] {
+        let (sin, cos) = (sigma * self.c).sin_cos();
+        self.to_plane_turned(sigma, t, [sin, cos])
+    }
+
+    /// The same, given sin and cos of σ·c.
+    pub fn to_plane_turned(self, sigma: f64, t: f64, [sin, cos]: [f64; 2]) -> [f64; 2] {
         if self.c == 0.0 {
             return [sigma, -t];
         }
         let r = 1.0 / self.c;
-        let (s, c) = (sigma / r).sin_cos();
-        [(r - t) * s, -r + (r - t) * c]
+        [(r - t) * sin, -r + (r - t) * cos]
     }
 
     /// The relief coordinates (σ, t) of 2D point `q` (the inverse of [`Bend::to_plane`] for

@@ -39,71 +39,37 @@
 //! shallower ray of its fan.
 
 use super::bend::Bend;
-use super::{NO_HIT, Relief, VdmGrid};
+use super::{NO_HIT, Relief, VdmGrid, bake_by_azimuth};
 use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::mesostructure::height_field::HeightField;
-use rayon::prelude::*;
 use std::f64::consts::PI;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Largest error of a hit's arc length σ along the reference surface (tile units).
 pub const TOLERANCE: f64 = 1e-7;
 
-/// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, each writing its own
-/// images of the VDM, and at each texel every curvature over one walk of the line's cells
-/// ([`Fans::cast`]).
+/// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, and at each texel
+/// every curvature over one walk of the line's cells ([`Fans::cast_from`]).
 pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Result<Vec<f32>> {
-    let (w, h) = relief.field.size();
-    let texels = (w * h) as usize;
-    let (n_theta, n_phi, n_c) = (
-        grid.n_theta as usize,
-        grid.n_phi as usize,
-        grid.n_curvature as usize,
-    );
     let thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
     let curvatures: Vec<f64> = (0..grid.n_curvature).map(|k| grid.curvature(k)).collect();
     let fans = Fans::new(relief, &thetas, &curvatures);
-    let done = AtomicU64::new(0);
-    // Zeroed, which the allocator leaves to the system's untouched pages: every value is
-    // written by its azimuth's task, in parallel.
-    let mut values = vec![0.0; n_c * n_theta * n_phi * texels];
-    // Image (k·Nθ + a)·Nφ + b belongs to azimuth b; each azimuth's by curvature, then θ.
-    let mut images: Vec<Vec<&mut [f32]>> = (0..n_phi)
-        .map(|_| Vec::with_capacity(n_c * n_theta))
-        .collect();
-    for (i, image) in values.chunks_exact_mut(texels).enumerate() {
-        images[i % n_phi].push(image);
-    }
-    images
-        .into_par_iter()
-        .enumerate()
-        .try_for_each(|(b, mut images)| {
-            if observer.cancelled() {
-                return Err(Error::Cancelled);
+    let per_texel = thetas.len() * curvatures.len();
+    bake_by_azimuth(
+        relief.field.size(),
+        grid,
+        observer,
+        |b| {
+            let course = fans.course(grid.phi(b));
+            (course, vec![None; per_texel], Scratch::default())
+        },
+        |(course, hits, scratch), texel, out| {
+            fans.cast_from(course, texel, hits, scratch);
+            for (value, hit) in out.iter_mut().zip(hits.iter()) {
+                *value = hit.map_or(NO_HIT, |d| d as f32);
             }
-            let course = fans.course(grid.phi(b as u32));
-            let mut hits = vec![None; n_c * n_theta];
-            let mut scratch = Scratch::default();
-            // One row of each of the azimuth's images, copied out whole: storing every texel's
-            // values straight to images an image apart stalls on the scattered stores.
-            let width = w as usize;
-            let mut rows = vec![0.0; images.len() * width];
-            for y in 0..h as usize {
-                for x in 0..width {
-                    fans.cast_from(&course, [x as u32, y as u32], &mut hits, &mut scratch);
-                    for (row, hit) in rows.chunks_exact_mut(width).zip(&hits) {
-                        row[x] = hit.map_or(NO_HIT, |d| d as f32);
-                    }
-                }
-                for (image, row) in images.iter_mut().zip(rows.chunks_exact(width)) {
-                    image[y * width..][..width].copy_from_slice(row);
-                }
-            }
-            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
-            Ok(())
-        })?;
-    Ok(values)
+        },
+    )
 }
 
 /// The VDM value of the ray entering at texture point `p` at angles (θ, φ) on the relief

@@ -33,6 +33,8 @@ use crate::bake::gdm::BakeObserver;
 use crate::error::{Error, Result};
 use crate::mesostructure::height_field::HeightField;
 use crate::util::limits::Limits;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The value of a sample whose ray meets no mesostructure.
 pub const NO_HIT: f32 = -1.0;
@@ -148,4 +150,57 @@ pub fn bake(
         depth: relief.depth,
         values,
     })
+}
+
+/// Bakes a VDM of `size` texels on `grid` azimuth by azimuth, in parallel: `prepare(b)` makes
+/// what azimuth b's texels share, and `texel(shared, [x, y], out)` writes one texel's values
+/// on that azimuth to `out`, by curvature, then θ. Each azimuth writes its own images of the
+/// result, a row at a time (storing every texel's values straight to images an image apart
+/// stalls on the scattered stores).
+fn bake_by_azimuth<S>(
+    (w, h): (u32, u32),
+    grid: VdmGrid,
+    observer: &dyn BakeObserver,
+    prepare: impl Fn(u32) -> S + Sync,
+    texel: impl Fn(&mut S, [u32; 2], &mut [f32]) + Sync,
+) -> Result<Vec<f32>> {
+    let (width, texels) = (w as usize, (w * h) as usize);
+    let n_phi = grid.n_phi as usize;
+    let per_texel = grid.n_curvature as usize * grid.n_theta as usize;
+    let done = AtomicU64::new(0);
+    // Zeroed, which the allocator leaves to the system's untouched pages: every value is
+    // written by its azimuth's task.
+    let mut values = vec![0.0; per_texel * n_phi * texels];
+    // Image (k·Nθ + a)·Nφ + b belongs to azimuth b; each azimuth's by curvature, then θ.
+    let mut images: Vec<Vec<&mut [f32]>> =
+        (0..n_phi).map(|_| Vec::with_capacity(per_texel)).collect();
+    for (i, image) in values.chunks_exact_mut(texels).enumerate() {
+        images[i % n_phi].push(image);
+    }
+    images
+        .into_par_iter()
+        .enumerate()
+        .try_for_each(|(b, mut images)| {
+            if observer.cancelled() {
+                return Err(Error::Cancelled);
+            }
+            let mut shared = prepare(b as u32);
+            let mut column = vec![0.0; per_texel];
+            let mut rows = vec![0.0; per_texel * width];
+            for y in 0..h {
+                for x in 0..w {
+                    texel(&mut shared, [x, y], &mut column);
+                    for (row, &value) in rows.chunks_exact_mut(width).zip(&column) {
+                        row[x as usize] = value;
+                    }
+                }
+                let y = y as usize;
+                for (image, row) in images.iter_mut().zip(rows.chunks_exact(width)) {
+                    image[y * width..][..width].copy_from_slice(row);
+                }
+            }
+            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
+            Ok(())
+        })?;
+    Ok(values)
 }

@@ -9,12 +9,10 @@
 
 use super::bend::Bend;
 use super::exact::{Fans, Scratch};
-use super::{NO_HIT, Relief, VdmGrid};
+use super::{NO_HIT, Relief, VdmGrid, bake_by_azimuth};
 use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
-use rayon::prelude::*;
+use crate::error::Result;
 use std::f64::consts::FRAC_PI_2;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Bakes in parallel over azimuths, casting `oversampling` flat rays per θ bin (1 is the
 /// paper's: one per bin, at the bins' angles).
@@ -24,88 +22,109 @@ pub fn bake(
     oversampling: u32,
     observer: &dyn BakeObserver,
 ) -> Result<Vec<f32>> {
-    let (w, h) = relief.field.size();
-    let texels = (w * h) as usize;
-    let (n_theta, n_phi, n_c) = (
-        grid.n_theta as usize,
-        grid.n_phi as usize,
-        grid.n_curvature as usize,
-    );
     let casts = grid.n_theta * oversampling;
     let thetas: Vec<f64> = (0..casts)
         .map(|m| (f64::from(m) + 0.5) * FRAC_PI_2 / f64::from(casts))
         .collect();
     let flat_fan = Fans::new(relief, &thetas, &[0.0]);
     let sin_cos: Vec<(f64, f64)> = thetas.iter().map(|theta| theta.sin_cos()).collect();
-    let grid_thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
-    let curvatures: Vec<f64> = (0..grid.n_curvature).map(|k| grid.curvature(k)).collect();
-    let done = AtomicU64::new(0);
-    let per_phi: Vec<Vec<f32>> = (0..grid.n_phi)
-        .into_par_iter()
-        .map(|b| {
-            if observer.cancelled() {
-                return Err(Error::Cancelled);
-            }
+    bake_by_azimuth(
+        relief.field.size(),
+        grid,
+        observer,
+        |b| {
             let course = flat_fan.course(grid.phi(b));
-            let mut flat = vec![None; thetas.len()];
-            let mut scratch = Scratch::default();
-            let (mut hits, mut seen) = (Vec::new(), Vec::new());
-            let mut column = vec![NO_HIT; n_theta];
-            // [k][a][texel] for this azimuth.
-            let mut out = vec![NO_HIT; n_c * n_theta * texels];
-            for texel in 0..texels {
-                let texel_at = [texel as u32 % w, texel as u32 / w];
-                flat_fan.cast_from(&course, texel_at, &mut flat, &mut scratch);
-                hits.clear();
-                hits.extend(
-                    (sin_cos.iter().zip(&flat))
-                        .filter_map(|(&(sin, cos), &d)| Some((d? * sin, d? * cos))),
-                );
-                for (k, &c) in curvatures.iter().enumerate() {
-                    resample(&hits, &grid_thetas, Bend { c }, &mut seen, &mut column);
-                    for (a, &v) in column.iter().enumerate() {
-                        out[(k * n_theta + a) * texels + texel] = v;
-                    }
-                }
-            }
-            observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, n_phi as u64);
-            Ok(out)
-        })
-        .collect::<Result<_>>()?;
-    let mut values = vec![NO_HIT; n_c * n_theta * n_phi * texels];
-    for (b, block) in per_phi.iter().enumerate() {
-        for (ka, image) in block.chunks_exact(texels).enumerate() {
-            let (k, a) = (ka / n_theta, ka % n_theta);
-            values[((k * n_theta + a) * n_phi + b) * texels..][..texels].copy_from_slice(image);
-        }
-    }
-    Ok(values)
+            let flat = vec![None; thetas.len()];
+            (course, flat, Scratch::default(), Resampling::new(grid))
+        },
+        |(course, flat, scratch, resampling), texel, out| {
+            flat_fan.cast_from(course, texel, flat, scratch);
+            resampling.hits.clear();
+            resampling.hits.extend(
+                (sin_cos.iter().zip(flat.iter()))
+                    .filter_map(|(&(sin, cos), &d)| Some((d? * sin, d? * cos))),
+            );
+            resampling.resample(out);
+        },
+    )
 }
 
-/// The VDM column over the grid's θ (`thetas`) for one curvature, from the flat hits (σ, t)
-/// in θ order, written to `column`; `seen` is scratch space.
-pub fn resample(
-    hits: &[(f64, f64)],
-    thetas: &[f64],
-    bend: Bend,
-    seen: &mut Vec<(f64, f64)>,
-    column: &mut [f32],
-) {
-    // (θ′, l / sin θ′) of the hits still seen in order after bending.
-    seen.clear();
-    for &(sigma, t) in hits {
-        let q = bend.to_plane(sigma, t);
-        let theta = q[0].atan2(-q[1]);
-        // sin θ′ = q_u / |q|.
-        let d = if sigma == 0.0 {
-            t
-        } else {
-            sigma * (q[0] * q[0] + q[1] * q[1]).sqrt() / q[0]
-        };
-        if seen.last().is_none_or(|&(last, _)| theta > last) {
-            seen.push((theta, d));
+/// The paper's resampling of one texel's flat hits over the θ of a grid, on each of its
+/// curvatures, with the scratch space it reuses from texel to texel.
+struct Resampling {
+    thetas: Vec<f64>,
+    curvatures: Vec<f64>,
+    /// The flat hits (σ, t), in θ order: what [`Resampling::resample`] bends.
+    hits: Vec<(f64, f64)>,
+    /// Per hit, sin and cos of σ·c on the curvature being resampled, and of σ times the step
+    /// to the next: the grid's curvatures are evenly spaced, so each hit's sines are turned
+    /// from one curvature to the next by the angle-sum formulas instead of a `sin_cos` each.
+    turns: Vec<([f64; 2], [f64; 2])>,
+    /// (θ′, l / sin θ′) of the hits still seen in order after bending.
+    seen: Vec<(f64, f64)>,
+}
+
+impl Resampling {
+    /// The resampling onto `grid`'s θ and curvatures.
+    fn new(grid: VdmGrid) -> Resampling {
+        Resampling {
+            thetas: (0..grid.n_theta).map(|a| grid.theta(a)).collect(),
+            curvatures: (0..grid.n_curvature).map(|k| grid.curvature(k)).collect(),
+            hits: Vec::new(),
+            turns: Vec::new(),
+            seen: Vec::new(),
         }
     }
+
+    /// The VDM values of [`Resampling::hits`] on every curvature, written to `out` by
+    /// curvature, then θ.
+    fn resample(&mut self, out: &mut [f32]) {
+        let (first, step) = match self.curvatures[..] {
+            [first, second, ..] => (first, second - first),
+            [first] => (first, 0.0),
+            [] => return,
+        };
+        self.turns.clear();
+        self.turns.extend(self.hits.iter().map(|&(sigma, _)| {
+            let (sin, cos) = (sigma * first).sin_cos();
+            let (sin_step, cos_step) = (sigma * step).sin_cos();
+            ([sin, cos], [sin_step, cos_step])
+        }));
+        for (&c, column) in self
+            .curvatures
+            .iter()
+            .zip(out.chunks_exact_mut(self.thetas.len()))
+        {
+            let bend = Bend { c };
+            self.seen.clear();
+            for (&(sigma, t), (turn, by)) in self.hits.iter().zip(&mut self.turns) {
+                let q = bend.to_plane_turned(sigma, t, *turn);
+                *turn = [
+                    turn[0].mul_add(by[1], turn[1] * by[0]),
+                    turn[1].mul_add(by[1], -(turn[0] * by[0])),
+                ];
+                // The `libm` crate's atan2 (inlined) bakes 1.2× as fast as the system's, with
+                // the same values on the built-in reliefs.
+                let theta = libm::atan2(q[0], -q[1]);
+                // sin θ′ = q_u / |q|.
+                let d = if sigma == 0.0 {
+                    t
+                } else {
+                    sigma * (q[0] * q[0] + q[1] * q[1]).sqrt() / q[0]
+                };
+                if self.seen.last().is_none_or(|&(last, _)| theta > last) {
+                    self.seen.push((theta, d));
+                }
+            }
+            column_of(&self.seen, &self.thetas, c, column);
+        }
+    }
+}
+
+/// The VDM column over `thetas` on curvature `c` from the bent hits `seen` (θ′, value) in
+/// ascending θ′: interpolated linearly between them; below the first θ′ the first value, and
+/// beyond the last [`NO_HIT`] on a convex surface, else the last value.
+fn column_of(seen: &[(f64, f64)], thetas: &[f64], c: f64, column: &mut [f32]) {
     let (Some(&(first_theta, first)), Some(&(last_theta, last))) = (seen.first(), seen.last())
     else {
         column.fill(NO_HIT);
@@ -115,11 +134,91 @@ pub fn resample(
         *value = if theta <= first_theta {
             first as f32
         } else if theta > last_theta {
-            if bend.c > 0.0 { NO_HIT } else { last as f32 }
+            if c > 0.0 { NO_HIT } else { last as f32 }
         } else {
             let q = seen.partition_point(|&(th, _)| th < theta);
             let ((t0, d0), (t1, d1)) = (seen[q - 1], seen[q]);
             (d0 + (d1 - d0) * (theta - t0) / (t1 - t0)) as f32
         };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The resampling (sines turned from curvature to curvature, `libm`'s atan2) gives the
+    /// values of a plain one (a `sin_cos` and the system's atan2 per hit and curvature, a
+    /// linear search for each θ) to f32 rounding, on 1024 curvatures (the most turns a
+    /// grid allows) and hits of a flat and of a rough relief (measured: bit-identical).
+    #[test]
+    fn turned_sines_resample_as_a_sine_per_curvature_does() {
+        let grid = VdmGrid {
+            n_theta: 8,
+            n_phi: 1,
+            n_curvature: 1024,
+            c_min: -3.9,
+            c_max: 3.9,
+        };
+        let depth = 0.25;
+        let thetas: Vec<f64> = (0..8).map(|a| grid.theta(a)).collect();
+        let plain = |hits: &[(f64, f64)], c: f64| -> Vec<f32> {
+            let mut seen: Vec<(f64, f64)> = Vec::new();
+            for &(sigma, t) in hits {
+                let q = Bend { c }.to_plane(sigma, t);
+                let theta = q[0].atan2(-q[1]);
+                let d = if sigma == 0.0 {
+                    t
+                } else {
+                    sigma * q[0].hypot(q[1]) / q[0]
+                };
+                if seen.last().is_none_or(|s| theta > s.0) {
+                    seen.push((theta, d));
+                }
+            }
+            let (first, last) = (seen[0], seen[seen.len() - 1]);
+            thetas
+                .iter()
+                .map(|&theta| {
+                    if theta <= first.0 {
+                        first.1 as f32
+                    } else if theta > last.0 {
+                        if c > 0.0 { NO_HIT } else { last.1 as f32 }
+                    } else {
+                        let i = (1..seen.len()).find(|&i| seen[i].0 >= theta).unwrap();
+                        let ((t0, d0), (t1, d1)) = (seen[i - 1], seen[i]);
+                        (d0 + (d1 - d0) * (theta - t0) / (t1 - t0)) as f32
+                    }
+                })
+                .collect()
+        };
+        let mut resampling = Resampling::new(grid);
+        let mut out = vec![0.0; 1024 * 8];
+        let (mut compared, mut worst) = (0, 0.0f64);
+        for rough in [0.0, 0.3, 0.9] {
+            // Each flat ray's hit at depth t ≤ depth, σ = t·tan θ.
+            resampling.hits = thetas
+                .iter()
+                .enumerate()
+                .map(|(a, &theta)| {
+                    let t = depth * (1.0 - rough * ((a * 7 % 5) as f64 / 5.0));
+                    (t * theta.tan(), t)
+                })
+                .collect();
+            resampling.resample(&mut out);
+            for (k, column) in out.chunks_exact(8).enumerate() {
+                let want = plain(&resampling.hits, grid.curvature(k as u32));
+                for (&got, &want) in column.iter().zip(&want) {
+                    assert_eq!(got == NO_HIT, want == NO_HIT, "curvature {k}");
+                    if want != NO_HIT {
+                        let e = f64::from((got - want).abs()) / f64::from(want.abs()).max(1e-3);
+                        worst = worst.max(e);
+                        compared += 1;
+                    }
+                }
+            }
+        }
+        assert!(compared > 10_000, "{compared}");
+        assert!(worst <= 1e-6, "{worst}");
     }
 }
