@@ -89,6 +89,53 @@ fn a_flat_relief_matches_the_closed_form_on_every_curvature() {
     assert!(misses > 0, "strongly convex surfaces lose the grazing rays");
 }
 
+/// A grid meant to hold the flat surface holds it: −0.1 to 0.2 in four samples computes
+/// 1.4·10⁻¹⁷ for the second, which the grid makes 0; both bakes then give it what a grid of
+/// the flat surface alone gives (to 10⁻⁶ tile, no hit flips). As 1.4·10⁻¹⁷ it was a radius of
+/// 7·10¹⁶ tiles, and R − (R − D)·x lost every digit to cancellation: half the exact bake's
+/// samples flipped.
+#[test]
+fn a_grid_through_zero_curvature_bakes_the_flat_surface_there() {
+    let limits = Limits::default();
+    let field = reliefs::height_field(ReliefKind::Bumps, 16, &limits).unwrap();
+    let relief = Relief {
+        field: &field,
+        depth: 0.125,
+    };
+    let through = VdmGrid {
+        n_curvature: 4,
+        c_min: -0.1,
+        c_max: 0.2,
+        ..GRID
+    };
+    assert_ne!(-0.1 + (0.2 - -0.1) * 1.0 / 3.0, 0.0);
+    assert_eq!(through.curvature(1), 0.0);
+    let flat = VdmGrid {
+        n_curvature: 1,
+        c_min: 0.0,
+        c_max: 0.0,
+        ..GRID
+    };
+    for method in [VdmMethod::Exact, VdmMethod::Paper] {
+        let params = VdmParams::new(method, 1);
+        let (got, want) = (
+            vdm::bake(relief, through, params, &limits, &()).unwrap(),
+            vdm::bake(relief, flat, params, &limits, &()).unwrap(),
+        );
+        let image = want.values.len();
+        let (mut worst, mut hits) = (0.0f32, 0);
+        for (&g, &w) in got.values[image..2 * image].iter().zip(&want.values) {
+            assert_eq!(g == NO_HIT, w == NO_HIT, "{method:?}");
+            if w != NO_HIT {
+                worst = worst.max((g - w).abs());
+                hits += 1;
+            }
+        }
+        assert!(hits > image / 2, "{method:?}: {hits}");
+        assert!(worst <= 1e-6, "{method:?}: {worst}");
+    }
+}
+
 /// The paper's bake is exact where nothing is bent; bent, its error is the resampling's, and
 /// shrinks as its flat casts get denser (the knob the paper leaves at 1).
 #[test]
@@ -344,6 +391,14 @@ fn bad_grids_and_reliefs_are_refused_naming_the_problem() {
     assert!(bake(0.5, GRID).contains("|c|·depth"));
     assert!(bake(0.1, VdmGrid { n_theta: 0, ..GRID }).contains("θ count"));
     assert!(bake(0.1, VdmGrid { c_min: 4.0, ..GRID }).contains("ordered"));
+    // Curvature 5·10⁻⁸ in the middle: a radius whose 1/c would magnify rounding.
+    let near_flat = VdmGrid {
+        n_curvature: 3,
+        c_min: -1.0,
+        c_max: 1.0 + 1e-7,
+        ..GRID
+    };
+    assert!(bake(0.1, near_flat).contains("too close to 0"));
     let tiny = Limits {
         memory_bytes: 1000,
         ..Limits::default()

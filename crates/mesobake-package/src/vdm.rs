@@ -34,6 +34,11 @@ pub const MAX_OVERSAMPLING: u32 = 64;
 /// Largest rank of a VDM factorization.
 pub const MAX_VDM_RANK: usize = 64;
 
+/// Smallest magnitude of a curvature other than 0 (1/tile): a surface bent less, of radius
+/// over a million tiles, is flat for any use, and its radius 1/c would magnify rounding in
+/// the bakes' formulas (R − (R − D)·x loses about 2·10⁻¹⁶·R to cancellation).
+pub const MIN_CURVATURE: f64 = 1e-6;
+
 /// The view and curvature sampling of a VDM: θ_a = (a + ½)·(π/2)/Nθ from the inward normal,
 /// φ_b = (b + ½)·2π/Nφ, curvatures evenly from `c_min` to `c_max` (1/tile, positive convex).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -61,8 +66,9 @@ impl VdmGrid {
         c_max: 3.0,
     };
 
-    /// Checks the counts (1 to [`MAX_AXIS`]), the curvature range (finite, ordered) and that
-    /// no curvature folds a relief of `depth`: |c|·depth < 1.
+    /// Checks the counts (1 to [`MAX_AXIS`]), the curvature range (finite, ordered), that
+    /// every curvature is 0 or at least [`MIN_CURVATURE`] from it, and that no curvature
+    /// folds a relief of `depth`: |c|·depth < 1.
     pub fn validate(&self, depth: f64) -> Result<()> {
         for (name, n) in [
             ("θ", self.n_theta),
@@ -79,6 +85,15 @@ impl VdmGrid {
             return Err(Error::InvalidParameter(format!(
                 "VDM grid: curvatures {} to {} are not a finite, ordered range",
                 self.c_min, self.c_max
+            )));
+        }
+        if let Some(c) = (0..self.n_curvature)
+            .map(|k| self.curvature(k))
+            .find(|c| *c != 0.0 && c.abs() < MIN_CURVATURE)
+        {
+            return Err(Error::InvalidParameter(format!(
+                "VDM grid: curvature {c:e} is too close to 0 to bend (|c| must be 0 or at least \
+                 {MIN_CURVATURE:e} per tile; 0 is the flat surface)"
             )));
         }
         let worst = self.c_min.abs().max(self.c_max.abs());
@@ -101,12 +116,17 @@ impl VdmGrid {
         (f64::from(b) + 0.5) * TAU / f64::from(self.n_phi)
     }
 
-    /// Curvature `k`: evenly from `c_min` to `c_max` (`c_min` when there is one).
+    /// Curvature `k`: evenly from `c_min` to `c_max` (`c_min` when there is one); exactly 0
+    /// where the spacing puts it within rounding of 0 (a few units in the last place of the
+    /// range's ends: −0.1 to 0.2 in 4 samples gives 1.4·10⁻¹⁷ for the flat one).
     pub fn curvature(&self, k: u32) -> f64 {
         if self.n_curvature == 1 {
             return self.c_min;
         }
-        self.c_min + (self.c_max - self.c_min) * f64::from(k) / f64::from(self.n_curvature - 1)
+        let c =
+            self.c_min + (self.c_max - self.c_min) * f64::from(k) / f64::from(self.n_curvature - 1);
+        let rounding = 4.0 * f64::EPSILON * self.c_min.abs().max(self.c_max.abs());
+        if c.abs() <= rounding { 0.0 } else { c }
     }
 }
 

@@ -59,6 +59,9 @@ struct Resampling {
     /// Per hit, sin and cos of σ·c on the curvature being resampled, and of σ times the step
     /// to the next: the grid's curvatures are evenly spaced, so each hit's sines are turned
     /// from one curvature to the next by the angle-sum formulas instead of a `sin_cos` each.
+    /// The turns' rounding is absolute (about k units in the last place of 1 after k turns),
+    /// so the curvature nearest 0, if not 0 itself, has its sines taken directly: there sin
+    /// σc is small and 1/c large.
     turns: Vec<([f64; 2], [f64; 2])>,
     /// (θ′, l / sin θ′) of the hits still seen in order after bending.
     seen: Vec<(f64, f64)>,
@@ -96,9 +99,14 @@ impl Resampling {
             .zip(out.chunks_exact_mut(self.thetas.len()))
         {
             let bend = Bend { c };
+            let near_zero = c != 0.0 && c.abs() < 0.5 * step.abs();
             self.seen.clear();
             for (&(sigma, t), (turn, by)) in self.hits.iter().zip(&mut self.turns) {
-                let q = bend.to_plane_turned(sigma, t, *turn);
+                let q = if near_zero {
+                    bend.to_plane(sigma, t)
+                } else {
+                    bend.to_plane_turned(sigma, t, *turn)
+                };
                 *turn = [
                     turn[0].mul_add(by[1], turn[1] * by[0]),
                     turn[1].mul_add(by[1], -(turn[0] * by[0])),
@@ -149,19 +157,19 @@ mod tests {
 
     /// The resampling (sines turned from curvature to curvature, `libm`'s atan2) gives the
     /// values of a plain one (a `sin_cos` and the system's atan2 per hit and curvature, a
-    /// linear search for each θ) to f32 rounding, on 1024 curvatures (the most turns a
-    /// grid allows) and hits of a flat and of a rough relief (measured: bit-identical).
+    /// linear search for each θ) to f32 rounding, on 1024 curvatures (the most turns a grid
+    /// allows), on grids whose middle curvature is 1.1·10⁻⁶ (near the least but 0 a grid may
+    /// have), and on hits of a flat and of a rough relief.
     #[test]
     fn turned_sines_resample_as_a_sine_per_curvature_does() {
-        let grid = VdmGrid {
+        let grid = |n_curvature, c_min: f64, c_max| VdmGrid {
             n_theta: 8,
             n_phi: 1,
-            n_curvature: 1024,
-            c_min: -3.9,
-            c_max: 3.9,
+            n_curvature,
+            c_min,
+            c_max,
         };
-        let depth = 0.25;
-        let thetas: Vec<f64> = (0..8).map(|a| grid.theta(a)).collect();
+        let thetas: Vec<f64> = (0..8).map(|a| grid(1, 0.0, 0.0).theta(a)).collect();
         let plain = |hits: &[(f64, f64)], c: f64| -> Vec<f32> {
             let mut seen: Vec<(f64, f64)> = Vec::new();
             for &(sigma, t) in hits {
@@ -192,28 +200,36 @@ mod tests {
                 })
                 .collect()
         };
-        let mut resampling = Resampling::new(grid);
-        let mut out = vec![0.0; 1024 * 8];
         let (mut compared, mut worst) = (0, 0.0f64);
-        for rough in [0.0, 0.3, 0.9] {
-            // Each flat ray's hit at depth t ≤ depth, σ = t·tan θ.
-            resampling.hits = thetas
-                .iter()
-                .enumerate()
-                .map(|(a, &theta)| {
-                    let t = depth * (1.0 - rough * ((a * 7 % 5) as f64 / 5.0));
-                    (t * theta.tan(), t)
-                })
-                .collect();
-            resampling.resample(&mut out);
-            for (k, column) in out.chunks_exact(8).enumerate() {
-                let want = plain(&resampling.hits, grid.curvature(k as u32));
-                for (&got, &want) in column.iter().zip(&want) {
-                    assert_eq!(got == NO_HIT, want == NO_HIT, "curvature {k}");
-                    if want != NO_HIT {
-                        let e = f64::from((got - want).abs()) / f64::from(want.abs()).max(1e-3);
-                        worst = worst.max(e);
-                        compared += 1;
+        for (grid, depth) in [
+            (grid(1024, -3.9, 3.9), 0.25),
+            (grid(3, -3.9, 3.9 + 2.2e-6), 0.25),
+            // Turned by 10⁵ per tile to 1.1·10⁻⁶: only the direct sines hold that one.
+            (grid(3, -1e5, 1e5 + 2.2e-6), 9e-6),
+        ] {
+            grid.validate(depth).unwrap();
+            let mut resampling = Resampling::new(grid);
+            let mut out = vec![0.0; grid.n_curvature as usize * 8];
+            for rough in [0.0, 0.3, 0.9] {
+                // Each flat ray's hit at depth t ≤ depth, σ = t·tan θ.
+                resampling.hits = thetas
+                    .iter()
+                    .enumerate()
+                    .map(|(a, &theta)| {
+                        let t = depth * (1.0 - rough * ((a * 7 % 5) as f64 / 5.0));
+                        (t * theta.tan(), t)
+                    })
+                    .collect();
+                resampling.resample(&mut out);
+                for (k, column) in out.chunks_exact(8).enumerate() {
+                    let want = plain(&resampling.hits, grid.curvature(k as u32));
+                    for (&got, &want) in column.iter().zip(&want) {
+                        assert_eq!(got == NO_HIT, want == NO_HIT, "curvature {k}");
+                        if want != NO_HIT {
+                            let e = f64::from((got - want).abs()) / f64::from(want.abs());
+                            worst = worst.max(e);
+                            compared += 1;
+                        }
                     }
                 }
             }
