@@ -375,7 +375,7 @@ pub fn markdown(report: &VdmReport) -> String {
                 "views × curvatures, bake",
                 "ranks, format",
                 "bytes",
-                "bake s",
+                "bake + compress s",
                 "RMSE (tile)",
                 "flips %",
                 "PSNR dB",
