@@ -18,6 +18,7 @@ use crate::compress::svd::{BlockOrder, RankChoice, RowSource, truncated_svd};
 use crate::error::{Error, Result};
 use crate::util::limits::Limits;
 pub use mesobake_package::vdm::{MAX_VDM_RANK, VdmAccuracy, VdmQuery};
+use rayon::prelude::*;
 use std::f64::consts::FRAC_PI_2;
 
 /// The VDM with its −1 values filled, and its MVM, in the SVD's layout.
@@ -170,34 +171,51 @@ impl CompressedVdm {
         )
     }
 
-    /// Compares every sample's reconstruction with `vdm`.
+    /// Compares every sample's reconstruction with `vdm`: the images (curvature, view) in
+    /// parallel, their sums added in image order, so that the figures do not depend on the
+    /// number of threads.
     fn measure(&self, vdm: &Vdm) -> VdmAccuracy {
         let decoded = self.decode();
         let g = self.grid;
-        let mut acc = VdmAccuracy::default();
-        let mut sum_sq = 0.0;
-        let mut both = 0u64;
-        for k in 0..g.n_curvature {
-            for a in 0..g.n_theta {
-                for b in 0..g.n_phi {
-                    for j in 0..self.size.1 {
-                        for i in 0..self.size.0 {
-                            let truth = vdm.get(i, j, a, b, k);
-                            acc.samples += 1;
-                            match (truth == NO_HIT, decoded.distance(i, j, a, b, k)) {
-                                (true, None) => {}
-                                (false, Some(d)) => {
-                                    let err = f64::from(d - truth).abs();
-                                    sum_sq += err * err;
-                                    both += 1;
-                                    acc.max_abs = acc.max_abs.max(err);
-                                }
-                                _ => acc.silhouette_flips += 1,
+        let (n_theta, n_phi) = (g.n_theta, g.n_phi);
+        let images = g.n_curvature * n_theta * n_phi;
+        // Per image: samples, silhouette flips, samples both call hits, Σ error², max error.
+        let per_image: Vec<(u64, u64, u64, f64, f64)> = (0..images)
+            .into_par_iter()
+            .map(|image| {
+                let (k, a, b) = (
+                    image / (n_theta * n_phi),
+                    image / n_phi % n_theta,
+                    image % n_phi,
+                );
+                let mut sums = (0, 0, 0, 0.0, 0.0f64);
+                for j in 0..self.size.1 {
+                    for i in 0..self.size.0 {
+                        let truth = vdm.get(i, j, a, b, k);
+                        sums.0 += 1;
+                        match (truth == NO_HIT, decoded.distance(i, j, a, b, k)) {
+                            (true, None) => {}
+                            (false, Some(d)) => {
+                                let err = f64::from(d - truth).abs();
+                                sums.2 += 1;
+                                sums.3 += err * err;
+                                sums.4 = sums.4.max(err);
                             }
+                            _ => sums.1 += 1,
                         }
                     }
                 }
-            }
+                sums
+            })
+            .collect();
+        let mut acc = VdmAccuracy::default();
+        let (mut both, mut sum_sq) = (0u64, 0.0);
+        for (samples, flips, hits, squares, max_abs) in per_image {
+            acc.samples += samples;
+            acc.silhouette_flips += flips;
+            both += hits;
+            sum_sq += squares;
+            acc.max_abs = acc.max_abs.max(max_abs);
         }
         acc.flip_rate = acc.silhouette_flips as f64 / acc.samples.max(1) as f64;
         acc.rmse = (sum_sq / both.max(1) as f64).sqrt();
