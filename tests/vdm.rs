@@ -547,6 +547,50 @@ fn the_mvm_reproduces_every_bins_silhouette_and_full_rank_is_lossless() {
     assert!(c.accuracy.rmse < 1e-4, "{:?}", c.accuracy);
 }
 
+/// The hard case of curvature at the ends of the grid's range: a renderer's query at the
+/// first and last curvature reads those samples, and past them (surfaces more curved than the
+/// grid holds) it holds the nearer end's, as `docs/package-format.md` says. Lossless factors,
+/// texel and bin centres: to 10⁻⁴ tile of the bake, the same silhouettes.
+#[test]
+fn a_query_past_the_curvature_range_reads_the_nearer_end() {
+    let vdm = small_bumps();
+    let g = vdm.grid;
+    let full = (g.n_curvature * (g.n_theta + 1)) as usize;
+    let query = compress(&vdm, full, full, Quantization::F32, &Limits::default())
+        .unwrap()
+        .decode();
+    let (w, h) = vdm.size;
+    let mut hits = 0;
+    for (k, beyond) in [(0, g.c_min - 3.0), (g.n_curvature - 1, g.c_max + 3.0)] {
+        for t in (0..w * h).step_by(7) {
+            let (i, j) = (t % w, t / w);
+            let (x, y) = (
+                (f64::from(i) + 0.5) / f64::from(w),
+                (f64::from(j) + 0.5) / f64::from(h),
+            );
+            for a in 0..g.n_theta {
+                for b in 0..g.n_phi {
+                    let want = vdm.get(i, j, a, b, k);
+                    for c in [g.curvature(k), beyond] {
+                        let got = query.sample(x, y, g.theta(a), g.phi(b), c);
+                        match got {
+                            None => assert_eq!(want, NO_HIT, "texel {t}, bin {a},{b}, c {c}"),
+                            Some(d) => {
+                                assert!(
+                                    (d - want).abs() < 1e-4,
+                                    "texel {t}, bin {a},{b}, c {c}: {d} vs {want}"
+                                );
+                                hits += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(hits > 1000, "{hits}");
+}
+
 #[test]
 fn truncation_and_quantization_cost_what_they_should() {
     let vdm = small_bumps();
