@@ -87,8 +87,9 @@ impl VdmGrid {
                 self.c_min, self.c_max
             )));
         }
-        if let Some(c) = (0..self.n_curvature)
-            .map(|k| self.curvature(k))
+        if let Some(c) = self
+            .curvatures()
+            .into_iter()
             .find(|c| *c != 0.0 && c.abs() < MIN_CURVATURE)
         {
             return Err(Error::InvalidParameter(format!(
@@ -109,6 +110,16 @@ impl VdmGrid {
     /// Polar angle of bin `a`: (a + ½)·(π/2)/Nθ.
     pub fn theta(&self, a: u32) -> f64 {
         (f64::from(a) + 0.5) * FRAC_PI_2 / f64::from(self.n_theta)
+    }
+
+    /// Every bin's polar angle, in order.
+    pub fn thetas(&self) -> Vec<f64> {
+        (0..self.n_theta).map(|a| self.theta(a)).collect()
+    }
+
+    /// Every curvature, in order.
+    pub fn curvatures(&self) -> Vec<f64> {
+        (0..self.n_curvature).map(|k| self.curvature(k)).collect()
     }
 
     /// Azimuth of bin `b`: (b + ½)·2π/Nφ.

@@ -51,8 +51,7 @@ pub const TOLERANCE: f64 = 1e-7;
 /// Bakes every fan (texel, azimuth, curvature): azimuths in parallel, and at each texel
 /// every curvature over one walk of the line's cells ([`Fans::cast_from`]).
 pub fn bake(relief: Relief, grid: VdmGrid, observer: &dyn BakeObserver) -> Result<Vec<f32>> {
-    let thetas: Vec<f64> = (0..grid.n_theta).map(|a| grid.theta(a)).collect();
-    let curvatures: Vec<f64> = (0..grid.n_curvature).map(|k| grid.curvature(k)).collect();
+    let (thetas, curvatures) = (grid.thetas(), grid.curvatures());
     let fans = Fans::new(relief, &thetas, &curvatures);
     let per_texel = thetas.len() * curvatures.len();
     bake_by_azimuth(

@@ -71,8 +71,8 @@ impl Resampling {
     /// The resampling onto `grid`'s θ and curvatures.
     fn new(grid: VdmGrid) -> Resampling {
         Resampling {
-            thetas: (0..grid.n_theta).map(|a| grid.theta(a)).collect(),
-            curvatures: (0..grid.n_curvature).map(|k| grid.curvature(k)).collect(),
+            thetas: grid.thetas(),
+            curvatures: grid.curvatures(),
             hits: Vec::new(),
             turns: Vec::new(),
             seen: Vec::new(),
