@@ -5,6 +5,7 @@ use super::output::{Progress, print_json};
 use mesobake::Result;
 use mesobake::package::AnyPackage;
 use mesobake::render::quality::Quality;
+use mesobake::render::sampling::SamplesPerPixel;
 use mesobake::scene::package::{check_any_package_input, scene_package};
 use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake::scene::render::load_scene;
@@ -48,6 +49,11 @@ pub struct PreviewArgs {
     /// `paper`, `balanced` or `high`, or JSON settings as in a scene file).
     #[arg(long)]
     quality: Option<Quality>,
+    /// Camera rays averaged per pixel (1..=1024, stratified sub-pixel positions shared by
+    /// every renderer; the pixel is their mean in linear light, a hit where at least half
+    /// hit) instead of the scene camera's `samples_per_pixel` (default 1, the centre).
+    #[arg(long)]
+    spp: Option<SamplesPerPixel>,
     /// Print a JSON summary (adapter, shader variant, GPU memory, seconds) on stdout.
     #[arg(long)]
     json: bool,
@@ -65,6 +71,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         adapter,
         fallback,
         quality,
+        spp,
         json,
     } = args;
     codec.check(None)?;
@@ -79,6 +86,9 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     let mut loaded = load_scene(&scene, limits)?;
     if let Some(quality) = quality {
         loaded.scene.quality = quality;
+    }
+    if let Some(spp) = spp {
+        loaded.scene.camera.set_samples_per_pixel(spp)?;
     }
     let load_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
@@ -148,6 +158,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
             "width": image.width,
             "height": image.height,
             "hit_pixels": image.hits(),
+            "samples_per_pixel": loaded.scene.camera.samples_per_pixel,
             "seconds": { "load": load_s, "package": package_s },
             "technique": technique,
             "renderer": outcome.renderer,

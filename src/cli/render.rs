@@ -1,17 +1,22 @@
 //! `mesobake render` (a scene on the CPU: the truth or the GDM algorithm) and `mesobake
 //! compare` (PSNR, error and mask disagreement of two images).
 
+use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
+use mesobake::compress::quantize::Quantization;
 use mesobake::package::AnyPackage;
+use mesobake::package::manifest::GdmCodec;
 use mesobake::render::gdm_renderer::Substitutions;
 use mesobake::render::image::{Image, compare, difference};
 use mesobake::render::quality::Quality;
-use mesobake::scene::package::check_any_package_input;
+use mesobake::render::sampling::SamplesPerPixel;
+use mesobake::scene::package::{check_any_package_input, gdm_scene_package, scene_package};
 use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
 use mesobake::scene::technique::Technique;
 use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
 use std::path::{Path, PathBuf};
+use std::str::FromStr;
 use std::time::Instant;
 
 /// Options of `mesobake render`.
@@ -28,16 +33,35 @@ pub struct RenderArgs {
     /// the scene's technique.
     #[arg(long)]
     method: Option<RenderMethod>,
-    /// For --method gdm or vdm: render from this (GDM or VDM) package instead of baking. It
-    /// must have been baked from the scene's mesostructure (unless --force).
+    /// For --method gdm, vdm or cells: render from this (GDM, VDM or medium) package instead
+    /// of the scene's. It must have been baked from the scene's mesostructure (unless
+    /// --force).
     #[arg(long)]
     package: Option<PathBuf>,
+    /// Without --package, the GDM that --method gdm queries: occupancy or paper-svd, the
+    /// package `preview` and the server bake for the scene with that codec (--rank and
+    /// --quant size paper-svd's SVD), or uncompressed, the exact GDM baked on the scene's
+    /// grids and queried by the paper's interpolation. Without --package, every method
+    /// renders what `preview` renders by default: the scene's package (occupancy).
+    #[arg(long, default_value = "occupancy")]
+    gdm_codec: GdmSource,
+    /// SVD components to keep, --gdm-codec paper-svd only [default: 8].
+    #[arg(long)]
+    rank: Option<usize>,
+    /// Number format of paper-svd's factors: f32, f16, or u8 [default: f16].
+    #[arg(long)]
+    quant: Option<Quantization>,
     /// Render --package even when it was baked from another mesostructure than the scene's.
     #[arg(long, requires = "package")]
     force: bool,
     /// Output image (.png or .exr).
     #[arg(long)]
     out: PathBuf,
+    /// Camera rays averaged per pixel (1..=1024, stratified sub-pixel positions shared by
+    /// every renderer; the pixel is their mean in linear light, a hit where at least half
+    /// hit) instead of the scene camera's `samples_per_pixel` (default 1, the centre).
+    #[arg(long)]
+    spp: Option<SamplesPerPixel>,
     /// Print a JSON summary (seconds per stage, hit pixels, shell report) on stdout.
     #[arg(long)]
     json: bool,
@@ -52,15 +76,42 @@ pub struct RenderArgs {
     quality: Option<Quality>,
 }
 
+/// The GDM a render without --package queries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum GdmSource {
+    /// The scene's package with this codec.
+    Package(GdmCodec),
+    /// The uncompressed GDM.
+    Uncompressed,
+}
+
+impl FromStr for GdmSource {
+    type Err = Error;
+    fn from_str(text: &str) -> Result<GdmSource> {
+        match text {
+            "uncompressed" => Ok(GdmSource::Uncompressed),
+            _ => text.parse().map(GdmSource::Package).map_err(|_| {
+                Error::InvalidParameter(format!(
+                    "GDM codec {text:?}: expected occupancy, paper-svd or uncompressed"
+                ))
+            }),
+        }
+    }
+}
+
 /// Renders the scene and writes the image.
 pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     let RenderArgs {
         scene,
         method,
         package,
+        gdm_codec,
+        rank,
+        quant,
         force,
         out,
         json,
+        spp,
         substitute,
         quality,
     } = args;
@@ -68,6 +119,9 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     let mut loaded = load_scene(&scene, limits)?;
     if let Some(quality) = quality {
         loaded.scene.quality = quality;
+    }
+    if let Some(spp) = spp {
+        loaded.scene.camera.set_samples_per_pixel(spp)?;
     }
     let load_s = start.elapsed().as_secs_f64();
     let dir = scene.parent().unwrap_or(Path::new("."));
@@ -86,6 +140,26 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             Ok(package)
         })
         .transpose()?;
+    let codec = CodecOptions {
+        gdm_codec: match gdm_codec {
+            GdmSource::Package(codec) => codec,
+            GdmSource::Uncompressed => GdmCodec::default(),
+        },
+        rank,
+        quant,
+    };
+    codec.check(None)?;
+    let codec_chosen = codec.is_chosen() || gdm_codec == GdmSource::Uncompressed;
+    if codec_chosen
+        && (package.is_some()
+            || matches!(method, Some(RenderMethod::Truth | RenderMethod::Explicit)))
+    {
+        return Err(Error::InvalidParameter(
+            "--gdm-codec, --rank and --quant choose the GDM that --method gdm queries without \
+             --package"
+                .into(),
+        ));
+    }
     let method = match (method, &package) {
         (Some(method), _) => method,
         (None, Some(AnyPackage::Gdm(_))) => RenderMethod::Gdm,
@@ -96,6 +170,30 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             Technique::Transparency => RenderMethod::Cells,
             Technique::Gdm | Technique::Auto => RenderMethod::Gdm,
         },
+    };
+    // Without --package, the real-time methods render the scene's package, as `preview`
+    // does (a method the scene's technique does not bake for bakes its own map).
+    let package = match (package, method) {
+        (Some(package), _) => Some(package),
+        (None, RenderMethod::Truth | RenderMethod::Explicit) => None,
+        (None, RenderMethod::Gdm) if gdm_codec == GdmSource::Uncompressed => None,
+        (None, _) => {
+            let progress = Progress::new("baking the package");
+            let params = codec.scene_params();
+            let baked = if method == RenderMethod::Gdm {
+                AnyPackage::Gdm(gdm_scene_package(&loaded, dir, params, limits, &progress)?)
+            } else {
+                scene_package(&loaded, dir, params, limits, &progress)?
+            };
+            progress.finish();
+            let fits = matches!(
+                (method, &baked),
+                (RenderMethod::Gdm, AnyPackage::Gdm(_))
+                    | (RenderMethod::Vdm, AnyPackage::Vdm(_))
+                    | (RenderMethod::Cells, AnyPackage::Medium(_))
+            );
+            fits.then_some(baked)
+        }
     };
     let source = match &package {
         Some(AnyPackage::Gdm(p)) => MapSource::Package(p),
@@ -126,6 +224,7 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             "scene": scene,
             "output": out,
             "method": method,
+            "samples_per_pixel": loaded.scene.camera.samples_per_pixel,
             "width": image.width,
             "height": image.height,
             "hit_pixels": image.hits(),

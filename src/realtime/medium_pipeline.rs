@@ -10,8 +10,8 @@
 
 use super::gpu::Gpu;
 use super::pipeline::{
-    LightRecord, ViewUniform, bind_group, layout_entry, light_records, storage, storage_read_write,
-    uniform, view_uniform,
+    LightRecord, ViewBuffer, ViewUniform, bind_group, layout_entry, light_records, storage,
+    storage_read_write, uniform, view_uniform,
 };
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
@@ -206,10 +206,20 @@ pub struct MediumPreview<'g> {
     overflow_read: wgpu::Buffer,
     /// Light records (the maps' build pass runs over them).
     lights: u32,
-    order_buffer: wgpu::Buffer,
+    buffers: Buffers,
+    /// The medium uniform for rays through pixel centres.
+    params: MediumUniform,
     camera: Camera,
     target: Target,
     memory: GpuMemory,
+}
+
+/// The buffers a frame rewrites: the view and medium uniforms (for a sample's sub-pixel
+/// position) and the cells' order.
+struct Buffers {
+    view: ViewBuffer,
+    medium: wgpu::Buffer,
+    order: wgpu::Buffer,
 }
 
 impl<'g> MediumPreview<'g> {
@@ -321,11 +331,16 @@ impl<'g> MediumPreview<'g> {
                 })
             };
             let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
+            let view = ViewBuffer::new(d, view, &scene.camera);
             let own = [
-                buffer("view", bytemuck::bytes_of(&view), u),
+                view.buffer.clone(),
                 buffer("lights", bytemuck::cast_slice(&lights), s),
                 buffer("cells", bytemuck::cast_slice(&records), s),
-                buffer("medium", bytemuck::bytes_of(&params), u),
+                buffer(
+                    "medium",
+                    bytemuck::bytes_of(&params),
+                    u | wgpu::BufferUsages::COPY_DST,
+                ),
                 buffer("voxels", bytemuck::cast_slice(&voxels), s),
                 buffer("normals", bytemuck::cast_slice(&normals), s),
                 buffer(
@@ -484,7 +499,12 @@ impl<'g> MediumPreview<'g> {
                     map_size,
                 )
             });
-            let [.., order_buffer, _] = own;
+            let [_, _, _, medium_buffer, _, _, order_buffer, _] = own;
+            let buffers = Buffers {
+                view,
+                medium: medium_buffer,
+                order: order_buffer,
+            };
             (
                 pipeline,
                 group,
@@ -492,10 +512,10 @@ impl<'g> MediumPreview<'g> {
                 map_build,
                 overflow,
                 overflow_read,
-                order_buffer,
+                buffers,
             )
         })?;
-        let (pipeline, group, pass_group, map_build, overflow, overflow_read, order_buffer) = built;
+        let (pipeline, group, pass_group, map_build, overflow, overflow_read, buffers) = built;
         Ok(MediumPreview {
             gpu,
             cells,
@@ -506,7 +526,8 @@ impl<'g> MediumPreview<'g> {
             overflow,
             overflow_read,
             lights: frame_list.len() as u32,
-            order_buffer,
+            buffers,
+            params,
             camera: scene.camera,
             target,
             memory,
@@ -539,7 +560,7 @@ impl<'g> MediumPreview<'g> {
                 let order = self.cells.cells().view_order(&self.camera, *sort).order;
                 self.gpu
                     .queue
-                    .write_buffer(&self.order_buffer, 0, bytemuck::cast_slice(&order));
+                    .write_buffer(&self.buffers.order, 0, bytemuck::cast_slice(&order));
                 let mut pass = self.target.pass(&mut encoder, "media per-view order");
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, &self.group, &[]);
@@ -558,6 +579,26 @@ impl<'g> MediumPreview<'g> {
     /// `material`), the cells, their BVH and order (`geometry`) and the targets.
     pub fn memory(&self) -> GpuMemory {
         self.memory
+    }
+
+    /// Moves the next frames' rays to `offset` in each pixel (from its top-left corner): the
+    /// rasterized faces by the view's projection, the per-pixel rays by the camera basis.
+    pub fn set_subpixel(&self, offset: [f64; 2]) {
+        self.buffers.view.set_subpixel(self.gpu, offset);
+        let shift = self
+            .camera
+            .at_subpixel(offset)
+            .image_plane()
+            .subpixel_shift();
+        let forward = self.params.forward;
+        let params = MediumUniform {
+            forward: vec4(
+                DVec3::new(forward[0].into(), forward[1].into(), forward[2].into()) + shift,
+                forward[3].into(),
+            ),
+            ..self.params
+        };
+        (self.gpu.queue).write_buffer(&self.buffers.medium, 0, bytemuck::bytes_of(&params));
     }
 
     /// Renders one frame and reads it back; refused ([`Error::LoopBudget`]) where the

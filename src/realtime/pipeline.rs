@@ -91,6 +91,50 @@ pub(super) fn view_uniform(scene: &Scene, bounds: impl Iterator<Item = DVec3>) -
     }
 }
 
+/// A view uniform's buffer, which a supersampled preview rewrites for each sample so that
+/// the rays pass through the sample's sub-pixel position (`render::sampling`).
+pub(super) struct ViewBuffer {
+    /// The uniform buffer (the shaders' `view`).
+    pub(super) buffer: wgpu::Buffer,
+    centre: ViewUniform,
+    size: [f64; 2],
+}
+
+impl ViewBuffer {
+    /// The buffer of `view` (rays through pixel centres) for `camera`'s image.
+    pub(super) fn new(d: &wgpu::Device, view: ViewUniform, camera: &Camera) -> ViewBuffer {
+        ViewBuffer {
+            buffer: d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("view"),
+                contents: bytemuck::bytes_of(&view),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            }),
+            centre: view,
+            size: [f64::from(camera.width), f64::from(camera.height)],
+        }
+    }
+
+    /// Moves the rays to `offset` in each pixel (from its top-left corner): the image is
+    /// shifted by the offset's distance from the centre, so that the fragment at a pixel's
+    /// centre sees what lies at `offset`.
+    pub(super) fn set_subpixel(&self, gpu: &Gpu, offset: [f64; 2]) {
+        let [w, h] = self.size;
+        let shift = DVec3::new(
+            2.0 * (0.5 - offset[0]) / w,
+            2.0 * (offset[1] - 0.5) / h,
+            0.0,
+        );
+        let view_proj = DMat4::from_translation(shift)
+            * glam::Mat4::from_cols_array_2d(&self.centre.view_proj).as_dmat4();
+        let view = ViewUniform {
+            view_proj: view_proj.as_mat4().to_cols_array_2d(),
+            ..self.centre
+        };
+        gpu.queue
+            .write_buffer(&self.buffer, 0, bytemuck::bytes_of(&view));
+    }
+}
+
 /// The shader's lights for `scene` (one zeroed record when it has none: a storage buffer
 /// may not be empty).
 pub(super) fn light_records(scene: &Scene) -> Vec<LightRecord> {
@@ -140,6 +184,7 @@ pub struct Preview<'g> {
     /// Per pixel, the nearest hit so far this frame (`nearest_hit` of the shader), cleared
     /// before each frame.
     nearest_hit: wgpu::Buffer,
+    view: ViewBuffer,
     memory: GpuMemory,
 }
 
@@ -342,15 +387,10 @@ impl<'g> Preview<'g> {
                 .into_iter()
                 .chain(p.faces[1].triangle.corners)
         });
-        let view = view_uniform(scene, corners);
         let lights = light_records(scene);
-        let (hit_pipeline, shade_pipeline, scene_group, shade_group, nearest_hit) =
-            gpu.checked("building the pipeline", || {
-                let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("view"),
-                    contents: bytemuck::bytes_of(&view),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
+        let (hit_pipeline, shade_pipeline, scene_group, shade_group, nearest_hit, view) = gpu
+            .checked("building the pipeline", || {
+                let view = ViewBuffer::new(d, view_uniform(scene, corners), &scene.camera);
                 let lights = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("lights"),
                     contents: bytemuck::cast_slice(&lights),
@@ -362,7 +402,7 @@ impl<'g> Preview<'g> {
                     usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
                 });
-                let mut buffers = vec![(0, &view), (1, &lights), (2, &shell.prisms)];
+                let mut buffers = vec![(0, &view.buffer), (1, &lights), (2, &shell.prisms)];
                 buffers.push((5, &nearest_hit));
                 if let Some(bvh) = &bvh {
                     buffers.extend([(3, &bvh.nodes), (4, &bvh.primitives)]);
@@ -444,6 +484,7 @@ impl<'g> Preview<'g> {
                     scene_group,
                     shade_group,
                     nearest_hit,
+                    view,
                 )
             })?;
         let memory = GpuMemory {
@@ -470,6 +511,7 @@ impl<'g> Preview<'g> {
             environment,
             target,
             nearest_hit,
+            view,
             memory,
         })
     }
@@ -515,6 +557,11 @@ impl<'g> Preview<'g> {
             self.target.copy_out(&mut encoder);
         }
         self.gpu.queue.submit([encoder.finish()]);
+    }
+
+    /// Moves the next frames' rays to `offset` in each pixel ([`ViewBuffer::set_subpixel`]).
+    pub fn set_subpixel(&self, offset: [f64; 2]) {
+        self.view.set_subpixel(self.gpu, offset);
     }
 
     /// Renders one frame and reads it back.

@@ -5,8 +5,8 @@
 
 use super::gpu::Gpu;
 use super::pipeline::{
-    LightRecord, ViewUniform, bind_group, layout_entry, light_records, storage, uniform,
-    view_uniform,
+    LightRecord, ViewBuffer, ViewUniform, bind_group, layout_entry, light_records, storage,
+    uniform, view_uniform,
 };
 use super::resources::GpuMemory;
 use super::target::{Target, time_frames, triangle_pipeline};
@@ -118,6 +118,7 @@ pub struct VdmPreview<'g> {
     group: wgpu::BindGroup,
     vertices: wgpu::Buffer,
     vertex_count: u32,
+    view: ViewBuffer,
     target: Target,
     memory: GpuMemory,
 }
@@ -177,74 +178,77 @@ impl<'g> VdmPreview<'g> {
             targets: target.bytes(),
         };
         let d = &gpu.device;
-        let (pipeline, group, vertex_buffer) = gpu.checked("building the VDM pipeline", || {
-            let buffer = |label: &str, contents: &[u8], usage| {
-                d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage,
-                })
-            };
-            let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
-            let buffers = [
-                buffer("view", bytemuck::bytes_of(&view), u),
-                buffer("lights", bytemuck::cast_slice(&lights), s),
-                buffer("faces", bytemuck::cast_slice(&records), s),
-                buffer("vdm", bytemuck::bytes_of(&params), u),
-                buffer("weights", bytemuck::cast_slice(weights), s),
-                buffer("eigen", bytemuck::cast_slice(eigen), s),
-                buffer("mvm", bytemuck::cast_slice(mvm), s),
-                buffer("heights", bytemuck::cast_slice(relief.field.heights()), s),
-            ];
-            let frag = wgpu::ShaderStages::FRAGMENT;
-            let kinds = [
-                (wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
-                (frag, storage()),
-                (frag, storage()),
-                (frag, uniform()),
-                (frag, storage()),
-                (frag, storage()),
-                (frag, storage()),
-                (frag, storage()),
-            ];
-            let entries: Vec<_> = (kinds.into_iter().zip(&buffers).enumerate())
-                .map(|(b, ((stages, kind), buffer))| {
-                    (
-                        layout_entry(b as u32, stages, kind),
-                        buffer.as_entire_binding(),
-                    )
-                })
-                .collect();
-            let (layout, group) = bind_group(d, "vdm", &entries);
-            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("vdm preview"),
-                source: wgpu::ShaderSource::Wgsl(source().into()),
-            });
-            let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("vdm preview"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = triangle_pipeline(
-                d,
-                "vdm preview",
-                &pipeline_layout,
-                &module,
-                VdmVertex::LAYOUT,
-            );
-            let vertex_buffer = buffer(
-                "top triangles",
-                bytemuck::cast_slice(&vertices),
-                wgpu::BufferUsages::VERTEX,
-            );
-            (pipeline, group, vertex_buffer)
-        })?;
+        let (pipeline, group, vertex_buffer, view) =
+            gpu.checked("building the VDM pipeline", || {
+                let buffer = |label: &str, contents: &[u8], usage| {
+                    d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents,
+                        usage,
+                    })
+                };
+                let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
+                let view = ViewBuffer::new(d, view, &scene.camera);
+                let buffers = [
+                    view.buffer.clone(),
+                    buffer("lights", bytemuck::cast_slice(&lights), s),
+                    buffer("faces", bytemuck::cast_slice(&records), s),
+                    buffer("vdm", bytemuck::bytes_of(&params), u),
+                    buffer("weights", bytemuck::cast_slice(weights), s),
+                    buffer("eigen", bytemuck::cast_slice(eigen), s),
+                    buffer("mvm", bytemuck::cast_slice(mvm), s),
+                    buffer("heights", bytemuck::cast_slice(relief.field.heights()), s),
+                ];
+                let frag = wgpu::ShaderStages::FRAGMENT;
+                let kinds = [
+                    (wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
+                    (frag, storage()),
+                    (frag, storage()),
+                    (frag, uniform()),
+                    (frag, storage()),
+                    (frag, storage()),
+                    (frag, storage()),
+                    (frag, storage()),
+                ];
+                let entries: Vec<_> = (kinds.into_iter().zip(&buffers).enumerate())
+                    .map(|(b, ((stages, kind), buffer))| {
+                        (
+                            layout_entry(b as u32, stages, kind),
+                            buffer.as_entire_binding(),
+                        )
+                    })
+                    .collect();
+                let (layout, group) = bind_group(d, "vdm", &entries);
+                let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("vdm preview"),
+                    source: wgpu::ShaderSource::Wgsl(source().into()),
+                });
+                let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("vdm preview"),
+                    bind_group_layouts: &[Some(&layout)],
+                    immediate_size: 0,
+                });
+                let pipeline = triangle_pipeline(
+                    d,
+                    "vdm preview",
+                    &pipeline_layout,
+                    &module,
+                    VdmVertex::LAYOUT,
+                );
+                let vertex_buffer = buffer(
+                    "top triangles",
+                    bytemuck::cast_slice(&vertices),
+                    wgpu::BufferUsages::VERTEX,
+                );
+                (pipeline, group, vertex_buffer, view)
+            })?;
         Ok(VdmPreview {
             gpu,
             pipeline,
             group,
             vertices: vertex_buffer,
             vertex_count: vertices.len() as u32,
+            view,
             target,
             memory,
         })
@@ -271,6 +275,11 @@ impl<'g> VdmPreview<'g> {
     /// (top faces and their vertices) and the targets.
     pub fn memory(&self) -> GpuMemory {
         self.memory
+    }
+
+    /// Moves the next frames' rays to `offset` in each pixel (from its top-left corner).
+    pub fn set_subpixel(&self, offset: [f64; 2]) {
+        self.view.set_subpixel(self.gpu, offset);
     }
 
     /// Renders one frame and reads it back.

@@ -108,6 +108,13 @@ impl OccupancyLookup {
 
     fn march(&self, t: DVec3, v: DVec3, max: f64) -> Option<f64> {
         let z = self.caster.dims().z as f64;
+        // A start on or past the top (bottom) plane, not moving down (up), is outside the
+        // volume and stays there: it escapes, as the shader's march says, even where the
+        // layer it touches is solid (a shadow ray from a hit on the top layer, whose start
+        // one voxel off the surface clamps onto the top plane).
+        if (t.z >= z && v.z >= 0.0) || (t.z <= 0.0 && v.z <= 0.0) {
+            return None;
+        }
         match self
             .caster
             .trace(t.with_z(t.z.clamp(0.0, z)).to_array(), v.to_array(), max)

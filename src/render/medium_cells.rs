@@ -671,6 +671,8 @@ mod tests {
             fov_y_degrees: 8.0,
             width: 33,
             height: 33,
+            samples_per_pixel: Default::default(),
+            subpixel: [0.5, 0.5],
         };
         let sx = mesh.view_order(&camera, ViewSort::Sxmpvo);
         assert_eq!(

@@ -17,70 +17,99 @@ pub mod medium_truth;
 pub mod path_tracer;
 pub mod prism_map;
 pub mod quality;
+pub mod sampling;
 pub mod shell_walk;
 pub mod truth;
 pub mod vdm_renderer;
 
 use crate::bake::gdm::BakeObserver;
+use crate::error::{Error, Result};
 use crate::scene::Camera;
 use glam::DVec3;
 use image::Image;
 use rayon::prelude::*;
+use sampling::Accumulator;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Pixels per side of the square tiles rendered in parallel: neighbouring rays read
 /// neighbouring texels, so tiles keep them in cache (rows of 512 pixels did not).
 const TILE: u32 = 16;
 
-/// Renders an image by calling `radiance(origin, direction)` for every pixel's camera ray
-/// (square tiles in parallel); `None` is a miss.
+/// Renders an image by calling `radiance(origin, direction)` for each of every pixel's
+/// camera rays, the camera's samples per pixel ([`sampling`]; square tiles in parallel);
+/// `None` is a miss.
 pub fn render_image(
     camera: &Camera,
     radiance: impl Fn(DVec3, DVec3) -> Option<DVec3> + Sync,
 ) -> Image {
-    render_image_observed(camera, &(), radiance)
+    render_tiles(camera, &(), radiance).unwrap_or_else(|| Image::new(camera.width, camera.height))
 }
 
-/// [`render_image`], reporting the tiles done to `observer` as they finish.
+/// [`render_image`], reporting the tiles done to `observer` as they finish and stopping
+/// with [`Error::Cancelled`] when it asks to.
 pub fn render_image_observed(
     camera: &Camera,
     observer: &dyn BakeObserver,
     radiance: impl Fn(DVec3, DVec3) -> Option<DVec3> + Sync,
-) -> Image {
+) -> Result<Image> {
+    render_tiles(camera, observer, radiance).ok_or(Error::Cancelled)
+}
+
+/// The tiles of [`render_image_observed`], or `None` when `observer` cancelled. A pixel's
+/// samples are cast one after the other (neighbouring rays, in cache together).
+fn render_tiles(
+    camera: &Camera,
+    observer: &dyn BakeObserver,
+    radiance: impl Fn(DVec3, DVec3) -> Option<DVec3> + Sync,
+) -> Option<Image> {
     let (w, h) = (camera.width, camera.height);
     let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let total = u64::from(tiles_x * tiles_y);
     let done = AtomicU64::new(0);
-    let tiles: Vec<Vec<Option<DVec3>>> = (0..tiles_x * tiles_y)
+    let plane = camera.image_plane();
+    let offsets = camera.samples_per_pixel.offsets();
+    let centre_only = offsets == [[0.5, 0.5]];
+    let tiles: Option<Vec<Vec<(Option<DVec3>, u32)>>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|t| {
+            if observer.cancelled() {
+                return None;
+            }
             let (x0, y0) = (t % tiles_x * TILE, t / tiles_x * TILE);
             let pixels = (y0..(y0 + TILE).min(h))
                 .flat_map(|y| (x0..(x0 + TILE).min(w)).map(move |x| (x, y)));
             let tile = pixels
                 .map(|(x, y)| {
-                    let (o, d) = camera.ray(x, y);
-                    radiance(o, d)
+                    if centre_only {
+                        let (o, d) = camera.ray(x, y);
+                        let c = radiance(o, d);
+                        return (c, u32::from(c.is_some()));
+                    }
+                    let mut sum = DVec3::ZERO;
+                    let mut hits = 0;
+                    for &offset in &offsets {
+                        if let Some(c) = radiance(plane.eye, plane.direction_at(x, y, offset)) {
+                            sum += c;
+                            hits += 1;
+                        }
+                    }
+                    ((hits > 0).then_some(sum), hits)
                 })
                 .collect();
             observer.progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-            tile
+            Some(tile)
         })
         .collect();
-    let mut image = Image::new(w, h);
-    for (t, tile) in tiles.into_iter().enumerate() {
+    let mut sum = Accumulator::new(w, h);
+    for (t, tile) in tiles?.into_iter().enumerate() {
         let (x0, y0) = (t as u32 % tiles_x * TILE, t as u32 / tiles_x * TILE);
         let tile_w = (x0 + TILE).min(w) - x0;
-        for (n, c) in tile.into_iter().enumerate() {
+        for (n, (c, hits)) in tile.into_iter().enumerate() {
             let (x, y) = (x0 + n as u32 % tile_w, y0 + n as u32 / tile_w);
-            if let Some(c) = c {
-                let p = (y * w + x) as usize;
-                image.rgb[p] = c.as_vec3().to_array();
-                image.mask[p] = true;
-            }
+            sum.add_pixel((y * w + x) as usize, c.map(|c| c.to_array()), hits);
         }
     }
-    image
+    Some(sum.finish(Some(offsets.len() as u32)))
 }
 
 #[cfg(test)]
@@ -108,14 +137,48 @@ mod tests {
             fov_y_degrees: 40.0,
             width: 40,
             height: 20,
+            samples_per_pixel: Default::default(),
+            subpixel: [0.5, 0.5],
         };
         let recorder = Recorder::default();
-        let image = render_image_observed(&camera, &recorder, |_, d| Some(d.abs()));
+        let image = render_image_observed(&camera, &recorder, |_, d| Some(d.abs())).unwrap();
         assert_eq!(image.hits(), 800);
         let mut reports = recorder.0.into_inner().unwrap();
         reports.sort();
         assert_eq!(reports, (1..=6).map(|k| (k, 6)).collect::<Vec<_>>());
         // The same image as without an observer.
         assert_eq!(render_image(&camera, |_, d| Some(d.abs())), image);
+    }
+
+    #[test]
+    fn a_supersampled_pixel_covers_an_edge_by_its_area() {
+        // 16 samples form a (0, 2)-net: one in each of 16 columns and in each of 16 rows of
+        // the pixel, so an edge along either axis covers a pixel by its area within 1/16.
+        let camera = Camera {
+            eye: [0.0, 0.0, 1.0],
+            target: [0.0, 0.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y_degrees: 40.0,
+            width: 8,
+            height: 8,
+            samples_per_pixel: sampling::SamplesPerPixel::new(16).unwrap(),
+            subpixel: [0.5, 0.5],
+        };
+        let plane = camera.image_plane();
+        for axis in 0..2 {
+            let edge = 3.3;
+            let image = render_image(&camera, |o, d| {
+                (plane.project(o + d).unwrap()[axis] < edge).then_some(DVec3::ONE)
+            });
+            for (p, (rgb, &hit)) in image.rgb.iter().zip(&image.mask).enumerate() {
+                let at = [p % 8, p / 8][axis] as f64;
+                let area = (edge - at).clamp(0.0, 1.0);
+                assert!(
+                    (f64::from(rgb[0]) - area).abs() <= 1.0 / 16.0 + 1e-6,
+                    "{p}: {rgb:?}"
+                );
+                assert_eq!(hit, area >= 0.5, "{p}");
+            }
+        }
     }
 }

@@ -33,6 +33,7 @@ use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume::Volume;
 use crate::mesostructure::volume_format;
 use crate::render::quality::Quality;
+use crate::render::sampling::{MAX_IMAGE_SAMPLES, SamplesPerPixel};
 use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
 use crate::surface::shell::{Shell, ShellParams};
 use crate::util::limits::Limits;
@@ -250,6 +251,18 @@ pub struct Camera {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
+    /// Camera rays averaged per pixel (see `render::sampling`); 1, the pixel's centre, by
+    /// default.
+    #[serde(default, skip_serializing_if = "SamplesPerPixel::is_one")]
+    pub samples_per_pixel: SamplesPerPixel,
+    /// Where in each pixel [`Camera::ray`] passes, from its top-left corner in pixels: the
+    /// centre, unless a supersampled render moves it to one of its samples.
+    #[serde(skip, default = "pixel_centre")]
+    pub subpixel: [f64; 2],
+}
+
+fn pixel_centre() -> [f64; 2] {
+    [0.5, 0.5]
 }
 
 fn default_up() -> [f64; 3] {
@@ -275,6 +288,7 @@ pub struct ImagePlane {
     /// Half its height (tan of half the vertical field of view).
     pub half_height: f64,
     size: [f64; 2],
+    subpixel: [f64; 2],
 }
 
 impl ImagePlane {
@@ -293,13 +307,28 @@ impl ImagePlane {
         })
     }
 
-    /// The unit direction through the centre of pixel (`x`, `y`).
+    /// The unit direction through pixel (`x`, `y`) at the camera's sub-pixel position (its
+    /// centre unless supersampling moved it).
     pub fn pixel_direction(&self, x: u32, y: u32) -> DVec3 {
+        self.direction_at(x, y, self.subpixel)
+    }
+
+    /// The unit direction through pixel (`x`, `y`) at `offset` from its top-left corner.
+    pub fn direction_at(&self, x: u32, y: u32, offset: [f64; 2]) -> DVec3 {
         // In the camera's historical association, so that images stay bit for bit.
         let aspect = self.size[0] / self.size[1];
-        let sx = ((x as f64 + 0.5) / self.size[0] * 2.0 - 1.0) * self.half_height * aspect;
-        let sy = (1.0 - (y as f64 + 0.5) / self.size[1] * 2.0) * self.half_height;
+        let sx = ((x as f64 + offset[0]) / self.size[0] * 2.0 - 1.0) * self.half_height * aspect;
+        let sy = (1.0 - (y as f64 + offset[1]) / self.size[1] * 2.0) * self.half_height;
         (self.forward + self.right * sx + self.up * sy).normalize()
+    }
+
+    /// How far, in the image plane at unit distance, the camera's sub-pixel position lies
+    /// from the pixel's centre: what moves a pipeline that casts through pixel centres onto
+    /// the sub-pixel position.
+    pub fn subpixel_shift(&self) -> DVec3 {
+        let [ox, oy] = self.subpixel;
+        self.right * ((ox - 0.5) * 2.0 * self.half_width / self.size[0])
+            - self.up * ((oy - 0.5) * 2.0 * self.half_height / self.size[1])
     }
 }
 
@@ -318,10 +347,28 @@ impl Camera {
             half_width: half_height * self.width as f64 / self.height as f64,
             half_height,
             size: [self.width as f64, self.height as f64],
+            subpixel: self.subpixel,
         }
     }
 
-    /// Eye, and the unit direction through the centre of pixel (`x`, `y`) (row 0 at the top).
+    /// Sets the samples per pixel, refusing an image whose rays would exceed
+    /// [`MAX_IMAGE_SAMPLES`] in all.
+    pub fn set_samples_per_pixel(&mut self, spp: SamplesPerPixel) -> Result<()> {
+        spp.check_image(self.width, self.height, MAX_IMAGE_SAMPLES)?;
+        self.samples_per_pixel = spp;
+        Ok(())
+    }
+
+    /// This camera with its rays through `offset` in each pixel (from the top-left corner).
+    pub fn at_subpixel(&self, offset: [f64; 2]) -> Camera {
+        Camera {
+            subpixel: offset,
+            ..*self
+        }
+    }
+
+    /// Eye, and the unit direction through pixel (`x`, `y`) (row 0 at the top) at the
+    /// camera's sub-pixel position.
     pub fn ray(&self, x: u32, y: u32) -> (DVec3, DVec3) {
         let plane = self.image_plane();
         (plane.eye, plane.pixel_direction(x, y))
@@ -354,7 +401,9 @@ impl Camera {
                 )));
             }
         }
-        Ok(())
+        self.samples_per_pixel
+            .check_image(self.width, self.height, MAX_IMAGE_SAMPLES)
+            .map_err(|e| Error::Scene(format!("camera: {e}")))
     }
 }
 

@@ -21,11 +21,12 @@ use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::Image;
 use crate::render::medium_cells::CellRenderer;
 use crate::render::render_image;
+use crate::render::sampling::supersample;
 use crate::render::vdm_renderer::VdmRenderer;
-use crate::scene::Effect;
 use crate::scene::LoadedScene;
 use crate::scene::gi::GiShading;
 use crate::scene::technique::Technique;
+use crate::scene::{Camera, Effect};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -227,7 +228,7 @@ pub struct PreviewReport {
     pub memory: GpuMemory,
     /// Seconds to upload the scene and build the pipeline.
     pub setup_seconds: f64,
-    /// Seconds for the first frame, read-back included.
+    /// Seconds for the first image, a frame per sample per pixel, read-backs included.
     pub first_frame_seconds: f64,
     /// Mean seconds per frame over the timed frames (none when no frames were timed).
     pub mean_frame_seconds: Option<f64>,
@@ -269,6 +270,7 @@ pub fn gdm_preview(
     let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
     measure(
         gpu,
+        &loaded.scene.camera,
         &preview,
         Technique::Gdm.name(),
         setup,
@@ -295,6 +297,7 @@ fn vdm_preview(
     let setup = (None, start.elapsed().as_secs_f64());
     measure(
         gpu,
+        &loaded.scene.camera,
         &preview,
         Technique::Vdm.name(),
         setup,
@@ -361,17 +364,22 @@ fn cells_preview(
     let preview = MediumPreview::new(gpu, &loaded.scene, cells)?;
     let setup = (None, start.elapsed().as_secs_f64());
     let technique = Technique::Transparency.name();
-    measure(gpu, &preview, technique, setup, frames, observer)
+    let camera = &loaded.scene.camera;
+    measure(gpu, camera, &preview, technique, setup, frames, observer)
 }
 
 /// What a preview measures of a real-time pipeline.
 trait Pipeline {
+    fn set_subpixel(&self, offset: [f64; 2]);
     fn render(&self) -> Result<Image>;
     fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64>;
     fn memory(&self) -> GpuMemory;
 }
 
 impl Pipeline for Preview<'_> {
+    fn set_subpixel(&self, offset: [f64; 2]) {
+        Preview::set_subpixel(self, offset)
+    }
     fn render(&self) -> Result<Image> {
         Preview::render(self)
     }
@@ -384,6 +392,9 @@ impl Pipeline for Preview<'_> {
 }
 
 impl Pipeline for MediumPreview<'_> {
+    fn set_subpixel(&self, offset: [f64; 2]) {
+        MediumPreview::set_subpixel(self, offset)
+    }
     fn render(&self) -> Result<Image> {
         MediumPreview::render(self)
     }
@@ -396,6 +407,9 @@ impl Pipeline for MediumPreview<'_> {
 }
 
 impl Pipeline for VdmPreview<'_> {
+    fn set_subpixel(&self, offset: [f64; 2]) {
+        VdmPreview::set_subpixel(self, offset)
+    }
     fn render(&self) -> Result<Image> {
         VdmPreview::render(self)
     }
@@ -407,10 +421,12 @@ impl Pipeline for VdmPreview<'_> {
     }
 }
 
-/// Renders the first frame of `pipeline` (timed, read-back included) and, with `frames` >
-/// 0, times that many more; `setup` is the shader variant and the seconds setting it up took.
+/// Renders the first image of `pipeline`, a frame per sample of the camera's samples per
+/// pixel (timed, read-backs included) and, with `frames` > 0, times that many more frames
+/// of one sample; `setup` is the shader variant and the seconds setting it up took.
 fn measure(
     gpu: &Gpu,
+    camera: &Camera,
     pipeline: &dyn Pipeline,
     technique: &'static str,
     (variant, setup_seconds): (Option<ShaderVariant>, f64),
@@ -418,7 +434,11 @@ fn measure(
     observer: &dyn BakeObserver,
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
-    let image = pipeline.render()?;
+    let image = supersample(camera, |offset| {
+        pipeline.set_subpixel(offset);
+        pipeline.render()
+    })?;
+    pipeline.set_subpixel(camera.subpixel);
     let first_frame_seconds = start.elapsed().as_secs_f64();
     let mean_frame_seconds = if frames > 0 {
         observer.stage("timing frames");

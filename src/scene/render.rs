@@ -173,8 +173,9 @@ pub fn render_substituted(
             let start = Instant::now();
             let tracer = PathTracer::new(loaded, scene.gi.path_samples, scene.gi.path_depth)?;
             observer.stage("rendering");
-            let image =
-                render_image_observed(&scene.camera, observer, |o, d| tracer.radiance(scene, o, d));
+            let image = render_image_observed(&scene.camera, observer, |o, d| {
+                tracer.radiance(scene, o, d)
+            })?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -191,7 +192,7 @@ pub fn render_substituted(
             let r = ExplicitRenderer::new(loaded, limits)?;
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -227,7 +228,7 @@ pub fn render_substituted(
             let r = VdmRenderer::new(&loaded.shell, &query, relief)?;
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -244,7 +245,7 @@ pub fn render_substituted(
             let r = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -301,7 +302,7 @@ pub fn render_substituted(
             }
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d));
+                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -360,7 +361,7 @@ fn render_medium(
         &|o, d| cells.radiance(scene, o, d)
     };
     observer.stage("rendering");
-    let image = render_image_observed(&scene.camera, observer, r);
+    let image = render_image_observed(&scene.camera, observer, r)?;
     Ok(Rendered {
         image,
         seconds: RenderSeconds {

@@ -28,6 +28,14 @@ pub fn check_scene_cost(scene: &Scene, config: &ServerConfig, limits: &Limits) -
             camera.width, camera.height, config.max_image_side
         ));
     }
+    // Supersampling casts as many rays as a larger image: the same bound on the rays.
+    let side = u64::from(config.max_image_side);
+    if let Err(e) = camera
+        .samples_per_pixel
+        .check_image(camera.width, camera.height, side * side)
+    {
+        return refuse(format!("{e} (max_image_side squared)"));
+    }
     if scene.gi.path_samples > config.max_path_samples {
         return refuse(format!(
             "gi.path_samples is {}, over the server's limit of {} (max_path_samples)",
