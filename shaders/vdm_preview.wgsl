@@ -40,7 +40,7 @@ struct Vdm {
     c_min: f32,
     c_max: f32,
     depth: f32,
-    // SHADOW_TOLERANCE in tiles.
+    // The shadow test's tolerance ε in tiles (`shadow_tolerance`).
     shadow_tolerance: f32,
     albedo: vec4<f32>,
 }

@@ -7,7 +7,9 @@ use clap::Subcommand;
 use mesobake::bake::vdm::VdmMethod;
 use mesobake::compress::quantize::Quantization;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::report::{accuracy, codecs, gi, quality, render, transparency, vdm};
+use mesobake::realtime::gpu::Gpu;
+use mesobake::render::sampling::SamplesPerPixel;
+use mesobake::report::{accuracy, codecs, conformance, gi, quality, render, transparency, vdm};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::render::load_scene;
 use mesobake::util::fs::write_atomic;
@@ -197,6 +199,30 @@ pub enum ReportCommand {
         #[arg(long, default_value = "out/report")]
         out: PathBuf,
     },
+    /// Every scene × every technique it can use × every preset: the real-time algorithm's
+    /// CPU specification (and the WGSL pipeline where an adapter exists) against the ground
+    /// truth, both at --spp samples per pixel, the same at one sample, the CPU against the
+    /// WGSL, and the bake, render and frame times, with the verdicts against the targets
+    /// (≥ 25 dB at the default preset, ≥ 30 at the best). Markdown on stdout;
+    /// conformance.md, conformance.json and conformance.png (per scene and technique at its
+    /// default: truth | real-time | difference) in --out.
+    Conformance {
+        /// Scene files, comma-separated [default: every .json file in scenes/].
+        #[arg(long, value_delimiter = ',')]
+        scenes: Option<Vec<PathBuf>>,
+        /// Samples per pixel of the truth and the real-time images.
+        #[arg(long, default_value = "16")]
+        spp: SamplesPerPixel,
+        /// Each image's longer side in pixels (the scene camera's aspect kept).
+        #[arg(long, default_value_t = 128)]
+        side: u32,
+        /// WGSL frames to time per row (0: none); without an adapter no WGSL row is made.
+        #[arg(long, default_value_t = 3)]
+        frames: u32,
+        /// Output directory.
+        #[arg(long, default_value = "out/report")]
+        out: PathBuf,
+    },
     /// The real-time algorithm of translucent media (`render --method cells`) against their
     /// ground truth: the scene's settings, each sample count per cell, exact integration, no
     /// shadows and the other real-time cell order, with PSNR, FLIP, mask and CPU seconds; the
@@ -303,6 +329,20 @@ fn publish_report(
     )
 }
 
+/// The `.json` files in `dir`, sorted.
+fn scene_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut files = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(|e| Error::io(dir, e))?.path();
+        if path.extension().is_some_and(|e| e == "json") {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
 /// The scene at `path` with its file stem as its name, its image made `side`² if given.
 fn load_named(path: &Path, side: Option<u32>, limits: &Limits) -> Result<(String, LoadedScene)> {
     let mut loaded = load_scene(path, limits)?;
@@ -384,6 +424,45 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
                     ("codecs.svg", &svg),
                 ],
             )
+        }
+        ReportCommand::Conformance {
+            scenes,
+            spp,
+            side,
+            frames,
+            out,
+        } => {
+            check_side(side)?;
+            let scenes = match scenes {
+                Some(scenes) => scenes,
+                None => scene_files(Path::new("scenes"))?,
+            };
+            let mut loaded = load_named_scenes(&scenes, limits)?;
+            for (_, l, _) in &mut loaded {
+                let c = &mut l.scene.camera;
+                let longer = f64::from(c.width.max(c.height));
+                let scale = |n: u32| ((f64::from(n) * f64::from(side) / longer).round() as u32).max(1);
+                (c.width, c.height) = (scale(c.width), scale(c.height));
+            }
+            let gpu = Gpu::open(None).ok();
+            let progress = Progress::new("conformance report");
+            let (report, sheet) = conformance::conformance_report(
+                &mut loaded,
+                spp,
+                gpu.as_ref(),
+                frames,
+                limits,
+                &progress,
+            )?;
+            progress.finish();
+            let table = conformance::markdown(&report);
+            let json = to_json(&report);
+            publish(
+                &out,
+                &table,
+                &[("conformance.md", &table), ("conformance.json", &json)],
+            )?;
+            sheet.write(&out.join("conformance.png"))
         }
         ReportCommand::Quality {
             scenes,

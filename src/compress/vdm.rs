@@ -169,6 +169,7 @@ impl CompressedVdm {
             &self.weights,
             &self.eigen,
         )
+        .with_rmse(self.accuracy.rmse)
     }
 
     /// Compares every sample's reconstruction with `vdm`: the images (curvature, view) in

@@ -15,7 +15,7 @@ use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::Result;
 use crate::render::image::Image;
-use crate::render::vdm_renderer::{SHADOW_TOLERANCE, TopFace, prepare_top_faces};
+use crate::render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance};
 use crate::scene::{Effect, LoadedScene};
 use crate::surface::curvature::VertexCurvature;
 use bytemuck::{Pod, Zeroable};
@@ -164,7 +164,7 @@ impl<'g> VdmPreview<'g> {
             c_min: g.c_min as f32,
             c_max: g.c_max as f32,
             depth: relief.depth as f32,
-            shadow_tolerance: (SHADOW_TOLERANCE / f64::from(w)) as f32,
+            shadow_tolerance: shadow_tolerance(query) as f32,
             albedo: [albedo[0], albedo[1], albedo[2], 0.0],
         };
         let [weights, eigen, mvm] = query.factors();

@@ -5,10 +5,12 @@
 //! algorithm's accuracy knobs against the truth, and their time), `report gi` ([`gi`]:
 //! radiance transfer), `report vdm` ([`vdm`]: the VDM's knobs, and the GDM beside it) and
 //! `report transparency` ([`transparency`]: the translucent media's real-time algorithm
-//! against their truth).
+//! against their truth) and `report conformance` ([`conformance`]: every scene, technique
+//! and preset against the supersampled truth, CPU and WGSL).
 
 pub mod accuracy;
 pub mod codecs;
+pub mod conformance;
 pub mod gi;
 pub mod plot;
 pub mod quality;

@@ -598,6 +598,7 @@ impl VdmPackage {
             weights: self.factor(Factor::Weights).dequantize(),
             eigen: self.factor(Factor::Eigen).dequantize(),
             mvm: self.factor(Factor::Mvm).dequantize(),
+            rmse: info.accuracy.rmse,
         }
     }
 }
@@ -618,6 +619,8 @@ pub struct VdmQuery {
     eigen: Vec<f32>,
     /// Rows k, `mvm_rank` values each.
     mvm: Vec<f32>,
+    /// The RMS displacement error the factors were measured at (tile units; 0 unknown).
+    rmse: f64,
 }
 
 impl VdmQuery {
@@ -645,7 +648,19 @@ impl VdmQuery {
                 .flat_map(|row| &row[..mvm_rank])
                 .copied()
                 .collect(),
+            rmse: 0.0,
         }
+    }
+
+    /// The same query, its factors measured at `rmse` (see [`VdmAccuracy::rmse`]).
+    pub fn with_rmse(self, rmse: f64) -> VdmQuery {
+        VdmQuery { rmse, ..self }
+    }
+
+    /// The RMS displacement error of the reconstruction, in tile units, as measured against
+    /// the bake (0 where it was not measured).
+    pub fn rmse(&self) -> f64 {
+        self.rmse
     }
 
     /// The texels [W, H] of the VDM.
