@@ -441,7 +441,8 @@ pub fn report(which: ReportCommand, limits: &Limits) -> Result<()> {
             for (_, l, _) in &mut loaded {
                 let c = &mut l.scene.camera;
                 let longer = f64::from(c.width.max(c.height));
-                let scale = |n: u32| ((f64::from(n) * f64::from(side) / longer).round() as u32).max(1);
+                let scale =
+                    |n: u32| ((f64::from(n) * f64::from(side) / longer).round() as u32).max(1);
                 (c.width, c.height) = (scale(c.width), scale(c.height));
             }
             let gpu = Gpu::open(None).ok();

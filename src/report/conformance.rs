@@ -301,7 +301,9 @@ fn verdicts(report: &ConformanceReport) -> Vec<Vec<String>> {
                 .iter()
                 .max_by(|a, b| psnr(a).total_cmp(&psnr(b)))
                 .expect("a group has rows");
-            let default = rows.iter().find(|r| r.preset == "paper" || r.preset == "scene");
+            let default = rows
+                .iter()
+                .find(|r| r.preset == "paper" || r.preset == "scene");
             let mark = |ok: bool| if ok { "yes" } else { "**no**" }.to_string();
             vec![
                 scene.to_string(),
@@ -318,14 +320,18 @@ fn verdicts(report: &ConformanceReport) -> Vec<Vec<String>> {
 /// The report as Markdown: the verdicts against the targets, then every row.
 pub fn markdown(report: &ConformanceReport) -> String {
     let n = report.samples_per_pixel;
-    let opt = |c: Option<Comparison>, f: fn(&Comparison) -> String| c.as_ref().map_or("—".into(), f);
+    let opt =
+        |c: Option<Comparison>, f: fn(&Comparison) -> String| c.as_ref().map_or("—".into(), f);
     let db = |c: &Comparison| format!("{:.2}", c.psnr_db);
     let mut out = format!(
         "Real-time against the ground truth, both at {n} samples per pixel (PSNR over sRGB, \
          FLIP, hit/miss mask disagreement), and at 1 sample per pixel; WGSL on {}; \
          {:.0} s in all.\n\nTargets: ≥ {DEFAULT_TARGET_DB} dB at the default preset, \
          ≥ {BEST_TARGET_DB} dB at the best (the WGSL's figure where measured).\n\n",
-        report.adapter.as_deref().unwrap_or("no adapter (CPU specification only)"),
+        report
+            .adapter
+            .as_deref()
+            .unwrap_or("no adapter (CPU specification only)"),
         report.seconds
     );
     out += &table(
@@ -356,7 +362,9 @@ pub fn markdown(report: &ConformanceReport) -> String {
             opt(r.gpu, db),
             db(&r.cpu_1spp),
             opt(r.agreement, db),
-            opt(r.agreement, |c| format!("{:.3}", 100.0 * c.mask_disagreement)),
+            opt(r.agreement, |c| {
+                format!("{:.3}", 100.0 * c.mask_disagreement)
+            }),
             format!("{:.2}", r.bake_s),
             format!("{:.2}", r.cpu_s),
             format!("{:.1}", truth_s(&r.scene)),
