@@ -241,3 +241,178 @@ fn bad_scenes_and_images_fail_with_clear_messages() {
             .success()
     );
 }
+
+#[test]
+fn render_and_preview_agree_by_default_and_spp_supersamples_both() {
+    // Without --package, render draws the scene's package as preview does (before, render
+    // queried the uncompressed GDM: torus-chain 20.6 dB away from the preview); --gdm-codec
+    // uncompressed keeps that reference at hand. The bar is the CPU-vs-WGSL tests' 35 dB.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&scene, SCENE).unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let scene = scene.to_str().unwrap();
+    let json = |o: std::process::Output| -> serde_json::Value {
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let psnr = |a: &str, b: &str| -> f64 {
+        let o = succeeds(&["compare", &path(a), &path(b), "--json"]);
+        json(o)["psnr_db"].as_f64().unwrap()
+    };
+    for spp in ["1", "4"] {
+        let r = format!("render-{spp}.png");
+        let p = format!("preview-{spp}.png");
+        let rj = json(succeeds(&[
+            "render",
+            "--scene",
+            scene,
+            "--spp",
+            spp,
+            "--out",
+            &path(&r),
+            "--json",
+        ]));
+        let pj = json(succeeds(&[
+            "preview",
+            "--scene",
+            scene,
+            "--spp",
+            spp,
+            "--out",
+            &path(&p),
+            "--json",
+        ]));
+        assert_eq!(rj["samples_per_pixel"], spp.parse::<u32>().unwrap(), "{rj}");
+        assert_eq!(pj["samples_per_pixel"], rj["samples_per_pixel"], "{pj}");
+        let agreement = psnr(&r, &p);
+        assert!(
+            agreement >= 35.0,
+            "{spp} spp: render vs preview {agreement} dB"
+        );
+    }
+    // Supersampling changes the image (the grid's edges are antialiased).
+    assert!(psnr("render-1.png", "render-4.png") < 35.0);
+    succeeds(&[
+        "render",
+        "--scene",
+        scene,
+        "--gdm-codec",
+        "uncompressed",
+        "--out",
+        &path("raw.png"),
+    ]);
+    assert!(
+        psnr("render-1.png", "raw.png") < 60.0,
+        "the raw GDM renders otherwise"
+    );
+}
+
+#[test]
+fn bad_sample_counts_and_codec_choices_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&scene, SCENE).unwrap();
+    let scene = scene.to_str().unwrap();
+    let out = dir.path().join("x.png");
+    let out = out.to_str().unwrap();
+    let mut cases = Vec::new();
+    for command in ["render", "preview"] {
+        for (spp, want) in [
+            ("0", "1..=1024"),
+            ("1025", "1..=1024"),
+            ("2.5", "whole number"),
+            ("-3", "1..=1024"),
+        ] {
+            cases.push((
+                vec![command, "--scene", scene, "--spp", spp, "--out", out],
+                want,
+            ));
+        }
+    }
+    cases.push((
+        vec![
+            "render",
+            "--scene",
+            scene,
+            "--gdm-codec",
+            "lossy",
+            "--out",
+            out,
+        ],
+        "expected occupancy, paper-svd or uncompressed",
+    ));
+    cases.push((
+        vec![
+            "render",
+            "--scene",
+            scene,
+            "--method",
+            "truth",
+            "--gdm-codec",
+            "uncompressed",
+            "--out",
+            out,
+        ],
+        "without --package",
+    ));
+    each_fails_with(&cases);
+    // A scene whose camera asks for more rays than allowed, in the file.
+    let big = SCENE.replace(
+        r#""width": 40, "height": 32 }"#,
+        r#""width": 8192, "height": 8192, "samples_per_pixel": 2 }"#,
+    );
+    let big_scene = dir.path().join("big.json");
+    std::fs::write(&big_scene, big).unwrap();
+    each_fails_with(&[(
+        vec![
+            "render",
+            "--scene",
+            big_scene.to_str().unwrap(),
+            "--out",
+            out,
+        ],
+        "134217728 camera rays",
+    )]);
+}
+
+#[test]
+fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&scene, SCENE).unwrap();
+    let out = dir.path().join("report");
+    let o = succeeds(&[
+        "report",
+        "conformance",
+        "--scenes",
+        scene.to_str().unwrap(),
+        "--spp",
+        "4",
+        "--side",
+        "32",
+        "--frames",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.contains("| scene | technique |"), "{table}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("conformance.json")).unwrap()).unwrap();
+    assert_eq!(json["samples_per_pixel"], 4);
+    let rows = json["rows"].as_array().unwrap();
+    let presets: Vec<&str> = rows.iter().map(|r| r["preset"].as_str().unwrap()).collect();
+    assert_eq!(presets, ["paper", "balanced", "high"], "{json}");
+    assert_eq!(rows.iter().filter(|r| r["is_default"] == true).count(), 1);
+    for r in rows {
+        let db = r["cpu"]["psnr_db"].as_f64().unwrap();
+        assert!(db > 10.0 && db.is_finite(), "{r}");
+        // Where an adapter exists the WGSL agrees with its CPU twin.
+        if let Some(a) = r["agreement"]["psnr_db"].as_f64() {
+            assert!(a >= 35.0, "{r}");
+        }
+    }
+    // The contact sheet: truth | real-time | difference, for the default row.
+    let sheet = mesobake::render::image::Image::read(&out.join("conformance.png")).unwrap();
+    assert_eq!((sheet.width, sheet.height), (3 * 32, 26));
+}
