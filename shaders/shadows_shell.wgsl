@@ -57,9 +57,12 @@ fn blocks(hit: FragmentHit, o: vec3<f32>, distance: f32) -> bool {
     return hit.hit && length(hit.point - o) < distance;
 }
 
+// A start above the prism's top (or below its base) lies outside the prism: only the prisms
+// the ray enters count (`GdmRenderer::shell_blocked`).
 fn shadow_query(start: ShadowStart, dir: vec3<f32>, distance: f32) -> bool {
     let o = start.point;
-    if blocks(fragment(start.prism, o, start.texture, dir), o, distance) {
+    let inside = start.texture.z > 0.0 && start.texture.z < f32(textureDimensions(normals).z);
+    if inside && blocks(fragment(start.prism, o, start.texture, dir), o, distance) {
         return true;
     }
     let inv = safe_inverse(dir);

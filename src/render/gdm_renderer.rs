@@ -467,7 +467,10 @@ impl<'a> GdmRenderer<'a> {
 
     /// Whether the shell blocks the light `dir` within `distance` of object point `start`
     /// (texture coordinate `start_tex` in prism `p`): the per-pixel algorithm on the rest of
-    /// prism `p` from the start, then on every prism the ray enters.
+    /// prism `p` from the start, then on every prism the ray enters. A start above the
+    /// prism's top (or below its base), one voxel off a hit on the volume's top layer, lies
+    /// outside the prism: only the prisms the ray enters count (the rest of prism `p` from
+    /// there would run the chord from outside back down to the top face, into the solid).
     fn shell_blocked(
         &self,
         p: usize,
@@ -477,8 +480,11 @@ impl<'a> GdmRenderer<'a> {
         distance: f64,
     ) -> bool {
         let within = |hit: GdmHit| hit.t < distance;
-        self.fragment(p, start, dir, 0.0, start_tex)
-            .is_some_and(within)
+        let inside = start_tex.z > 0.0 && start_tex.z < self.lookup.dims().z as f64;
+        (inside
+            && self
+                .fragment(p, start, dir, 0.0, start_tex)
+                .is_some_and(within))
             || self.trace(start, dir).is_some_and(within)
     }
 
