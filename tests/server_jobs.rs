@@ -479,6 +479,28 @@ async fn previews_render_once_the_package_is_baked() {
         .unwrap();
     let committed = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/codecs.json");
     assert_eq!(codecs, std::fs::read_to_string(committed).unwrap());
+    // The conformance matrix is the committed report, and it covers every shipped scene (a
+    // scene added under scenes/ needs the report run again).
+    let conformance = reqwest::get(s.url("/api/v1/reports/conformance"))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
+    let committed = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/conformance.json");
+    assert_eq!(conformance, std::fs::read_to_string(committed).unwrap());
+    let conformance: Value = serde_json::from_str(&conformance).unwrap();
+    let measured: Vec<&str> = (conformance["truths"].as_array().unwrap().iter())
+        .map(|t| t["scene"].as_str().unwrap())
+        .collect();
+    let scenes_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    let mut shipped: Vec<String> = (std::fs::read_dir(scenes_dir).unwrap())
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    shipped.sort();
+    assert_eq!(measured, shipped);
     let codecs: Value = serde_json::from_str(&codecs).unwrap();
     let rows = codecs["rows"].as_array().unwrap();
     for scene in ["torus-chain", "plane-weave"] {

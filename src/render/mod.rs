@@ -55,6 +55,10 @@ pub fn render_image_observed(
     render_tiles(camera, observer, radiance).ok_or(Error::Cancelled)
 }
 
+/// A tile's pixels: each one's radiance summed over its samples that hit (`None` when none
+/// did) and how many hit.
+type TileSums = Vec<(Option<DVec3>, u32)>;
+
 /// The tiles of [`render_image_observed`], or `None` when `observer` cancelled. A pixel's
 /// samples are cast one after the other (neighbouring rays, in cache together).
 fn render_tiles(
@@ -69,7 +73,7 @@ fn render_tiles(
     let plane = camera.image_plane();
     let offsets = camera.samples_per_pixel.offsets();
     let centre_only = offsets == [[0.5, 0.5]];
-    let tiles: Option<Vec<Vec<(Option<DVec3>, u32)>>> = (0..tiles_x * tiles_y)
+    let tiles: Option<Vec<TileSums>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|t| {
             if observer.cancelled() {

@@ -148,10 +148,7 @@ impl Accumulator {
         }
         for (p, (rgb, &hit)) in image.rgb.iter().zip(&image.mask).enumerate() {
             if hit {
-                for c in 0..3 {
-                    self.sum[p][c] += f64::from(rgb[c]);
-                }
-                self.hits[p] += 1;
+                self.add_pixel(p, Some(rgb.map(f64::from)), 1);
             }
         }
         self.samples += 1;

@@ -81,6 +81,7 @@ pub struct AppState {
         scenes::list,
         scenes::get,
         reports::codecs,
+        reports::conformance,
         health::healthz,
         health::readyz,
         health::metrics,
@@ -120,6 +121,7 @@ pub fn router(state: AppState) -> Router {
         .route("/scenes", get(scenes::list))
         .route("/scenes/{name}", get(scenes::get))
         .route("/reports/codecs", get(reports::codecs))
+        .route("/reports/conformance", get(reports::conformance))
         .route("/openapi.json", get(openapi))
         .layer(RequestBodyLimitLayer::new(as_usize(config.max_json_bytes)))
         .merge(uploads);
