@@ -60,13 +60,16 @@ fn every_sample_scene_previews() {
             .unwrap()
             .contains(&"environment_lighting".into());
         if environment {
-            // The CPU renders the same scene's GI from its own bake.
+            // The CPU renders the same scene's GI from its own bake (the uncompressed GDM
+            // and its RTV; without the option it renders the scene's package, as preview).
             let o = succeeds(&[
                 "render",
                 "--scene",
                 scene_path.to_str().unwrap(),
                 "--method",
                 "gdm",
+                "--gdm-codec",
+                "uncompressed",
                 "--out",
                 out.to_str().unwrap(),
                 "--json",
