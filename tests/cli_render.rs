@@ -257,7 +257,8 @@ fn render_and_preview_agree_by_default_and_spp_supersamples_both() {
     };
     let psnr = |a: &str, b: &str| -> f64 {
         let o = succeeds(&["compare", &path(a), &path(b), "--json"]);
-        json(o)["psnr_db"].as_f64().unwrap()
+        // Identical images compare at +∞, which JSON writes as null.
+        json(o)["psnr_db"].as_f64().unwrap_or(f64::INFINITY)
     };
     for spp in ["1", "4"] {
         let r = format!("render-{spp}.png");
@@ -321,7 +322,7 @@ fn bad_sample_counts_and_codec_choices_are_refused_by_name() {
             ("0", "1..=1024"),
             ("1025", "1..=1024"),
             ("2.5", "whole number"),
-            ("-3", "1..=1024"),
+            ("many", "whole number"),
         ] {
             cases.push((
                 vec![command, "--scene", scene, "--spp", spp, "--out", out],

@@ -178,6 +178,9 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         (None, RenderMethod::Truth | RenderMethod::Explicit) => None,
         (None, RenderMethod::Gdm) if gdm_codec == GdmSource::Uncompressed => None,
         (None, _) => {
+            if method != RenderMethod::Cells {
+                loaded.check_opaque(&format!("the {} renderer", method.name()))?;
+            }
             let progress = Progress::new("baking the package");
             let params = codec.scene_params();
             let baked = if method == RenderMethod::Gdm {
