@@ -72,7 +72,7 @@ fn render_tiles(
     let done = AtomicU64::new(0);
     let plane = camera.image_plane();
     let offsets = camera.samples_per_pixel.offsets();
-    let centre_only = offsets == [[0.5, 0.5]];
+    let one = camera.samples_per_pixel.is_one();
     let tiles: Option<Vec<TileSums>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|t| {
@@ -84,7 +84,7 @@ fn render_tiles(
                 .flat_map(|y| (x0..(x0 + TILE).min(w)).map(move |x| (x, y)));
             let tile = pixels
                 .map(|(x, y)| {
-                    if centre_only {
+                    if one {
                         let (o, d) = camera.ray(x, y);
                         let c = radiance(o, d);
                         return (c, u32::from(c.is_some()));
@@ -121,6 +121,20 @@ mod tests {
     use super::*;
     use std::sync::Mutex;
 
+    /// A camera 1 unit above the origin looking down, `spp` samples per pixel.
+    fn camera(width: u32, height: u32, spp: u32) -> Camera {
+        Camera {
+            eye: [0.0, 0.0, 1.0],
+            target: [0.0, 0.0, 0.0],
+            up: [0.0, 1.0, 0.0],
+            fov_y_degrees: 40.0,
+            width,
+            height,
+            samples_per_pixel: sampling::SamplesPerPixel::new(spp).unwrap(),
+            subpixel: [0.5, 0.5],
+        }
+    }
+
     /// Records every progress report.
     #[derive(Default)]
     struct Recorder(Mutex<Vec<(u64, u64)>>);
@@ -134,16 +148,7 @@ mod tests {
     #[test]
     fn observed_renders_report_each_tile_once_and_end_at_the_total() {
         // 40×20 pixels: 3×2 tiles of 16 (the last ones partial).
-        let camera = Camera {
-            eye: [0.0, 0.0, 1.0],
-            target: [0.0, 0.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_y_degrees: 40.0,
-            width: 40,
-            height: 20,
-            samples_per_pixel: Default::default(),
-            subpixel: [0.5, 0.5],
-        };
+        let camera = camera(40, 20, 1);
         let recorder = Recorder::default();
         let image = render_image_observed(&camera, &recorder, |_, d| Some(d.abs())).unwrap();
         assert_eq!(image.hits(), 800);
@@ -158,16 +163,7 @@ mod tests {
     fn a_supersampled_pixel_covers_an_edge_by_its_area() {
         // 16 samples form a (0, 2)-net: one in each of 16 columns and in each of 16 rows of
         // the pixel, so an edge along either axis covers a pixel by its area within 1/16.
-        let camera = Camera {
-            eye: [0.0, 0.0, 1.0],
-            target: [0.0, 0.0, 0.0],
-            up: [0.0, 1.0, 0.0],
-            fov_y_degrees: 40.0,
-            width: 8,
-            height: 8,
-            samples_per_pixel: sampling::SamplesPerPixel::new(16).unwrap(),
-            subpixel: [0.5, 0.5],
-        };
+        let camera = camera(8, 8, 16);
         let plane = camera.image_plane();
         for axis in 0..2 {
             let edge = 3.3;
