@@ -43,6 +43,10 @@ struct Vdm {
     // The shadow test's tolerance ε in tiles (`shadow_tolerance`).
     shadow_tolerance: f32,
     albedo: vec4<f32>,
+    // The scene's `vdm.refine_texels` (0: the lookup alone).
+    refine_texels: u32,
+    // The relief's least depth in tiles, depth · (1 − max h).
+    top_depth: f32,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -219,6 +223,149 @@ fn exit_arc(depth: f32, theta: f32, c: f32) -> f32 {
     return r * atan2(sign(r) * q.x, sign(r) * (q.y + r));
 }
 
+// The refinement on the height field (`render::vdm_refine`, the same steps): one fragment's
+// view ray, entering at T along its azimuth at θ_V, on the surface bent to c (1/tile).
+struct BentRay {
+    entry: vec2<f32>,
+    azimuth: vec2<f32>,
+    theta: f32,
+    c: f32,
+}
+
+const REFINE_STEP: f32 = 0.5;
+const REFINE_BISECTIONS: u32 = 6u;
+
+// The relief coordinates (σ, t) of the point at distance τ along the ray.
+fn ray_at(r: BentRay, tau: f32) -> vec2<f32> {
+    let u = tau * sin(r.theta);
+    let w = -tau * cos(r.theta);
+    let k = 2.0 * w + r.c * (u * u + w * w);
+    let t = -k / (1.0 + sqrt(max(1.0 + r.c * k, 0.0)));
+    var sigma = u;
+    if abs(r.c) >= 1e-6 {
+        sigma = atan2(r.c * u, 1.0 + r.c * w) / r.c;
+    }
+    return vec2<f32>(sigma, t);
+}
+
+fn ray_inside(r: BentRay, tau: f32) -> bool {
+    let st = ray_at(r, tau);
+    return st.y >= vdm.depth * (1.0 - height(r.entry + r.azimuth * st.x));
+}
+
+fn refine_texel() -> f32 {
+    return 1.0 / f32(max(vdm.size.x, vdm.size.y));
+}
+
+// The first step from `begin` (outside) that lands inside, no further than `end`:
+// (1, before, at), or (0, …) without one.
+fn first_crossing(r: BentRay, begin: f32, end: f32, step: f32) -> vec3<f32> {
+    var a = begin;
+    var b = begin + step;
+    var found = 0.0;
+    loop {
+        if b > end {
+            break;
+        }
+        if ray_inside(r, b) {
+            found = 1.0;
+            break;
+        }
+        a = b;
+        b += step;
+    }
+    return vec3<f32>(found, a, b);
+}
+
+fn ray_bisect(r: BentRay, outside0: f32, inner0: f32) -> f32 {
+    var outside = outside0;
+    var inner = inner0;
+    for (var i = 0u; i < REFINE_BISECTIONS; i++) {
+        let mid = 0.5 * (outside + inner);
+        if ray_inside(r, mid) {
+            inner = mid;
+        } else {
+            outside = mid;
+        }
+    }
+    return ray_at(r, 0.5 * (outside + inner)).x;
+}
+
+// ray_length_to_arc: the distance τ at which the ray lies under arc length σ; −1 for none.
+fn ray_length_to_arc(sigma: f32, theta: f32, c: f32) -> f32 {
+    if abs(c) < 1e-6 {
+        return sigma / sin(theta);
+    }
+    let alpha = c * sigma;
+    let tau = sin(alpha) / (c * sin(theta + alpha));
+    if tau >= 0.0 {
+        return tau;
+    }
+    return -1.0;
+}
+
+// The arc length σ of the hit refined from the lookup's d.
+fn refine_hit(r: BentRay, d: f32, texels: u32) -> f32 {
+    let lookup = d * sin(r.theta);
+    let texel = refine_texel();
+    let window = f32(texels) * texel;
+    let step = REFINE_STEP * texel;
+    var start = ray_length_to_arc(lookup, r.theta, r.c);
+    if start < 0.0 {
+        start = d;
+    }
+    let first = max(start - window, 0.0);
+    var outside = first;
+    var inner = first;
+    if ray_inside(r, first) {
+        loop {
+            if !(outside > 0.0 && outside > start - 2.0 * window && ray_inside(r, outside)) {
+                break;
+            }
+            inner = outside;
+            outside = max(outside - step, 0.0);
+        }
+    } else {
+        let found = first_crossing(r, first, start + window, step);
+        if found.x == 0.0 {
+            return lookup;
+        }
+        outside = found.y;
+        inner = found.z;
+    }
+    if ray_inside(r, outside) || !ray_inside(r, inner) {
+        return lookup;
+    }
+    return ray_bisect(r, outside, inner);
+}
+
+// A hit the lookup called a miss: (1, σ), or (0, 0).
+fn refine_miss(r: BentRay, texels: u32) -> vec2<f32> {
+    let co = cos(r.theta);
+    let t = vdm.top_depth;
+    let e = co * co - r.c * (2.0 * t - r.c * t * t);
+    if e < 0.0 {
+        return vec2<f32>(0.0);
+    }
+    let root = sqrt(e);
+    let deep = (2.0 * t - r.c * t * t) / (co + root);
+    var end = deep + 2.0 * f32(texels) * refine_texel();
+    if r.c > 1e-6 {
+        end = min(end, (co + root) / r.c);
+    }
+    if !(deep >= 0.0) {
+        return vec2<f32>(0.0);
+    }
+    if ray_inside(r, deep) {
+        return vec2<f32>(1.0, ray_at(r, deep).x);
+    }
+    let found = first_crossing(r, deep, end, REFINE_STEP * refine_texel());
+    if found.x == 0.0 {
+        return vec2<f32>(0.0);
+    }
+    return vec2<f32>(1.0, ray_bisect(r, found.y, found.z));
+}
+
 // Step 6: whether the light from object direction l reaches the hit at T', `depth` below
 // the reference surface.
 fn lit(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, l: vec3<f32>) -> bool {
@@ -313,10 +460,24 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     }
     let c_v = corner_curvature(fi, bary, dir, true) * v.tile_length;
     let d = sample_vdm(t.x, t.y, v.theta, v.phi, c_v);
-    if !d.hit {
-        discard;
+    var sigma = d.d * sin(v.theta);
+    if vdm.refine_texels == 0u {
+        if !d.hit {
+            discard;
+        }
+    } else {
+        let ray = BentRay(t, v.azimuth, v.theta, c_v);
+        if d.hit {
+            sigma = refine_hit(ray, d.d, vdm.refine_texels);
+        } else {
+            let miss = refine_miss(ray, vdm.refine_texels);
+            if miss.x == 0.0 {
+                discard;
+            }
+            sigma = miss.y;
+        }
     }
-    let offset = v.azimuth * (d.d * sin(v.theta));
+    let offset = v.azimuth * sigma;
     let t_hit = t + offset;
     let depth = vdm.depth * (1.0 - height(t_hit));
     let hit = in.world + apply(faces[fi].from_vdm, vec3<f32>(offset, -depth));

@@ -133,17 +133,19 @@ fn every_sample_scene_previews() {
             assert!(std::fs::metadata(&out).unwrap().len() > 0);
             continue;
         }
-        // The sample scenes keep the paper's quality: local shadows where they ask for any.
+        // Shadows where a scene asks for them: the paper's local query, or traced through
+        // the shell where its quality says so (torus-chain: `balanced`).
         let shadows = scene["effects"]
             .as_array()
             .unwrap()
             .contains(&"shadows".into());
+        let shell = matches!(scene["quality"].as_str(), Some("balanced" | "high"));
         assert_eq!(
             p["variant"]["shadows"],
-            if shadows {
-                "local".into()
-            } else {
-                serde_json::Value::Null
+            match (shadows, shell) {
+                (false, _) => serde_json::Value::Null,
+                (true, false) => "local".into(),
+                (true, true) => "shell".into(),
             },
             "{name}: {p}"
         );

@@ -15,7 +15,7 @@ use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::Result;
 use crate::render::image::Image;
-use crate::render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance};
+use crate::render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 use crate::scene::{Effect, LoadedScene};
 use crate::surface::curvature::VertexCurvature;
 use bytemuck::{Pod, Zeroable};
@@ -66,6 +66,9 @@ struct VdmUniform {
     depth: f32,
     shadow_tolerance: f32,
     albedo: [f32; 4],
+    refine_texels: u32,
+    top_depth: f32,
+    padding: [u32; 2],
 }
 
 /// One corner of a top triangle as the vertex stage reads it.
@@ -166,6 +169,9 @@ impl<'g> VdmPreview<'g> {
             depth: relief.depth as f32,
             shadow_tolerance: shadow_tolerance(query) as f32,
             albedo: [albedo[0], albedo[1], albedo[2], 0.0],
+            refine_texels: scene.vdm.refine_texels,
+            top_depth: top_depth(relief) as f32,
+            padding: [0; 2],
         };
         let [weights, eigen, mvm] = query.factors();
         let size = |words: usize| (words * std::mem::size_of::<f32>()) as u64;

@@ -5,6 +5,7 @@
 
 pub mod accel;
 pub mod cell_order;
+pub mod environment_sampler;
 pub mod explicit;
 pub mod flat_preview;
 pub mod gdm_lookup;
@@ -20,6 +21,7 @@ pub mod quality;
 pub mod sampling;
 pub mod shell_walk;
 pub mod truth;
+pub mod vdm_refine;
 pub mod vdm_renderer;
 
 use crate::bake::gdm::BakeObserver;

@@ -10,17 +10,22 @@
 //! normalized Phong lobe k_s·(s+1)/(2π)·cos^s α about the mirror direction (s = shininess/4,
 //! no cosine at the light, nothing from below the surface). Each bounce picks one lobe, the
 //! diffuse one with probability P = ρ̄/(ρ̄ + k̄_s) (channel means), and samples its own density:
-//! cosine-distributed directions (weight ρ/P) or the Phong lobe (weight k_s/(1 − P)), so a
-//! grey material has no variance from the choice. Local lights are shaded as the ground truth
-//! does. The random numbers are seeded from the camera ray, so images are reproducible.
+//! cosine-distributed directions or the Phong lobe, weighted by the reflectance over the
+//! lobes' mixture density. Beside it, every bounce draws one direction from the environment
+//! map itself ([`EnvironmentSampler`]: next-event estimation, so a small bright sun is found
+//! by most paths rather than by rare ones); the two are combined by the balance heuristic
+//! (multiple importance sampling), which keeps the estimate unbiased. Local lights are shaded
+//! as the ground truth does. The random numbers are seeded from the camera ray, so images are
+//! reproducible.
 
+use super::environment_sampler::EnvironmentSampler;
 use super::truth::{Surface, TruthRenderer};
 use crate::bake::gi::environment::Environment;
 use crate::bake::gi::prt::Occluder;
 use crate::error::{Error, Result};
 use crate::scene::{Effect, LoadedScene, Scene};
 use glam::DVec3;
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 
 /// The glossy lobe of the environment light's BRDF.
 #[derive(Clone, Copy, Debug)]
@@ -34,6 +39,7 @@ pub struct PathTracer<'a> {
     truth: TruthRenderer<'a>,
     base: Occluder,
     environment: &'a Environment,
+    sampler: EnvironmentSampler<'a>,
     samples: u32,
     depth: u32,
     gloss: Option<Gloss>,
@@ -59,6 +65,7 @@ impl<'a> PathTracer<'a> {
             ),
             base: Occluder::new(&loaded.base),
             environment,
+            sampler: EnvironmentSampler::new(environment),
             samples,
             depth,
             gloss: crate::scene::gi::rtv_params(&loaded.scene)
@@ -87,38 +94,81 @@ impl<'a> PathTracer<'a> {
     }
 
     /// One sample of the environment light that `at`, reached along `arriving`, reflects
-    /// back along it.
+    /// back along it: a light sample and a BRDF sample, weighted by the balance heuristic.
     fn reflected(&self, at: &Surface, arriving: DVec3, rng: &mut Rng, depth: u32) -> DVec3 {
-        let (w, weight) = match self.gloss {
-            Some(g) if rng.uniform() >= diffuse_probability(at.albedo, g.specular) => {
-                let p = diffuse_probability(at.albedo, g.specular);
-                let mirror = arriving - 2.0 * arriving.dot(at.normal) * at.normal;
-                let w = phong_direction(mirror, g.exponent, rng);
-                if w.dot(at.normal) <= 0.0 {
-                    return DVec3::ZERO;
-                }
-                (w, g.specular / (1.0 - p))
+        let mut sum = DVec3::ZERO;
+        if let Some(light) = self
+            .sampler
+            .sample([rng.uniform(), rng.uniform(), rng.uniform()])
+        {
+            let (reflectance, pdf) = self.reflectance(at, arriving, light.direction);
+            if reflectance != DVec3::ZERO && self.escapes(at.start, light.direction) {
+                sum += reflectance * light.radiance * balance(light.pdf, pdf) / light.pdf;
             }
+        }
+        let w = match self.gloss {
+            Some(g) if rng.uniform() >= diffuse_probability(at.albedo, g.specular) => {
+                phong_direction(mirror(arriving, at.normal), g.exponent, rng)
+            }
+            _ => cosine_direction(at.normal, rng),
+        };
+        let (reflectance, pdf) = self.reflectance(at, arriving, w);
+        if reflectance == DVec3::ZERO || pdf <= 0.0 {
+            return sum;
+        }
+        let weight = reflectance / pdf;
+        match self.truth.trace(at.start, w, 0.0, f64::INFINITY) {
+            Some(hit) if depth < self.depth => {
+                let next = self.truth.surface(&hit, at.start, w);
+                sum + weight * self.reflected(&next, w, rng, depth + 1)
+            }
+            Some(_) => sum,
+            None if self.base.blocked(at.start, w) => sum,
+            None => {
+                let mis = balance(pdf, self.sampler.pdf(w));
+                sum + weight * DVec3::from(self.environment.radiance(w)) * mis
+            }
+        }
+    }
+
+    /// Whether a ray from `start` along `w` reaches the environment (no mesostructure, no
+    /// base mesh).
+    fn escapes(&self, start: DVec3, w: DVec3) -> bool {
+        self.truth.trace(start, w, 0.0, f64::INFINITY).is_none() && !self.base.blocked(start, w)
+    }
+
+    /// What `at` reflects back along `arriving` of unit radiance from `w` (ρ/π·cos θ, plus
+    /// the Phong lobe), and the density with which the BRDF sampling draws `w` (the lobes'
+    /// mixture).
+    fn reflectance(&self, at: &Surface, arriving: DVec3, w: DVec3) -> (DVec3, f64) {
+        let cos = w.dot(at.normal);
+        if cos <= 0.0 {
+            return (DVec3::ZERO, 0.0);
+        }
+        let diffuse = cos / PI;
+        match self.gloss {
             Some(g) => {
                 let p = diffuse_probability(at.albedo, g.specular);
-                (cosine_direction(at.normal, rng), at.albedo / p)
+                let alpha = w.dot(mirror(arriving, at.normal)).max(0.0);
+                let lobe = (g.exponent + 1.0) / TAU * alpha.powf(g.exponent);
+                (
+                    at.albedo * diffuse + g.specular * lobe,
+                    p * diffuse + (1.0 - p) * lobe,
+                )
             }
-            None => (cosine_direction(at.normal, rng), at.albedo),
-        };
-        if weight == DVec3::ZERO {
-            return DVec3::ZERO;
+            None => (at.albedo * diffuse, diffuse),
         }
-        weight
-            * match self.truth.trace(at.start, w, 0.0, f64::INFINITY) {
-                Some(hit) if depth < self.depth => {
-                    let next = self.truth.surface(&hit, at.start, w);
-                    self.reflected(&next, w, rng, depth + 1)
-                }
-                Some(_) => DVec3::ZERO,
-                None if self.base.blocked(at.start, w) => DVec3::ZERO,
-                None => DVec3::from(self.environment.radiance(w)),
-            }
     }
+}
+
+/// The balance heuristic's weight of a strategy of density `own` beside one of `other`.
+fn balance(own: f64, other: f64) -> f64 {
+    own / (own + other)
+}
+
+/// `arriving` mirrored about unit `normal`.
+fn mirror(arriving: DVec3, normal: DVec3) -> DVec3 {
+    arriving - 2.0 * arriving.dot(normal) * normal
 }
 
 /// The probability of following the diffuse lobe: its share of the channel-mean reflectance.

@@ -20,7 +20,8 @@
 //! 3. silhouette determination: the VDM query ([`VdmQuery::sample`]) says none;
 //! 4. real texture coordinate T' = T + d·sin θ_V·(cos φ_V, sin φ_V), the relief's depth
 //!    there t' = depth·(1 − h(T')) (h bilinear, periodic), and the hit P' = P + A⁻¹·(T' − T,
-//!    −t') (the flat offset);
+//!    −t') (the flat offset); where the scene asks for `vdm.refine_texels`, steps 3 and 4
+//!    settle the lookup's answer on the height field ([`super::vdm_refine`]);
 //! 5. shading at P' with the normal of the height field at T' (central differences one texel
 //!    apart, in VDM space (−depth·∂h/∂x, −depth·∂h/∂y, 1), mapped to object space by Aᵀ) and
 //!    the scene's albedo;
@@ -39,6 +40,7 @@
 use super::accel::BoxBvh;
 use super::gdm_renderer::intersect;
 use super::lighting::shade;
+use super::vdm_refine::BentRay;
 use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
 use crate::scene::{Effect, Scene};
@@ -96,12 +98,25 @@ pub fn prepare_top_faces(shell: &Shell, depth: f64) -> Vec<TopFace> {
         .collect()
 }
 
+/// The least depth of `relief` below the reference surface (tiles): depth · (1 − max h).
+pub fn top_depth(relief: Relief) -> f64 {
+    let top = relief
+        .field
+        .heights()
+        .iter()
+        .copied()
+        .fold(0.0f32, f32::max);
+    relief.depth * (1.0 - f64::from(top))
+}
+
 /// Renders a shell's reference surface with a compressed VDM.
 pub struct VdmRenderer<'a> {
     faces: Vec<TopFace>,
     bvh: BoxBvh,
     query: &'a VdmQuery,
     relief: Relief<'a>,
+    /// The relief's least depth (tiles), where the refinement's search of a miss begins.
+    top_depth: f64,
 }
 
 /// The principal curvatures at the top corners of `shell`'s prisms, estimated on the top
@@ -156,6 +171,7 @@ impl<'a> VdmRenderer<'a> {
             bvh,
             query,
             relief,
+            top_depth: top_depth(relief),
         })
     }
 
@@ -203,8 +219,21 @@ impl<'a> VdmRenderer<'a> {
             return None;
         }
         let c_v = corner_curvature(&|corner| eye - corner) * view.tile_length;
-        let d = f64::from(self.query.sample(t.x, t.y, view.theta, view.phi, c_v)?);
-        let offset = view.azimuth * (d * view.theta.sin());
+        let d = self.query.sample(t.x, t.y, view.theta, view.phi, c_v);
+        let ray = || BentRay {
+            relief: self.relief,
+            top_depth: self.top_depth,
+            entry: t,
+            azimuth: view.azimuth,
+            theta: view.theta,
+            c: c_v,
+        };
+        let sigma = match (d, scene.vdm.refine_texels) {
+            (d, 0) => f64::from(d?) * view.theta.sin(),
+            (Some(d), n) => ray().refine_hit(f64::from(d), n),
+            (None, n) => ray().refine_miss(n)?,
+        };
+        let offset = view.azimuth * sigma;
         let t_hit = t + offset;
         let depth = self.relief.surface_depth(t_hit.x, t_hit.y);
         let hit = p + face.from_vdm * offset.extend(-depth);

@@ -34,7 +34,14 @@ pub struct VdmSettings {
     pub mvm_rank: usize,
     /// Number format of the factors.
     pub quantization: Quantization,
+    /// Rendering: texels of the height field searched along the view ray around the VDM's
+    /// hit for the exact crossing (0: the paper's lookup alone; at most
+    /// [`MAX_REFINE_TEXELS`]).
+    pub refine_texels: u32,
 }
+
+/// The widest search [`VdmSettings::refine_texels`] may ask for.
+pub const MAX_REFINE_TEXELS: u32 = 64;
 
 impl Default for VdmSettings {
     fn default() -> Self {
@@ -48,6 +55,7 @@ impl Default for VdmSettings {
             rank: 8,
             mvm_rank: 4,
             quantization: Quantization::F16,
+            refine_texels: 0,
         }
     }
 }
@@ -74,6 +82,12 @@ impl VdmSettings {
             return Err(scene(Error::InvalidParameter(format!(
                 "oversampling must be 1 to {MAX_OVERSAMPLING}, got {}",
                 self.oversampling
+            ))));
+        }
+        if self.refine_texels > MAX_REFINE_TEXELS {
+            return Err(scene(Error::InvalidParameter(format!(
+                "refine_texels must be 0 to {MAX_REFINE_TEXELS}, got {}",
+                self.refine_texels
             ))));
         }
         Ok(())

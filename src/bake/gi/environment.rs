@@ -118,24 +118,43 @@ impl Environment {
 
     /// The radiance of the texel that direction `d` (unit) falls in.
     pub fn radiance(&self, d: DVec3) -> [f64; 3] {
+        self.texels[self.texel_index(d)].map(f64::from)
+    }
+
+    /// Width and height in texels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The texels, row-major from the zenith row.
+    pub fn texels(&self) -> &[[f32; 3]] {
+        &self.texels
+    }
+
+    /// The row-major index of the texel that direction `d` (unit) falls in.
+    pub fn texel_index(&self, d: DVec3) -> usize {
         let theta = d.y.clamp(-1.0, 1.0).acos();
         let phi = d.z.atan2(d.x).rem_euclid(2.0 * PI);
         let i = ((phi / (2.0 * PI) * self.width as f64) as usize).min(self.width - 1);
         let j = ((theta / PI * self.height as f64) as usize).min(self.height - 1);
-        self.texels[j * self.width + i].map(f64::from)
+        j * self.width + i
+    }
+
+    /// The solid angle of a texel of row `j`.
+    pub fn texel_solid_angle(&self, j: usize) -> f64 {
+        let (t0, t1) = (
+            PI * j as f64 / self.height as f64,
+            PI * (j + 1) as f64 / self.height as f64,
+        );
+        2.0 * PI / self.width as f64 * (t0.cos() - t1.cos())
     }
 
     /// The 16 SH coefficients per channel, in world space, by the texel quadrature of the
     /// module doc.
     pub fn project(&self) -> RgbSh {
         let mut out = [[0.0; COEFFS]; 3];
-        let dphi = 2.0 * PI / self.width as f64;
         for j in 0..self.height {
-            let (t0, t1) = (
-                PI * j as f64 / self.height as f64,
-                PI * (j + 1) as f64 / self.height as f64,
-            );
-            let weight = dphi * (t0.cos() - t1.cos());
+            let weight = self.texel_solid_angle(j);
             for i in 0..self.width {
                 let (theta, phi) = texel_centre(i, j, self.width, self.height);
                 let y = sh::eval(direction(theta, phi));
