@@ -425,7 +425,7 @@ fn a_white_furnace_converges_to_the_light_with_bounces() {
 fn flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::LoadedScene {
     let material =
         serde_json::json!({ "albedo": [0.5, 0.25, 1.0], "specular": [0, 0, 0], "shininess": 1 });
-    flat_slab_with(effects, c, ground, material)
+    flat_slab_with(effects, c, ground, c, material)
 }
 
 /// [`flat_slab`] with another `material`.
@@ -433,6 +433,7 @@ fn flat_slab_with(
     effects: &[&str],
     c: f64,
     ground: f64,
+    sun: f64,
     material: serde_json::Value,
 ) -> mesobake::scene::LoadedScene {
     let dir = tempfile::tempdir().unwrap();
@@ -455,7 +456,7 @@ fn flat_slab_with(
         "material": material,
         "camera": { "eye": [0.2, 2.5, 0.3], "target": [0, 0, 0], "fov_y_degrees": 40, "width": 32, "height": 32 },
         "environment": { "sky": { "clear": {
-            "sun_direction": [0, 1, 0], "sun_radiance": [c, c, c], "sun_radius_degrees": 1.0,
+            "sun_direction": [0.3, 1, 0.2], "sun_radiance": [sun, sun, sun], "sun_radius_degrees": 3.0,
             "zenith": [c, c, c], "horizon": [c, c, c], "ground": [ground, ground, ground]
         } } },
         "effects": effects,
@@ -542,7 +543,7 @@ fn the_gi_report_measures_against_its_references() {
         ],
         bounces: vec![0, 2],
         prt_samples: vec![64, 1024],
-        path_samples: vec![1, 4],
+        path_samples: vec![1, 4, 64],
         rtv_ranks: vec![1, 16],
         image_scale: 2,
     };
@@ -561,18 +562,20 @@ fn the_gi_report_measures_against_its_references() {
     assert_eq!(report.prt[2].relative_error, 0.0);
     let coarse = report.prt[1].relative_error;
     assert!(coarse > 0.0 && coarse < 0.05, "{:?}", report.prt);
-    // The slab's paths all escape upwards: every count gives the same image.
+    // The slab's paths all escape upwards, and the path tracer's images converge to the
+    // largest count's (the reference row, exact against itself) as paths are added.
     assert_eq!(report.image_size, [16, 16]);
-    assert_eq!(report.images.len(), 3);
+    assert_eq!(report.images.len(), 4);
+    let images = &report.images;
+    assert!(images[2].psnr_db.is_infinite(), "{images:?}");
     assert!(
-        report.images[0].psnr_db.is_infinite(),
-        "{:?}",
-        report.images
+        images[0].psnr_db < images[1].psnr_db && images[1].psnr_db.is_finite(),
+        "{images:?}"
     );
-    assert!(report.images[2].renderer == "GDM + RTV" && report.images[2].psnr_db > 30.0);
+    assert!(images[3].renderer == "GDM + RTV" && images[3].psnr_db > 30.0);
     // FLIP beside PSNR: 0 for identical images, small but measured for the GDM + RTV image.
-    assert_eq!(report.images[0].flip_mean, 0.0);
-    assert!(report.images[2].flip_mean < 0.05, "{:?}", report.images);
+    assert_eq!(images[2].flip_mean, 0.0);
+    assert!(images[3].flip_mean < 0.05, "{images:?}");
     // A Lambertian RTV is rank 1: asking for 16 stores 1, and only f16 rounding remains
     // (measured 1.5e-4).
     let ranks: Vec<usize> = report.compression.iter().map(|r| r.rank).collect();
@@ -592,43 +595,82 @@ fn the_gi_report_measures_against_its_references() {
     assert!(gi_accuracy(&plain, &sweep, &Limits::default(), &()).is_err());
 }
 
-#[test]
-fn the_path_tracer_reflects_albedo_times_radiance_on_a_slab_without_sh_truncation() {
+/// The cosine-weighted integral over the upper hemisphere (normal +y) of `loaded`'s
+/// environment map, exact for its piecewise-constant texels: Σ L·Δφ·(sin²θⱼ₊₁ − sin²θⱼ)/2
+/// over the rows above the horizon; its green channel.
+fn exact_irradiance(loaded: &mesobake::scene::LoadedScene) -> f64 {
+    let map = loaded.environment.as_ref().unwrap();
+    let (w, h) = map.size();
+    assert_eq!(h % 2, 0, "the horizon is a row boundary");
+    let theta = |j: usize| std::f64::consts::PI * j as f64 / h as f64;
+    (0..h / 2)
+        .map(|j| {
+            let band = (theta(j + 1).sin().powi(2) - theta(j).sin().powi(2)) / 2.0;
+            (0..w)
+                .map(|i| f64::from(map.texels()[j * w + i][1]))
+                .sum::<f64>()
+                * std::f64::consts::TAU
+                / w as f64
+                * band
+        })
+        .sum()
+}
+
+/// The slab's hit pixels' green values, and their mean.
+fn slab_greens(loaded: &mesobake::scene::LoadedScene) -> (Vec<f64>, f64) {
     use mesobake::scene::render::{MapSource, RenderMethod, render};
-    // Every cosine-distributed direction from the slab's top escapes upwards, so each path
-    // brings exactly the sky's radiance above the horizon: ρ·c with no variance, also under
-    // the half-dark sky where the SH pipeline's band-3 truncation gives 0.989·ρ·c.
+    let r = render(loaded, RenderMethod::Truth, MapSource::Bake, &Limits::default(), &()).unwrap();
+    assert!(r.image.hits() > 500);
+    let greens: Vec<f64> = r
+        .image
+        .rgb
+        .iter()
+        .zip(&r.image.mask)
+        .filter(|(_, h)| **h)
+        .map(|(p, _)| f64::from(p[1]))
+        .collect();
+    let mean = greens.iter().sum::<f64>() / greens.len() as f64;
+    (greens, mean)
+}
+
+#[test]
+fn the_path_tracer_reflects_albedo_times_irradiance_on_a_slab_under_a_sun() {
+    // Every direction above the slab's top escapes, so its radiance is ρ/π times the map's
+    // exact cosine integral over the upper hemisphere (no SH truncation, no shadow): under a
+    // half-dark sky and under a 3° sun 100 times as bright as the sky (a fifth of the
+    // light). With the map's own sampling beside the cosine's (MIS) the image's mean is
+    // within 0.5 % of the integral (measured 0.12 % and 0.27 %) and no pixel is off by as
+    // much as its own value (worst 19 % and 73 % at 16 paths); cosine-sampled paths alone
+    // meet the sun on one path in 360 and light such a pixel at 5 times the integral.
     let c = 0.8;
-    for ground in [c, 0.0] {
+    for (ground, sun) in [(0.0, c), (c, 100.0 * c)] {
         let loaded = flat_slab(&["environment_lighting", "macro_shadows"], c, ground);
-        let r = render(
-            &loaded,
-            RenderMethod::Truth,
-            MapSource::Bake,
-            &Limits::default(),
-            &(),
-        )
-        .unwrap();
-        assert!(r.image.hits() > 500);
-        for (rgb, &hit) in r.image.rgb.iter().zip(&r.image.mask) {
-            if hit {
-                for (v, albedo) in rgb.iter().zip([0.5, 0.25, 1.0]) {
-                    assert!(
-                        (f64::from(*v) - albedo * c).abs() < 1e-6,
-                        "{ground}: {rgb:?}"
-                    );
-                }
-            }
-        }
+        let loaded = if sun == c {
+            loaded
+        } else {
+            let material = serde_json::json!({
+                "albedo": [0.5, 0.25, 1.0], "specular": [0, 0, 0], "shininess": 1 });
+            flat_slab_with(&["environment_lighting"], c, ground, sun, material)
+        };
+        let exact = 0.25 * exact_irradiance(&loaded) / std::f64::consts::PI;
+        let (greens, mean) = slab_greens(&loaded);
+        let worst = greens
+            .iter()
+            .map(|g| (g / exact - 1.0).abs())
+            .fold(0.0, f64::max);
+        eprintln!("ground {ground} sun {sun}: mean {mean} exact {exact}, worst pixel {worst}");
+        assert!((mean / exact - 1.0).abs() < 0.005, "{mean} against {exact}");
+        assert!(worst < 1.0, "a pixel {worst} off");
     }
 }
 
 #[test]
 fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
-    use mesobake::scene::render::{MapSource, RenderMethod, render};
-    // A grey material (ρ = 0.5, k_s = 0.3) makes both lobes weigh ρ + k_s, and a narrow lobe
-    // (Blinn–Phong 400: Phong 100) about the mirror of a near-vertical view lies wholly above
-    // the horizon (its mass below is under 1e-20): every path brings (ρ + k_s)·c, no variance.
+    // A grey material (ρ = 0.5, k_s = 0.3) and a narrow lobe (Blinn–Phong 400: Phong 100)
+    // about the mirror of a near-vertical view, wholly above the horizon (its mass below is
+    // under 1e-20), under a uniform sky c and a dark ground: the lobe reflects k_s·c and the
+    // diffuse part ρ·c, so the image's mean is (ρ + k_s)·c with gloss and ρ·c without,
+    // within 0.5 % (measured 0.26 % and 0.12 %), the pixels within 50 % (28 % and 19 %).
     let c = 0.8;
     let material = serde_json::json!({
         "albedo": [0.5, 0.5, 0.5], "specular": [0.3, 0.3, 0.3], "shininess": 400 });
@@ -636,24 +678,15 @@ fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
         (&["environment_lighting", "environment_gloss"][..], 0.8 * c),
         (&["environment_lighting"][..], 0.5 * c),
     ] {
-        let loaded = flat_slab_with(effects, c, 0.0, material.clone());
-        let r = render(
-            &loaded,
-            RenderMethod::Truth,
-            MapSource::Bake,
-            &Limits::default(),
-            &(),
-        )
-        .unwrap();
-        assert!(r.image.hits() > 500);
-        for (rgb, _) in r.image.rgb.iter().zip(&r.image.mask).filter(|(_, h)| **h) {
-            for v in rgb {
-                assert!(
-                    (f64::from(*v) - expected).abs() < 1e-6,
-                    "{effects:?}: {rgb:?}"
-                );
-            }
-        }
+        let loaded = flat_slab_with(effects, c, 0.0, c, material.clone());
+        let (greens, mean) = slab_greens(&loaded);
+        let worst = greens
+            .iter()
+            .map(|g| (g / expected - 1.0).abs())
+            .fold(0.0, f64::max);
+        eprintln!("{effects:?}: mean {mean} expected {expected}, worst pixel {worst}");
+        assert!((mean / expected - 1.0).abs() < 0.005, "{effects:?}: {mean}");
+        assert!(worst < 0.5, "{effects:?}: a pixel {worst} off");
     }
 }
 
