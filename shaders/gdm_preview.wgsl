@@ -96,13 +96,21 @@ struct ShadowStart {
     frame: mat3x3<f32>,
 }
 
-// Lambert + normalized Blinn–Phong from every light, with the variant's shadow test.
+// Lambert + normalized Blinn–Phong from every light, with the variant's shadow test. The
+// ambient lights are summed first, in a loop of their own: Mesa's llvmpipe ends every loop
+// of a shader invocation once 65535 loop iterations have run in all, all loops and lanes
+// together (LP_MAX_TGSI_LOOP_ITERATIONS), and a shell shadow query that grazes the surface
+// near the light's terminator can spend them; the ambient term then still arrives.
 fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, start: ShadowStart) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     for (var l = 0u; l < view.light_count; l++) {
+        if lights[l].kind == 2u {
+            out += base * lights[l].colour.rgb;
+        }
+    }
+    for (var l = 0u; l < view.light_count; l++) {
         let light = lights[l];
         if light.kind == 2u {
-            out += base * light.colour.rgb;
             continue;
         }
         let inc = light_incidence(light, p);

@@ -101,16 +101,17 @@ fn every_scene_s_default_package_renders_alike_in_wgsl_and_on_the_cpu() {
 }
 
 /// Cases that Mesa's llvmpipe (the software driver CI runs) renders wrong, held to a lower bar
-/// there only: (scene, codec, preset, PSNR at least). The shell-shadow variant loses light
-/// iterations on pixels along the light's terminator (black where the CPU, like the truth,
-/// shows the ambient term; with the ambient light listed first they lose the point light
-/// instead). Not the adapter's loop budget (at most 580 iterations counted per pixel) and
-/// not returns inside loops (rewritten without them, the same image); the CPU specification
-/// agrees with the truth on those pixels. Measured: 34.6 and 30.3 dB.
-const LLVMPIPE_DEFECTS: [(&str, GdmCodec, Preset, f64); 2] = [
-    ("torus-bumps", GdmCodec::PaperSvd, Preset::Balanced, 33.0),
-    ("torus-bumps", GdmCodec::PaperSvd, Preset::High, 28.0),
-];
+/// there only: (scene, codec, preset, PSNR at least). llvmpipe ends every loop of a shader
+/// invocation once 65535 loop iterations have run in all (`LP_MAX_TGSI_LOOP_ITERATIONS` in
+/// Mesa's gallivm: one counter for all loops, nested ones included, of the SIMD group's
+/// lanes), and a shell shadow query that grazes the torus near the light's terminator
+/// (hundreds of prisms, each with its face loop and its march) spends them: the query stops
+/// part way and says lit or shadowed at random. The shader sums ambient light first, so those
+/// pixels are no longer black; the CPU specification agrees with the truth on them.
+/// Measured: `balanced` 35.8 → 40.4 dB with the ambient light first (no longer listed),
+/// `high` 33.9 → 35.3 dB (listed: a margin of 0.3 dB is no bar).
+const LLVMPIPE_DEFECTS: [(&str, GdmCodec, Preset, f64); 1] =
+    [("torus-bumps", GdmCodec::PaperSvd, Preset::High, 33.0)];
 
 #[test]
 fn every_opaque_scene_s_gdm_renders_alike_with_both_codecs_at_every_preset() {

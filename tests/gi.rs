@@ -619,7 +619,14 @@ fn exact_irradiance(loaded: &mesobake::scene::LoadedScene) -> f64 {
 /// The slab's hit pixels' green values, and their mean.
 fn slab_greens(loaded: &mesobake::scene::LoadedScene) -> (Vec<f64>, f64) {
     use mesobake::scene::render::{MapSource, RenderMethod, render};
-    let r = render(loaded, RenderMethod::Truth, MapSource::Bake, &Limits::default(), &()).unwrap();
+    let r = render(
+        loaded,
+        RenderMethod::Truth,
+        MapSource::Bake,
+        &Limits::default(),
+        &(),
+    )
+    .unwrap();
     assert!(r.image.hits() > 500);
     let greens: Vec<f64> = r
         .image

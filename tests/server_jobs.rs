@@ -1147,3 +1147,89 @@ async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
     }
 }
+
+/// Runs the binary with `args` in `dir`, which must succeed.
+fn cli(dir: &std::path::Path, args: &[&str]) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mesobake"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_server_job_bakes_and_previews_what_the_cli_does_by_default() {
+    // One default everywhere: a job with no codec options bakes the package `bake --scene`
+    // writes, byte for byte; the server's preview is the CLI's `preview` of the scene, and
+    // `render` (the CPU specification) draws the same image. torus-chain (its `balanced`
+    // quality: shell shadows) and plane-weave (the paper's), at 96².
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
+        return;
+    }
+    use mesobake::render::image::{Image, compare};
+    let dir = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "defaults").await.remove(0);
+    let data = tempfile::tempdir().unwrap();
+    let s = TestServer::start(&url, data.path(), 1 << 24).await;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&s.state, 1, &stop);
+    for name in ["torus-chain", "plane-weave"] {
+        let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("scenes")
+            .join(format!("{name}.json"));
+        let mut scene: Value =
+            serde_json::from_str(&std::fs::read_to_string(shipped).unwrap()).unwrap();
+        scene["camera"]["width"] = 96.into();
+        scene["camera"]["height"] = 96.into();
+        let work = dir.path().join(name);
+        std::fs::create_dir_all(&work).unwrap();
+        std::fs::write(work.join("scene.json"), scene.to_string()).unwrap();
+        let (status, queued) = submit(&s, &json!({ "scene": scene })).await;
+        assert!(status == 200 || status == 201 || status == 202, "{queued}");
+        let id = queued["id"].as_str().unwrap().to_owned();
+        let done = wait_for(&s, &id, |j| j["state"] == "succeeded").await;
+        let digest = done["package_digest"].as_str().unwrap();
+        let served = reqwest::get(s.url(&format!("/api/v1/packages/{digest}")))
+            .await
+            .unwrap()
+            .bytes()
+            .await
+            .unwrap();
+        cli(
+            &work,
+            &["bake", "--scene", "scene.json", "--out", "cli.mbpkg"],
+        );
+        assert!(
+            std::fs::read(work.join("cli.mbpkg")).unwrap() == served.as_ref(),
+            "{name}: the job's package is not the CLI's"
+        );
+        let (_, png) = preview_png(&s, &scene).await;
+        std::fs::write(work.join("server.png"), &png).unwrap();
+        cli(
+            &work,
+            &["preview", "--scene", "scene.json", "--out", "preview.png"],
+        );
+        cli(
+            &work,
+            &["render", "--scene", "scene.json", "--out", "render.png"],
+        );
+        let image = |f: &str| Image::read(&work.join(f)).unwrap();
+        let server = image("server.png");
+        let same = compare(&image("preview.png"), &server).unwrap();
+        assert!(same.psnr_db.is_infinite(), "{name}: {same:?}");
+        let cpu = compare(&image("render.png"), &server).unwrap();
+        eprintln!("{name}: render against the server's preview {cpu:?}");
+        assert!(
+            cpu.psnr_db >= 35.0 && cpu.mask_disagreement <= 0.005,
+            "{name}: {cpu:?}"
+        );
+        assert!(server.hits() > 96 * 96 / 10, "{name}");
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}
