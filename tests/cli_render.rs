@@ -380,7 +380,10 @@ fn bad_sample_counts_and_codec_choices_are_refused_by_name() {
 fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("scene.json");
-    std::fs::write(&scene, SCENE).unwrap();
+    // A scene whose quality is not the paper's: its default row is its own preset.
+    let mut json: serde_json::Value = serde_json::from_str(SCENE).unwrap();
+    json["quality"] = "balanced".into();
+    std::fs::write(&scene, json.to_string()).unwrap();
     let out = dir.path().join("report");
     let o = succeeds(&[
         "report",
@@ -404,7 +407,18 @@ fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
     let rows = json["rows"].as_array().unwrap();
     let presets: Vec<&str> = rows.iter().map(|r| r["preset"].as_str().unwrap()).collect();
     assert_eq!(presets, ["paper", "balanced", "high"], "{json}");
-    assert_eq!(rows.iter().filter(|r| r["is_default"] == true).count(), 1);
+    let defaults: Vec<&serde_json::Value> =
+        rows.iter().filter(|r| r["is_default"] == true).collect();
+    assert_eq!(defaults.len(), 1);
+    assert_eq!(defaults[0]["preset"], "balanced");
+    // The verdict's default figure is that row's (the WGSL's where measured).
+    let default_db = (defaults[0]["gpu"]["psnr_db"].as_f64())
+        .unwrap_or_else(|| defaults[0]["cpu"]["psnr_db"].as_f64().unwrap());
+    let md = std::fs::read_to_string(out.join("conformance.md")).unwrap();
+    let verdict = md.lines().find(|l| l.starts_with("| scene |")).unwrap();
+    let first = md.lines().skip_while(|l| *l != verdict).nth(2).unwrap();
+    let cells: Vec<&str> = first.split('|').map(str::trim).collect();
+    assert_eq!(cells[3], format!("{default_db:.2}"), "{md}");
     for r in rows {
         let db = r["cpu"]["psnr_db"].as_f64().unwrap();
         assert!(db > 10.0 && db.is_finite(), "{r}");

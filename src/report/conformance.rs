@@ -301,9 +301,12 @@ fn verdicts(report: &ConformanceReport) -> Vec<Vec<String>> {
                 .iter()
                 .max_by(|a, b| psnr(a).total_cmp(&psnr(b)))
                 .expect("a group has rows");
-            let default = rows
-                .iter()
-                .find(|r| r.preset == "paper" || r.preset == "scene");
+            // The scene's own technique and quality; for a technique it does not use, that
+            // technique's default (the paper's preset, or the scene's settings).
+            let default = (rows.iter().find(|r| r.is_default)).or_else(|| {
+                rows.iter()
+                    .find(|r| r.preset == "paper" || r.preset == "scene")
+            });
             let mark = |ok: bool| if ok { "yes" } else { "**no**" }.to_string();
             vec![
                 scene.to_string(),
