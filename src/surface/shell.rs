@@ -551,41 +551,81 @@ fn folds(prism: &Prism) -> bool {
     false
 }
 
+/// The real roots of a cubic in an interval: at most three, ascending, without allocating
+/// (the shell walk solves one per prism face it crosses).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CubicRoots {
+    values: [f64; 3],
+    len: usize,
+}
+
+impl CubicRoots {
+    fn push(&mut self, x: f64) {
+        self.values[self.len] = x;
+        self.len += 1;
+    }
+}
+
+impl std::ops::Deref for CubicRoots {
+    type Target = [f64];
+
+    fn deref(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
+}
+
+impl IntoIterator for CubicRoots {
+    type Item = f64;
+    type IntoIter = std::iter::Take<std::array::IntoIter<f64, 3>>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.values.into_iter().take(self.len)
+    }
+}
+
 /// Real roots in [lo, hi] of c₀ + c₁x + c₂x² + c₃x³, ascending: the interval is split at the
 /// critical points, and each monotone piece with a sign change is solved by safeguarded
 /// Newton iteration to full precision. Scale-free (coefficients are normalized).
-pub fn cubic_roots(c: [f64; 4], lo: f64, hi: f64) -> Vec<f64> {
+pub fn cubic_roots(c: [f64; 4], lo: f64, hi: f64) -> CubicRoots {
+    let mut roots = CubicRoots::default();
     let scale = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     if scale == 0.0 || !scale.is_finite() {
-        return Vec::new();
+        return roots;
     }
     let c = c.map(|x| x / scale);
     let f = |x: f64| ((c[3] * x + c[2]) * x + c[1]) * x + c[0];
     let df = |x: f64| (3.0 * c[3] * x + 2.0 * c[2]) * x + c[1];
-    let mut cuts = vec![lo];
     // Critical points: 3c₃x² + 2c₂x + c₁ = 0.
     let (qa, qb, qc) = (3.0 * c[3], 2.0 * c[2], c[1]);
-    let mut crit = Vec::new();
+    let mut crit = [f64::NAN; 2];
     if qa.abs() > 1e-300 {
         let disc = qb * qb - 4.0 * qa * qc;
         if disc >= 0.0 {
             let s = disc.sqrt();
             let q = -0.5 * (qb + qb.signum() * s);
-            if q != 0.0 {
-                crit.push(q / qa);
-                crit.push(qc / q);
+            crit = if q != 0.0 {
+                [q / qa, qc / q]
             } else {
-                crit.push(0.0);
-            }
+                [0.0, f64::NAN]
+            };
         }
     } else if qb.abs() > 1e-300 {
-        crit.push(-qc / qb);
+        crit[0] = -qc / qb;
     }
-    crit.sort_by(f64::total_cmp);
-    cuts.extend(crit.into_iter().filter(|x| *x > lo && *x < hi));
-    cuts.push(hi);
-    let mut roots = Vec::new();
-    for pair in cuts.windows(2) {
+    if crit[1] < crit[0] {
+        crit.swap(0, 1);
+    }
+    // lo, the critical points inside (lo, hi) ascending, hi (NaN fails the test).
+    let mut cuts = [lo; 4];
+    let mut count = 1;
+    for x in crit {
+        if x > lo && x < hi {
+            cuts[count] = x;
+            count += 1;
+        }
+    }
+    cuts[count] = hi;
+    for pair in cuts[..=count].windows(2) {
         let (mut a, mut b) = (pair[0], pair[1]);
         let (fa, fb) = (f(a), f(b));
         if fa == 0.0 {
