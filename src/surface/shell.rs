@@ -203,7 +203,7 @@ impl Prism {
     /// = 0, i.e. the heights whose level triangle's plane contains `p`, each with its
     /// barycentric coordinates (possibly outside the triangle). A prism that does not fold
     /// has at most one root whose coordinates lie inside.
-    pub fn locate_all(&self, p: DVec3, slack: f64) -> Vec<PrismPoint> {
+    pub fn locate_all(&self, p: DVec3, slack: f64) -> impl Iterator<Item = PrismPoint> {
         let [b0, b1, b2] = self.bottom;
         let [d0, d1, d2] = self.extrusion;
         let (e1, e2, r) = (b1 - b0, b2 - b0, p - b0);
@@ -218,17 +218,15 @@ impl Prism {
             n2.dot(r) - n1.dot(d0),
             -n2.dot(d0),
         ];
-        let mut out = Vec::new();
-        for w in cubic_roots(c, -slack, 1.0 + slack) {
-            let level = FaceTriangle {
-                corners: [b0 + d0 * w, b1 + d1 * w, b2 + d2 * w],
-                texture: [DVec3::ZERO; 3],
-            };
-            if let Some(l) = level.barycentric(p) {
-                out.push(PrismPoint { bary: l, w });
-            }
-        }
-        out
+        cubic_roots(c, -slack, 1.0 + slack)
+            .into_iter()
+            .filter_map(move |w| {
+                let level = FaceTriangle {
+                    corners: [b0 + d0 * w, b1 + d1 * w, b2 + d2 * w],
+                    texture: [DVec3::ZERO; 3],
+                };
+                level.barycentric(p).map(|bary| PrismPoint { bary, w })
+            })
     }
 
     /// The prism coordinates of `p` that lie inside the prism within `tolerance` (in units of
@@ -242,7 +240,6 @@ impl Prism {
             None => q.outside(),
         };
         self.locate_all(p, tolerance)
-            .into_iter()
             .filter(|q| q.outside() <= tolerance)
             .min_by(|a, b| distance(a).total_cmp(&distance(b)))
     }
