@@ -616,6 +616,14 @@ fn exact_irradiance(loaded: &mesobake::scene::LoadedScene) -> f64 {
         .sum()
 }
 
+/// The green values of `image`'s hit pixels.
+fn hit_greens(image: &mesobake::render::image::Image) -> Vec<f64> {
+    (image.rgb.iter().zip(&image.mask))
+        .filter(|(_, h)| **h)
+        .map(|(p, _)| f64::from(p[1]))
+        .collect()
+}
+
 /// The slab's hit pixels' green values, and their mean.
 fn slab_greens(loaded: &mesobake::scene::LoadedScene) -> (Vec<f64>, f64) {
     use mesobake::scene::render::{MapSource, RenderMethod, render};
@@ -628,14 +636,7 @@ fn slab_greens(loaded: &mesobake::scene::LoadedScene) -> (Vec<f64>, f64) {
     )
     .unwrap();
     assert!(r.image.hits() > 500);
-    let greens: Vec<f64> = r
-        .image
-        .rgb
-        .iter()
-        .zip(&r.image.mask)
-        .filter(|(_, h)| **h)
-        .map(|(p, _)| f64::from(p[1]))
-        .collect();
+    let greens = hit_greens(&r.image);
     let mean = greens.iter().sum::<f64>() / greens.len() as f64;
     (greens, mean)
 }
@@ -736,14 +737,7 @@ fn path_traced_and_rtv_white_furnaces_agree() {
     let loaded = mesobake::scene::render::load_scene(&path, &limits).unwrap();
     let mean = |method| {
         let r = render(&loaded, method, MapSource::Bake, &limits, &()).unwrap();
-        let hits: Vec<f64> = r
-            .image
-            .rgb
-            .iter()
-            .zip(&r.image.mask)
-            .filter(|(_, h)| **h)
-            .map(|(p, _)| f64::from(p[1]))
-            .collect();
+        let hits = hit_greens(&r.image);
         assert!(hits.len() > 100, "{}", hits.len());
         hits.iter().sum::<f64>() / hits.len() as f64
     };

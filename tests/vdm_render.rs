@@ -559,6 +559,19 @@ fn shadowed(with: &Image, without: &Image) -> Vec<bool> {
         .collect()
 }
 
+/// torus-bumps as shipped, changed by `edit`, loaded, and its default package.
+fn torus_bumps(edit: impl FnOnce(&mut Scene)) -> (LoadedScene, mesobake::package::AnyPackage) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-bumps.json");
+    let mut scene = Scene::read(&path).unwrap();
+    edit(&mut scene);
+    let (dir, limits) = (path.parent().unwrap(), Limits::default());
+    let loaded = LoadedScene::load(scene, dir, &limits).unwrap();
+    let package =
+        mesobake::scene::package::scene_package(&loaded, dir, Default::default(), &limits, &())
+            .unwrap();
+    (loaded, package)
+}
+
 #[test]
 fn the_compressed_vdm_shadows_no_lit_bump_the_truth_lights() {
     // torus-bumps as shipped (rank 8, f16: 2.5 texels RMS displacement error). A shadow test
@@ -568,20 +581,11 @@ fn the_compressed_vdm_shadows_no_lit_bump_the_truth_lights() {
     // pixels the truth shadows: measured 0.72 with the interpolation's texel alone, 0.28 with
     // the compression's error (what remains: the VDM's bumps sit a little off the truth's),
     // 0.20 with the scene's refinement on the height field (`vdm.refine_texels`) besides.
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-bumps.json");
-    let mut scene = Scene::read(&path).unwrap();
-    scene.camera.width = 192;
-    scene.camera.height = 192;
     let limits = Limits::default();
-    let mut loaded = LoadedScene::load(scene, path.parent().unwrap(), &limits).unwrap();
-    let package = mesobake::scene::package::scene_package(
-        &loaded,
-        path.parent().unwrap(),
-        Default::default(),
-        &limits,
-        &(),
-    )
-    .unwrap();
+    let (mut loaded, package) = torus_bumps(|scene| {
+        scene.camera.width = 192;
+        scene.camera.height = 192;
+    });
     let images = |loaded: &LoadedScene| {
         let truth = render(loaded, RenderMethod::Truth, MapSource::Bake, &limits, &()).unwrap();
         let vdm = mesobake::scene::preview::render_on_cpu(loaded, &package).unwrap();
@@ -610,25 +614,16 @@ fn the_refinement_settles_hits_and_silhouettes_on_the_height_field() {
     // 21.3 → 24.6 dB, silhouettes 0.90 % → 0.37 % of pixels; at 16 samples per pixel
     // 23.7 → 27.6 dB, 0.89 % → 0.43 %.
     use mesobake::render::sampling::SamplesPerPixel;
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-bumps.json");
-    let mut scene = Scene::read(&path).unwrap();
-    assert_eq!(scene.vdm.refine_texels, 16, "the scene as shipped");
-    scene.camera.width = 128;
-    scene.camera.height = 128;
-    scene
-        .camera
-        .set_samples_per_pixel(SamplesPerPixel::new(4).unwrap())
-        .unwrap();
     let limits = Limits::default();
-    let mut loaded = LoadedScene::load(scene, path.parent().unwrap(), &limits).unwrap();
-    let package = mesobake::scene::package::scene_package(
-        &loaded,
-        path.parent().unwrap(),
-        Default::default(),
-        &limits,
-        &(),
-    )
-    .unwrap();
+    let (mut loaded, package) = torus_bumps(|scene| {
+        assert_eq!(scene.vdm.refine_texels, 16, "the scene as shipped");
+        scene.camera.width = 128;
+        scene.camera.height = 128;
+        scene
+            .camera
+            .set_samples_per_pixel(SamplesPerPixel::new(4).unwrap())
+            .unwrap();
+    });
     let truth = render(&loaded, RenderMethod::Truth, MapSource::Bake, &limits, &())
         .unwrap()
         .image;
