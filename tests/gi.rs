@@ -649,7 +649,8 @@ fn the_path_tracer_reflects_albedo_times_irradiance_on_a_slab_under_a_sun() {
     // light). With the map's own sampling beside the cosine's (MIS) the image's mean is
     // within 0.5 % of the integral (measured 0.12 % and 0.27 %) and no pixel is off by as
     // much as its own value (worst 19 % and 73 % at 16 paths); cosine-sampled paths alone
-    // meet the sun on one path in 360 and light such a pixel at 5 times the integral.
+    // would meet the sun on about one path in 360 (its solid angle weighted by the cosine,
+    // computed), lighting such a pixel at several times the integral.
     let c = 0.8;
     for (ground, sun) in [(0.0, c), (c, 100.0 * c)] {
         let loaded = flat_slab(&["environment_lighting", "macro_shadows"], c, ground);
