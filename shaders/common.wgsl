@@ -1,7 +1,7 @@
 // What both real-time pipelines share (prepended to `gdm_preview.wgsl`'s variants and to
 // `vdm_preview.wgsl`): constants, the view and light records of bind group 0,
-// `normalize_or`, linear interpolation taps, the direct lighting of one light, and the
-// stackless traversal of a BVH's nodes.
+// `normalize_or`, linear interpolation taps, the direct lighting of one light, the
+// stackless traversal of a BVH's nodes and the ray–triangle test.
 
 const PI: f32 = 3.141592653589793;
 const TAU: f32 = 6.283185307179586;
@@ -132,4 +132,31 @@ fn node_entry(node: BvhNode, o: vec3<f32>, inv: vec3<f32>, t_max: f32) -> f32 {
     let near = max(max(min(a.x, b.x), min(a.y, b.y)), max(min(a.z, b.z), 0.0));
     let far = min(min(max(a.x, b.x), max(a.y, b.y)), min(max(a.z, b.z), t_max));
     return select(-1.0, near, near <= far);
+}
+
+// ---- Triangles ------------------------------------------------------------------------
+
+// Edge tolerance of the ray–triangle test, in barycentric units: rays through shared edges
+// and vertices meet at least one neighbour.
+const EDGE: f32 = 1.0e-6;
+
+// Möller–Trumbore: (t, b1, b2) of the ray o + t·d on the triangle (a, b, c); t ≤ 0 for
+// none.
+fn intersect_triangle(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
+    let e1 = b - a;
+    let e2 = c - a;
+    let pv = cross(d, e2);
+    let det = dot(e1, pv);
+    if det == 0.0 {
+        return vec3<f32>(-1.0, 0.0, 0.0);
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = dot(s, pv) * inv;
+    let qv = cross(s, e1);
+    let v = dot(d, qv) * inv;
+    if u < -EDGE || v < -EDGE || u + v > 1.0 + EDGE {
+        return vec3<f32>(-1.0, 0.0, 0.0);
+    }
+    return vec3<f32>(dot(e2, qv) * inv, u, v);
 }

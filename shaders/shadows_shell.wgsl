@@ -7,31 +7,11 @@
 @group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
 @group(0) @binding(4) var<storage, read> bvh_prisms: array<u32>;
 
-// Edge tolerance of the ray–triangle test, in barycentric units: rays through shared edges
-// and vertices meet at least one neighbour.
-const EDGE: f32 = 1.0e-6;
-
-// Möller–Trumbore: (t, b1, b2) of the ray o + t·d on face f of prism pi; t ≤ 0 for none.
+// (t, b1, b2) of the ray o + t·d on face f of prism pi; t ≤ 0 for none.
 fn intersect_face(pi: u32, f: u32, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
     let c = prisms[pi].faces[f].corners;
-    let e1 = c[1].xyz - c[0].xyz;
-    let e2 = c[2].xyz - c[0].xyz;
-    let pv = cross(d, e2);
-    let det = dot(e1, pv);
-    if det == 0.0 {
-        return vec3<f32>(-1.0, 0.0, 0.0);
-    }
-    let inv = 1.0 / det;
-    let s = o - c[0].xyz;
-    let u = dot(s, pv) * inv;
-    let qv = cross(s, e1);
-    let v = dot(d, qv) * inv;
-    if u < -EDGE || v < -EDGE || u + v > 1.0 + EDGE {
-        return vec3<f32>(-1.0, 0.0, 0.0);
-    }
-    return vec3<f32>(dot(e2, qv) * inv, u, v);
+    return intersect_triangle(c[0].xyz, c[1].xyz, c[2].xyz, o, d);
 }
-
 
 // The fragment that the ray o + t·dir makes on face f of prism pi, if it meets that face
 // from the front at 0 < t < t_max (what the rasterizer would produce, depth-tested against

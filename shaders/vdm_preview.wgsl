@@ -47,6 +47,8 @@ struct Vdm {
     refine_texels: u32,
     // The relief's least depth in tiles, depth · (1 − max h).
     top_depth: f32,
+    // 1 for the scene's `vdm.shadows: "shell"` (step 7).
+    shell_shadows: u32,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -61,6 +63,9 @@ struct Vdm {
 @group(0) @binding(6) var<storage, read> mvm: array<f32>;
 // h(i, j), x fastest.
 @group(0) @binding(7) var<storage, read> heights: array<f32>;
+// A BVH over the top faces' boxes for step 7 (one empty node without shell shadows).
+@group(0) @binding(8) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(9) var<storage, read> bvh_faces: array<u32>;
 
 // ---- Filtering ------------------------------------------------------------------------
 
@@ -366,6 +371,43 @@ fn refine_miss(r: BentRay, texels: u32) -> vec2<f32> {
     return vec2<f32>(1.0, ray_bisect(r, found.y, found.z));
 }
 
+// Steps 2–4 (`VdmRenderer::lookup`): a ray along `dir` entering face fi at texture
+// coordinate t, where the surface's curvature along it is c (1/object unit): whether it hits,
+// the arc length σ to the hit and its azimuth in texture space.
+struct Lookup {
+    hit: bool,
+    sigma: f32,
+    azimuth: vec2<f32>,
+}
+
+fn lookup(fi: u32, t: vec2<f32>, dir: vec3<f32>, c: f32) -> Lookup {
+    let none = Lookup(false, 0.0, vec2<f32>(0.0));
+    let v = direction(fi, dir);
+    if !v.ok || v.inward <= 0.0 {
+        return none;
+    }
+    let c_v = c * v.tile_length;
+    let d = sample_vdm(t.x, t.y, v.theta, v.phi, c_v);
+    var sigma = d.d * sin(v.theta);
+    if vdm.refine_texels == 0u {
+        if !d.hit {
+            return none;
+        }
+    } else {
+        let ray = BentRay(t, v.azimuth, v.theta, c_v);
+        if d.hit {
+            sigma = refine_hit(ray, d.d, vdm.refine_texels);
+        } else {
+            let miss = refine_miss(ray, vdm.refine_texels);
+            if miss.x == 0.0 {
+                return none;
+            }
+            sigma = miss.y;
+        }
+    }
+    return Lookup(true, sigma, v.azimuth);
+}
+
 // Step 6: whether the light from object direction l reaches the hit at T', `depth` below
 // the reference surface.
 fn lit(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, l: vec3<f32>) -> bool {
@@ -390,6 +432,45 @@ fn lit(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, l: vec3<f32>) -> 
     return d.d >= sigma / max(sin(theta), 1e-9) - vdm.shadow_tolerance;
 }
 
+// Step 7 (`VdmRenderer::blocked_elsewhere`): whether the straight ray from o along the
+// light's direction l enters the top surface before `distance` at a fragment that is not a
+// silhouette.
+fn blocked_elsewhere(o: vec3<f32>, l: vec3<f32>, distance: f32) -> bool {
+    let inv = safe_inverse(l);
+    let count = arrayLength(&bvh_nodes);
+    var i = 0u;
+    while i < count {
+        let node = bvh_nodes[i];
+        if node_entry(node, o, inv, distance) < 0.0 {
+            i = node.skip;
+            continue;
+        }
+        if node.count == 0u {
+            i += 1u;
+            continue;
+        }
+        for (var k = 0u; k < node.count; k++) {
+            let fi = bvh_faces[node.first + k];
+            let c = faces[fi].corners;
+            if dot(cross(c[1].xyz - c[0].xyz, c[2].xyz - c[0].xyz), l) >= 0.0 {
+                continue; // back-facing
+            }
+            let h = intersect_triangle(c[0].xyz, c[1].xyz, c[2].xyz, o, l);
+            if !(h.x > 0.0 && h.x < distance) {
+                continue;
+            }
+            let bary = vec3<f32>(1.0 - h.y - h.z, h.y, h.z);
+            let uv = faces[fi].uv;
+            let t = bary.x * uv[0].xy + bary.y * uv[1].xy + bary.z * uv[2].xy;
+            if lookup(fi, t, l, corner_curvature(fi, bary, l, false)).hit {
+                return true;
+            }
+        }
+        i = node.skip;
+    }
+    return false;
+}
+
 // The height field's normal at T' in VDM space.
 fn relief_normal(t: vec2<f32>) -> vec3<f32> {
     let dx = 1.0 / f32(vdm.size.x);
@@ -403,10 +484,16 @@ fn relief_normal(t: vec2<f32>) -> vec3<f32> {
 fn shade(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, p: vec3<f32>, n: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     let base = vdm.albedo.rgb;
+    // Ambient lights first: llvmpipe ends every loop of an invocation once 65535 iterations
+    // have run in all, which a long shadow traversal can spend (docs/BENCHMARKS.md).
+    for (var i = 0u; i < view.light_count; i++) {
+        if lights[i].kind == 2u {
+            out += base * lights[i].colour.rgb;
+        }
+    }
     for (var i = 0u; i < view.light_count; i++) {
         let light = lights[i];
         if light.kind == 2u {
-            out += base * light.colour.rgb;
             continue;
         }
         let inc = light_incidence(light, p);
@@ -415,6 +502,9 @@ fn shade(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, p: vec3<f32>, n
         }
         let cos_l = dot(n, inc.dir);
         if cos_l <= 0.0 || !(vdm.shadows == 0u || lit(fi, bary, t_hit, depth, inc.dir)) {
+            continue;
+        }
+        if vdm.shadows != 0u && vdm.shell_shadows != 0u && blocked_elsewhere(p, inc.dir, inc.distance) {
             continue;
         }
         out += direct(n, base, to_eye, inc, cos_l);
@@ -454,30 +544,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     let uv = faces[fi].uv;
     let t = bary.x * uv[0].xy + bary.y * uv[1].xy + bary.z * uv[2].xy;
     let dir = normalize(in.world - view.eye.xyz);
-    let v = direction(fi, dir);
-    if !v.ok || v.inward <= 0.0 {
+    let found = lookup(fi, t, dir, corner_curvature(fi, bary, dir, true));
+    if !found.hit {
         discard;
     }
-    let c_v = corner_curvature(fi, bary, dir, true) * v.tile_length;
-    let d = sample_vdm(t.x, t.y, v.theta, v.phi, c_v);
-    var sigma = d.d * sin(v.theta);
-    if vdm.refine_texels == 0u {
-        if !d.hit {
-            discard;
-        }
-    } else {
-        let ray = BentRay(t, v.azimuth, v.theta, c_v);
-        if d.hit {
-            sigma = refine_hit(ray, d.d, vdm.refine_texels);
-        } else {
-            let miss = refine_miss(ray, vdm.refine_texels);
-            if miss.x == 0.0 {
-                discard;
-            }
-            sigma = miss.y;
-        }
-    }
-    let offset = v.azimuth * sigma;
+    let offset = found.azimuth * found.sigma;
     let t_hit = t + offset;
     let depth = vdm.depth * (1.0 - height(t_hit));
     let hit = in.world + apply(faces[fi].from_vdm, vec3<f32>(offset, -depth));

@@ -8,13 +8,14 @@ use super::pipeline::{
     LightRecord, ViewBuffer, ViewUniform, bind_group, layout_entry, light_records, storage,
     uniform, view_uniform,
 };
-use super::resources::GpuMemory;
+use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::COMMON;
 use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
 use crate::error::Result;
 use crate::render::image::Image;
+use crate::render::quality::ShadowMethod;
 use crate::render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 use crate::scene::{Effect, LoadedScene};
 use crate::surface::curvature::VertexCurvature;
@@ -68,7 +69,8 @@ struct VdmUniform {
     albedo: [f32; 4],
     refine_texels: u32,
     top_depth: f32,
-    padding: [u32; 2],
+    shell_shadows: u32,
+    padding: u32,
 }
 
 /// One corner of a top triangle as the vertex stage reads it.
@@ -156,6 +158,15 @@ impl<'g> VdmPreview<'g> {
         let (w, h) = query.size();
         let (rank, mvm_rank) = query.ranks();
         let albedo = scene.material.albedo.map(|c| c as f32);
+        let shell_shadows =
+            scene.wants(Effect::Shadows) && scene.vdm.shadows == ShadowMethod::Shell;
+        // Step 7's BVH over the top faces' boxes, the boxes the CPU renderer's traversal
+        // tests (one empty node where the scene does not call for it).
+        let face_boxes: Vec<_> = match shell_shadows {
+            true => faces.iter().map(TopFace::bounds).collect(),
+            false => Vec::new(),
+        };
+        let bvh = upload_box_bvh(gpu, &face_boxes)?;
         let params = VdmUniform {
             size: [w, h],
             n_theta: g.n_theta,
@@ -171,7 +182,8 @@ impl<'g> VdmPreview<'g> {
             albedo: [albedo[0], albedo[1], albedo[2], 0.0],
             refine_texels: scene.vdm.refine_texels,
             top_depth: top_depth(relief) as f32,
-            padding: [0; 2],
+            shell_shadows: u32::from(shell_shadows),
+            padding: 0,
         };
         let [weights, eigen, mvm] = query.factors();
         let size = |words: usize| (words * std::mem::size_of::<f32>()) as u64;
@@ -179,7 +191,8 @@ impl<'g> VdmPreview<'g> {
             package: size(weights.len() + eigen.len() + mvm.len() + relief.field.heights().len()),
             material: 0,
             geometry: (std::mem::size_of_val(records.as_slice())
-                + std::mem::size_of_val(vertices.as_slice())) as u64,
+                + std::mem::size_of_val(vertices.as_slice())) as u64
+                + bvh.bytes,
             environment: 0,
             targets: target.bytes(),
         };
@@ -204,6 +217,8 @@ impl<'g> VdmPreview<'g> {
                     buffer("eigen", bytemuck::cast_slice(eigen), s),
                     buffer("mvm", bytemuck::cast_slice(mvm), s),
                     buffer("heights", bytemuck::cast_slice(relief.field.heights()), s),
+                    bvh.nodes.clone(),
+                    bvh.primitives.clone(),
                 ];
                 let frag = wgpu::ShaderStages::FRAGMENT;
                 let kinds = [
@@ -211,6 +226,8 @@ impl<'g> VdmPreview<'g> {
                     (frag, storage()),
                     (frag, storage()),
                     (frag, uniform()),
+                    (frag, storage()),
+                    (frag, storage()),
                     (frag, storage()),
                     (frag, storage()),
                     (frag, storage()),
@@ -278,7 +295,7 @@ impl<'g> VdmPreview<'g> {
     }
 
     /// GPU memory per kind of resource: the package (factors and heights), the geometry
-    /// (top faces and their vertices) and the targets.
+    /// (top faces, their vertices and BVH) and the targets.
     pub fn memory(&self) -> GpuMemory {
         self.memory
     }

@@ -26,13 +26,15 @@ pub const MAX_CHORDS: u32 = 16;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ShadowMethod {
-    /// The paper's: one GDM query along the light in texture space, from one voxel off the
-    /// hit (a locally flat base; mesostructure of the same neighbourhood only).
+    /// The paper's: one query along the light from the hit (GDM: in texture space, from one
+    /// voxel off the hit; VDM: at the light's exit from the reference surface), so only
+    /// mesostructure of the same neighbourhood casts shadows.
     #[default]
     Local,
-    /// The per-pixel algorithm itself traced towards the light: the rest of the hit's prism
-    /// from the shadow ray's start, then every prism the ray enters (a BVH over the prisms),
-    /// so curvature, distant mesostructure and the base mesh's other side cast shadows.
+    /// The per-pixel algorithm itself traced towards the light (GDM: the rest of the hit's
+    /// prism, then every prism the ray enters; VDM: the local test, then every top triangle
+    /// the ray enters), so curvature, distant mesostructure and the base mesh's other side
+    /// cast shadows.
     Shell,
 }
 

@@ -36,6 +36,13 @@
 //!    interpolation plus [`SHADOW_ERROR_MULTIPLE`] times the compression's measured RMS
 //!    displacement error (without it, rank 8 on torus-bumps, 2.5 texels RMS, shadows
 //!    speckles over the lit bumps). A ray that never leaves a concave surface is shadowed.
+//! 7. with `vdm.shadows: "shell"`, a light that passes step 6 is also followed past the
+//!    reference surface: the straight ray from P' towards it is tested against every
+//!    front-facing top triangle it crosses before the light (the top faces' BVH), and each
+//!    crossing runs steps 1–4 as a fragment of a ray along the light, its curvature
+//!    interpolated along the light; the first crossing that is not a silhouette blocks the
+//!    light, so the far side of the base mesh and the relief on it cast shadows (the paper's
+//!    test sees only the relief above the hit).
 
 use super::accel::BoxBvh;
 use super::gdm_renderer::intersect;
@@ -43,6 +50,7 @@ use super::lighting::shade;
 use super::vdm_refine::BentRay;
 use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
+use crate::render::quality::ShadowMethod;
 use crate::scene::{Effect, Scene};
 use crate::surface::curvature::{VertexCurvature, vertex_curvatures};
 use crate::surface::shell::{FaceTriangle, Shell};
@@ -77,6 +85,14 @@ pub struct TopFace {
     pub from_vdm: DMat3,
     /// The curvature at each corner.
     pub curvature: [VertexCurvature; 3],
+}
+
+impl TopFace {
+    /// The triangle's bounding box (lower and upper corners).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        let c = self.triangle.corners;
+        (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]))
+    }
 }
 
 /// The top triangles of `shell` prepared for a VDM of a relief `depth` tiles deep.
@@ -157,15 +173,7 @@ impl<'a> VdmRenderer<'a> {
             )));
         }
         let faces = prepare_top_faces(shell, relief.depth);
-        let bvh = BoxBvh::new(
-            faces
-                .iter()
-                .map(|f| {
-                    let c = f.triangle.corners;
-                    (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]))
-                })
-                .collect(),
-        );
+        let bvh = BoxBvh::new(faces.iter().map(TopFace::bounds).collect());
         Ok(VdmRenderer {
             faces,
             bvh,
@@ -204,35 +212,14 @@ impl<'a> VdmRenderer<'a> {
         face: &TopFace,
         bary: [f64; 3],
     ) -> Option<DVec3> {
-        let tri = &face.triangle;
-        let t = DVec2::new(
-            (0..3).map(|i| bary[i] * tri.texture[i].x).sum(),
-            (0..3).map(|i| bary[i] * tri.texture[i].y).sum(),
-        );
         let corner_curvature = |towards: &dyn Fn(DVec3) -> DVec3| -> f64 {
             (0..3)
-                .map(|i| bary[i] * face.curvature[i].along(towards(tri.corners[i])))
+                .map(|i| bary[i] * face.curvature[i].along(towards(face.triangle.corners[i])))
                 .sum()
         };
-        let view = Direction::new(face, dir)?;
-        if view.inward_z <= 0.0 {
-            return None;
-        }
-        let c_v = corner_curvature(&|corner| eye - corner) * view.tile_length;
-        let d = self.query.sample(t.x, t.y, view.theta, view.phi, c_v);
-        let ray = || BentRay {
-            relief: self.relief,
-            top_depth: self.top_depth,
-            entry: t,
-            azimuth: view.azimuth,
-            theta: view.theta,
-            c: c_v,
-        };
-        let sigma = match (d, scene.vdm.refine_texels) {
-            (d, 0) => f64::from(d?) * view.theta.sin(),
-            (Some(d), n) => ray().refine_hit(f64::from(d), n),
-            (None, n) => ray().refine_miss(n)?,
-        };
+        let t = face.triangle.texture_at(bary).truncate();
+        let c_v = corner_curvature(&|corner| eye - corner);
+        let (view, sigma) = self.lookup(face, t, dir, c_v, scene.vdm.refine_texels)?;
         let offset = view.azimuth * sigma;
         let t_hit = t + offset;
         let depth = self.relief.surface_depth(t_hit.x, t_hit.y);
@@ -252,9 +239,67 @@ impl<'a> VdmRenderer<'a> {
                 !shadows || {
                     let c_l = corner_curvature(&|_| inc.direction);
                     self.lit(face, t_hit, depth, inc.direction, c_l)
+                        && (scene.vdm.shadows == ShadowMethod::Local
+                            || !self.blocked_elsewhere(scene, hit, inc.direction, inc.distance))
                 }
             },
         ))
+    }
+
+    /// Steps 2–4 for a ray along `dir` (object space) entering `face` at texture coordinate
+    /// `t` where the surface's curvature along it is `c` (1/object unit): the ray in VDM
+    /// space and the arc length σ from `t` to its hit, or `None` for a silhouette.
+    fn lookup(
+        &self,
+        face: &TopFace,
+        t: DVec2,
+        dir: DVec3,
+        c: f64,
+        refine_texels: u32,
+    ) -> Option<(Direction, f64)> {
+        let view = Direction::new(face, dir)?;
+        if view.inward_z <= 0.0 {
+            return None;
+        }
+        let c_v = c * view.tile_length;
+        let d = self.query.sample(t.x, t.y, view.theta, view.phi, c_v);
+        let ray = || BentRay {
+            relief: self.relief,
+            top_depth: self.top_depth,
+            entry: t,
+            azimuth: view.azimuth,
+            theta: view.theta,
+            c: c_v,
+        };
+        let sigma = match (d, refine_texels) {
+            (d, 0) => f64::from(d?) * view.theta.sin(),
+            (Some(d), n) => ray().refine_hit(f64::from(d), n),
+            (None, n) => ray().refine_miss(n)?,
+        };
+        Some((view, sigma))
+    }
+
+    /// Step 7: whether the straight ray from `hit` along the light's direction `l` enters the
+    /// top surface within `distance` at a fragment that is not a silhouette.
+    fn blocked_elsewhere(&self, scene: &Scene, hit: DVec3, l: DVec3, distance: f64) -> bool {
+        let mut blocked = false;
+        self.bvh.candidates(hit, l, 0.0, distance, |f, _| {
+            let face = &self.faces[f];
+            let tri = &face.triangle;
+            if blocked || tri.normal().dot(l) >= 0.0 {
+                return;
+            }
+            if let Some((t, bary)) = intersect(tri, hit, l)
+                && t < distance
+            {
+                let c = (0..3).map(|i| bary[i] * face.curvature[i].along(l)).sum();
+                let entry = tri.texture_at(bary).truncate();
+                blocked = self
+                    .lookup(face, entry, l, c, scene.vdm.refine_texels)
+                    .is_some();
+            }
+        });
+        blocked
     }
 
     /// The height field's normal at T' in VDM space (see the module documentation).

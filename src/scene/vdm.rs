@@ -8,6 +8,7 @@ use crate::compress::quantize::Quantization;
 use crate::compress::vdm::{CompressedVdm, MAX_VDM_RANK, compress};
 use crate::error::{Error, Result};
 use crate::mesostructure::height_field::HeightField;
+use crate::render::quality::ShadowMethod;
 use crate::surface::shell::Shell;
 use crate::util::limits::Limits;
 use serde::{Deserialize, Serialize};
@@ -38,6 +39,10 @@ pub struct VdmSettings {
     /// hit for the exact crossing (0: the paper's lookup alone; at most
     /// [`MAX_REFINE_TEXELS`]).
     pub refine_texels: u32,
+    /// Rendering: the shadow test (`local`: the paper's, the relief above the hit only;
+    /// `shell`: also every entry of the light's ray into the top surface, so the base
+    /// mesh's far side and the relief on it cast shadows).
+    pub shadows: ShadowMethod,
 }
 
 /// The widest search [`VdmSettings::refine_texels`] may ask for.
@@ -56,6 +61,7 @@ impl Default for VdmSettings {
             mvm_rank: 4,
             quantization: Quantization::F16,
             refine_texels: 0,
+            shadows: ShadowMethod::Local,
         }
     }
 }
