@@ -431,3 +431,93 @@ fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
     let sheet = mesobake::render::image::Image::read(&out.join("conformance.png")).unwrap();
     assert_eq!((sheet.width, sheet.height), (3 * 32, 26));
 }
+
+#[test]
+fn the_conformance_report_measures_the_vdm_and_the_media_at_their_accurate_settings_too() {
+    // A VDM scene with the refinement measures the paper's VDM beside it; a translucent
+    // scene shadowed by deep maps measures the maps' reference, shadow rays, beside it (the
+    // WGSL refused where the adapter's loop budget is too small, the CPU's figure standing).
+    let dir = tempfile::tempdir().unwrap();
+    let light = r#"[ { "point": { "position": [2, 4, 3], "intensity": [90, 90, 90] } },
+                     { "ambient": { "radiance": [0.05, 0.05, 0.05] } } ]"#;
+    let camera = r#"{ "eye": [0, 2.3, 2.9], "target": [0, 0, 0], "fov_y_degrees": 45,
+                      "width": 32, "height": 32 }"#;
+    let torus = r#"{ "builtin": { "torus": { "segments": [24, 12] } } }"#;
+    let scenes = [
+        (
+            "bumps.json",
+            format!(
+                r#"{{ "base_mesh": {torus}, "mesostructure": {{ "relief": "bumps" }},
+                  "resolution": [32, 32, 8], "shell": {{ "thickness": 0.05, "tiles_per_uv": [8, 3] }},
+                  "camera": {camera}, "lights": {light}, "effects": ["silhouettes", "shadows"],
+                  "vdm": {{ "directions": [4, 8], "curvatures": 4, "refine_texels": 4 }} }}"#
+            ),
+        ),
+        (
+            "fur.json",
+            format!(
+                r#"{{ "base_mesh": {torus}, "mesostructure": {{ "medium": "fur" }},
+                  "resolution": [16, 16, 8], "shell": {{ "thickness": 0.13, "tiles_per_uv": [8, 3] }},
+                  "camera": {camera}, "lights": {light}, "effects": ["shadows"],
+                  "transparency": {{ "shadow_map_size": 32, "shadow_levels": 4 }} }}"#
+            ),
+        ),
+    ];
+    let paths: Vec<String> = scenes
+        .iter()
+        .map(|(name, json)| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, json).unwrap();
+            path.to_str().unwrap().to_string()
+        })
+        .collect();
+    let out = dir.path().join("report");
+    succeeds(&[
+        "report",
+        "conformance",
+        "--scenes",
+        &paths.join(","),
+        "--spp",
+        "4",
+        "--side",
+        "32",
+        "--frames",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("conformance.json")).unwrap()).unwrap();
+    let rows: Vec<(&str, &str, &str, bool)> = json["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            (
+                r["scene"].as_str().unwrap(),
+                r["technique"].as_str().unwrap(),
+                r["preset"].as_str().unwrap(),
+                r["is_default"].as_bool().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            ("bumps", "vdm", "scene", true),
+            ("bumps", "vdm", "paper", false),
+            ("bumps", "gdm", "paper", false),
+            ("bumps", "gdm", "balanced", false),
+            ("bumps", "gdm", "high", false),
+            ("fur", "transparency", "scene", true),
+            ("fur", "transparency", "shadow rays", false),
+        ],
+        "{json}"
+    );
+    for r in json["rows"].as_array().unwrap() {
+        let db = r["cpu"]["psnr_db"].as_f64().unwrap();
+        assert!(db > 10.0 && db.is_finite(), "{r}");
+        // The WGSL is measured, or refused with the reason, never both.
+        assert!(r["gpu"].is_null() || r["refused"].is_null(), "{r}");
+    }
+}
