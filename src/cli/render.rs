@@ -66,8 +66,8 @@ pub struct RenderArgs {
     #[arg(long)]
     json: bool,
     /// For --method gdm, a reference run: parts of the algorithm replaced by the truth's,
-    /// comma-separated (query: the exact cast along each chord; shadows: the truth's rays).
-    /// See `report render`'s error budget.
+    /// comma-separated (query: the exact cast along each chord; shadows: the truth's rays);
+    /// for --method vdm, shadows only. See `report render`'s error budget.
     #[arg(long, default_value = "none")]
     substitute: Substitutions,
     /// For --method gdm: the per-pixel algorithm's accuracy knobs instead of the scene's

@@ -47,6 +47,7 @@
 use super::accel::BoxBvh;
 use super::gdm_renderer::intersect;
 use super::lighting::shade;
+use super::truth::TruthRenderer;
 use super::vdm_refine::BentRay;
 use crate::bake::vdm::Relief;
 use crate::error::{Error, Result};
@@ -133,6 +134,8 @@ pub struct VdmRenderer<'a> {
     relief: Relief<'a>,
     /// The relief's least depth (tiles), where the refinement's search of a miss begins.
     top_depth: f64,
+    /// The ground truth that answers steps 6 and 7 instead, in a reference run.
+    exact_shadows: Option<&'a TruthRenderer<'a>>,
 }
 
 /// The principal curvatures at the top corners of `shell`'s prisms, estimated on the top
@@ -180,7 +183,16 @@ impl<'a> VdmRenderer<'a> {
             query,
             relief,
             top_depth: top_depth(relief),
+            exact_shadows: None,
         })
+    }
+
+    /// Answers the shadow test with `truth`'s shadow rays (over the same shell and relief)
+    /// from one texel off the hit along its normal: a reference run for the error budget,
+    /// not the real-time algorithm.
+    pub fn with_exact_shadows(mut self, truth: &'a TruthRenderer<'a>) -> Self {
+        self.exact_shadows = Some(truth);
+        self
     }
 
     /// The shaded radiance along the camera ray, or `None` where it shows the background.
@@ -224,10 +236,13 @@ impl<'a> VdmRenderer<'a> {
         let t_hit = t + offset;
         let depth = self.relief.surface_depth(t_hit.x, t_hit.y);
         let hit = p + face.from_vdm * offset.extend(-depth);
-        let normal = (face.to_vdm.transpose() * self.relief_normal(t_hit))
+        let n_vdm = self.relief_normal(t_hit);
+        let normal = (face.to_vdm.transpose() * n_vdm)
             .try_normalize()
             .unwrap_or(-dir);
         let shadows = scene.wants(Effect::Shadows);
+        let texel = 1.0 / f64::from(self.relief.field.size().0);
+        let exact_start = || hit + face.from_vdm * (n_vdm.normalize() * texel);
         Some(shade(
             &scene.lights,
             &scene.material,
@@ -236,6 +251,9 @@ impl<'a> VdmRenderer<'a> {
             DVec3::from(scene.material.albedo),
             -dir,
             |inc| {
+                if let Some(truth) = self.exact_shadows.filter(|_| shadows) {
+                    return !truth.blocked(exact_start(), inc.direction, inc.distance);
+                }
                 !shadows || {
                     let c_l = corner_curvature(&|_| inc.direction);
                     self.lit(face, t_hit, depth, inc.direction, c_l)

@@ -140,7 +140,8 @@ pub fn render(
 }
 
 /// Renders `loaded` with `method`, the GDM renderer with parts of its algorithm substituted
-/// (a reference run: see [`Substitutions`]); substitutions need the GDM method.
+/// (a reference run: see [`Substitutions`]), or the VDM renderer with its shadow test
+/// substituted ([`VdmRenderer::with_exact_shadows`]).
 pub fn render_substituted(
     loaded: &LoadedScene,
     method: RenderMethod,
@@ -149,9 +150,18 @@ pub fn render_substituted(
     limits: &Limits,
     observer: &dyn BakeObserver,
 ) -> Result<Rendered> {
-    if method != RenderMethod::Gdm && substitutions != Substitutions::default() {
+    let vdm_shadows = Substitutions {
+        exact_query: false,
+        exact_shadows: true,
+    };
+    if !(method == RenderMethod::Gdm
+        || substitutions == Substitutions::default()
+        || method == RenderMethod::Vdm && substitutions == vdm_shadows)
+    {
         return Err(Error::InvalidParameter(
-            "substitutions apply to the GDM renderer (method gdm) only".into(),
+            "substitutions apply to the GDM renderer (method gdm), and shadows alone to the \
+             VDM renderer (method vdm)"
+                .into(),
         ));
     }
     let scene = &loaded.scene;
@@ -225,7 +235,14 @@ pub fn render_substituted(
             };
             seconds.gdm = start.elapsed().as_secs_f64();
             let start = Instant::now();
-            let r = VdmRenderer::new(&loaded.shell, &query, relief)?;
+            let truth = (substitutions.exact_shadows).then(|| {
+                let caster = loaded.mesostructure.caster();
+                TruthRenderer::new(&loaded.shell, caster, &loaded.material)
+            });
+            let mut r = VdmRenderer::new(&loaded.shell, &query, relief)?;
+            if let Some(truth) = &truth {
+                r = r.with_exact_shadows(truth);
+            }
             observer.stage("rendering");
             let image =
                 render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
