@@ -149,6 +149,22 @@ impl Prism {
         [0, 1, 2].map(|i| self.bottom[i] + self.extrusion[i])
     }
 
+    /// Maps object-space vectors to texture vectors (tile units, w) with the top triangle's
+    /// frame: its edges to the UV edges, the mean extrusion to (0, 0, 1); `None` for a
+    /// degenerate top.
+    pub fn top_frame(&self) -> Option<DMat3> {
+        let [a, b, c] = self.top();
+        let mean_extrusion = (self.extrusion[0] + self.extrusion[1] + self.extrusion[2]) / 3.0;
+        let object = DMat3::from_cols(b - a, c - a, mean_extrusion);
+        let texture = DMat3::from_cols(
+            (self.uv[1] - self.uv[0]).extend(0.0),
+            (self.uv[2] - self.uv[0]).extend(0.0),
+            DVec3::Z,
+        );
+        let det = object.determinant();
+        (det != 0.0 && det.is_finite()).then(|| texture * object.inverse())
+    }
+
     /// The exact object-space point of prism coordinates `q`.
     pub fn point(&self, q: PrismPoint) -> DVec3 {
         (0..3)
