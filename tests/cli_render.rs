@@ -521,3 +521,62 @@ fn the_conformance_report_measures_the_vdm_and_the_media_at_their_accurate_setti
         assert!(r["gpu"].is_null() || r["refused"].is_null(), "{r}");
     }
 }
+
+#[test]
+fn a_base_mesh_vertex_far_out_is_refused_naming_it() {
+    // The probe's OBJ with one vertex at 1e308 panicked in the BVH build (render --method
+    // gdm and truth); at 1e20 every triangle was dropped as "zero-area". A mesh_scale that
+    // carries a sane mesh that far is refused likewise.
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let square = "v 0 0 0\nv 1 0 0\nv 1 0 -1\nv 0 0 -1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+                  f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n";
+    let mut cases = Vec::new();
+    for (name, obj, scale) in [
+        (
+            "far.obj",
+            square.replace("v 1 0 -1", "v 1e308 1e308 1e308"),
+            1.0,
+        ),
+        ("far20.obj", square.replace("v 1 0 -1", "v 1e20 0 0"), 1.0),
+        ("square.obj", square.to_string(), 1e12),
+    ] {
+        std::fs::write(path(name), obj).unwrap();
+        let mut scene: serde_json::Value = serde_json::from_str(SCENE).unwrap();
+        scene["base_mesh"] = serde_json::json!({ "obj": name });
+        scene["mesh_scale"] = scale.into();
+        let scene_path = path(&format!("{name}.json"));
+        std::fs::write(&scene_path, scene.to_string()).unwrap();
+        for method in ["gdm", "truth"] {
+            cases.push((
+                vec![
+                    "render".to_string(),
+                    "--scene".into(),
+                    scene_path.clone(),
+                    "--method".into(),
+                    method.into(),
+                    "--out".into(),
+                    path("x.png"),
+                ],
+                "beyond ±1e9 are refused",
+            ));
+        }
+    }
+    let cases: Vec<(Vec<&str>, &str)> = cases
+        .iter()
+        .map(|(args, want)| (args.iter().map(String::as_str).collect(), *want))
+        .collect();
+    each_fails_with(&cases);
+}
+
+#[test]
+fn a_scene_path_to_an_endless_device_fails_at_the_limit() {
+    // /dev/zero reports no length: reading it whole took 2 GB before failing.
+    if !std::path::Path::new("/dev/zero").exists() {
+        return;
+    }
+    each_fails_with(&[(
+        vec!["render", "--scene", "/dev/zero", "--out", "x.png"],
+        "limit for scene files",
+    )]);
+}

@@ -13,6 +13,7 @@ use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::input::{self, Mesostructure};
 use crate::package::manifest::{BakeInfo, GdmCodec, InputInfo};
 use crate::package::{GdmPayload, Package};
+use crate::util::fs::read_bounded;
 use crate::util::limits::Limits;
 use std::path::Path;
 use std::time::Instant;
@@ -97,11 +98,7 @@ pub fn load_input(
     allow_open: bool,
     limits: &Limits,
 ) -> Result<(InputInfo, Mesostructure)> {
-    let len = std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .len();
-    limits.check(&format!("input {}", path.display()), len, 1)?;
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = read_bounded(path, "input", limits.memory_bytes)?;
     let meso = input::load(path, res, allow_open, limits)?;
     let kind = match meso {
         Mesostructure::Volume(_) => "volume",

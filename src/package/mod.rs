@@ -21,6 +21,7 @@ use crate::compress::occupancy::OccupancyField;
 use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::volume::Occupancy;
+use crate::util::fs::read_bounded;
 use crate::util::limits::Limits;
 use manifest::{BakeInfo, GdmCodec, InputInfo};
 use mesobake_package::GdmContent;
@@ -165,11 +166,7 @@ impl Package {
 
     /// Reads and validates the package at `path`, refusing files over the memory limit.
     pub fn read(path: &Path, limits: &Limits) -> Result<Package> {
-        let len = std::fs::metadata(path)
-            .map_err(|e| Error::io(path, e))?
-            .len();
-        limits.check(&format!("package {}", path.display()), len, 1)?;
-        Package::parse(std::fs::read(path).map_err(|e| Error::io(path, e))?)
+        Package::parse(read_bounded(path, "package", limits.memory_bytes)?)
     }
 
     /// Refuses a package whose voxel grid is not a scene's `resolution`.

@@ -36,6 +36,7 @@ use crate::render::quality::Quality;
 use crate::render::sampling::{MAX_IMAGE_SAMPLES, SamplesPerPixel};
 use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
 use crate::surface::shell::{Shell, ShellParams};
+use crate::util::fs::read_bounded;
 use crate::util::limits::Limits;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -495,16 +496,16 @@ impl Scene {
 
     /// Reads a scene file (at most [`MAX_SCENE_BYTES`]).
     pub fn read(path: &Path) -> Result<Scene> {
-        let len = std::fs::metadata(path)
-            .map_err(|e| Error::io(path, e))?
-            .len();
-        if len > MAX_SCENE_BYTES {
-            return Err(Error::Scene(format!(
-                "{} is {len} bytes, over the {MAX_SCENE_BYTES}-byte limit for scene files",
+        let bytes = read_bounded(path, "scene", MAX_SCENE_BYTES).map_err(|e| match e {
+            Error::MemoryLimit { needed, .. } => Error::Scene(format!(
+                "{} is {needed} bytes or more, over the {MAX_SCENE_BYTES}-byte limit for scene \
+                 files",
                 path.display()
-            )));
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+            )),
+            e => e,
+        })?;
+        let text = String::from_utf8(bytes)
+            .map_err(|e| Error::Scene(format!("{} is not UTF-8 text: {e}", path.display())))?;
         Scene::from_json(&text).map_err(|e| e.context(path.display()))
     }
 
@@ -644,6 +645,8 @@ pub fn load_base_mesh(
     for p in &mut base.positions {
         *p *= scene.mesh_scale;
     }
+    base.check_coordinates()
+        .map_err(|e| Error::Scene(format!("mesh_scale {}: {e}", scene.mesh_scale)))?;
     Ok((base, report))
 }
 

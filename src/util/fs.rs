@@ -2,24 +2,32 @@
 
 use crate::error::{Error, Result};
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Read, Write};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Reads a file of `what` (e.g. "OBJ file"), refusing one larger than `max_bytes` before
-/// reading it.
+/// Reads a file of `what` (e.g. "OBJ file"), refusing one larger than `max_bytes`: by its
+/// length before reading, and by what it yields while reading (a device such as /dev/zero,
+/// or a file still growing, reports a length that bounds nothing).
 pub fn read_bounded(path: &Path, what: &str, max_bytes: u64) -> Result<Vec<u8>> {
-    let len = std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .len();
+    let too_large = |needed| Error::MemoryLimit {
+        what: format!("{what} {}", path.display()),
+        needed,
+        limit: max_bytes,
+    };
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     if len > max_bytes {
-        return Err(Error::MemoryLimit {
-            what: format!("{what} {}", path.display()),
-            needed: len,
-            limit: max_bytes,
-        });
+        return Err(too_large(len));
     }
-    std::fs::read(path).map_err(|e| Error::io(path, e))
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
 }
 
 /// Writes `bytes` to `path` atomically (see [`write_atomic_with`]).
@@ -65,4 +73,29 @@ pub fn write_atomic_with(
         let _ = std::fs::remove_file(&tmp);
         Error::io(path, e)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// /dev/zero reports a length of 0 and never ends: the limit stops the read.
+    #[test]
+    fn a_device_without_end_is_read_only_up_to_the_limit() {
+        let zero = Path::new("/dev/zero");
+        if !zero.exists() {
+            return;
+        }
+        match read_bounded(zero, "scene", 4096) {
+            Err(Error::MemoryLimit { needed, limit, .. }) => {
+                assert_eq!((needed, limit), (4097, 4096));
+            }
+            other => panic!("{other:?}"),
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("f");
+        std::fs::write(&file, [7u8; 4096]).unwrap();
+        assert_eq!(read_bounded(&file, "f", 4096).unwrap(), [7u8; 4096]);
+        assert!(read_bounded(&file, "f", 4095).is_err());
+    }
 }

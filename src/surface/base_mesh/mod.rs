@@ -25,7 +25,9 @@
 //!
 //! Validation ([`BaseMesh::validated`]) drops each unusable triangle and counts it under the
 //! first of: non-finite (a NaN/Inf position, normal or UV, or a zero normal), degenerate (a
-//! repeated vertex index), zero-area. Vertices no kept triangle uses are removed.
+//! repeated vertex index), zero-area. Vertices no kept triangle uses are removed. A triangle
+//! whose position or UV lies beyond ±[`MAX_COORDINATE`] is an error, not a drop: one such
+//! vertex would make every other triangle zero-area against the mesh's extent.
 
 mod builtin;
 mod teapot;
@@ -41,6 +43,10 @@ use std::path::Path;
 
 /// Relative area threshold: a triangle with area ≤ this · (bounding-box diagonal)² is zero-area.
 const ZERO_AREA_RELATIVE: f64 = 1e-12;
+
+/// The largest magnitude of a base mesh's coordinates (object units) and UVs: f32 (the GPU's
+/// and the BVHs' number) squares it without overflow, and no asset comes near it.
+pub const MAX_COORDINATE: f64 = 1e9;
 
 /// A triangle mesh with per-vertex unit normals and UVs: the surface mesostructure is mapped onto.
 #[derive(Clone, Debug, PartialEq)]
@@ -170,6 +176,24 @@ impl BaseMesh {
         })
     }
 
+    /// Errors naming the first vertex a triangle uses whose position or UV lies beyond
+    /// ±[`MAX_COORDINATE`] (non-finite ones are validation's to drop).
+    pub fn check_coordinates(&self) -> Result<()> {
+        let too_far = |v: f64| v.is_finite() && v.abs() > MAX_COORDINATE;
+        let far = (self.triangles.iter().flatten().map(|&i| i as usize)).find(|&i| {
+            self.positions[i].to_array().into_iter().any(too_far)
+                || self.uvs[i].to_array().into_iter().any(too_far)
+        });
+        match far {
+            Some(i) => Err(Error::BaseMesh(format!(
+                "vertex {i} lies at {} with UV {}: coordinates beyond ±{MAX_COORDINATE:e} are \
+                 refused",
+                self.positions[i], self.uvs[i]
+            ))),
+            None => Ok(()),
+        }
+    }
+
     /// Validates the mesh: errors when the attribute arrays differ in length or a triangle
     /// refers to a missing vertex; normalizes the normals; drops and counts non-finite,
     /// degenerate and zero-area triangles (an error if none is left); removes unused vertices;
@@ -194,6 +218,7 @@ impl BaseMesh {
                 "triangle {t} refers to vertex {i}, but there are only {n} vertices"
             )));
         }
+        self.check_coordinates()?;
         let normals: Vec<DVec3> = self
             .normals
             .iter()
@@ -488,6 +513,26 @@ mod tests {
             mesh.bounds(),
             (DVec3::new(0.0, 0.0, -1.0), DVec3::new(1.0, 0.0, 0.0))
         );
+    }
+
+    /// One vertex far out (the probe's 1e308 panicked in the BVH build; 1e20 made every
+    /// triangle zero-area against the extent): a clear error naming it, the limit just
+    /// inside accepted.
+    #[test]
+    fn far_vertices_and_uvs_are_refused_naming_them() {
+        for (far, what) in [("1e308", "v"), ("1e20", "v"), ("1e10", "vt")] {
+            let obj = match what {
+                "v" => SQUARE.replace("v 1 0 -1", &format!("v {far} {far} {far}")),
+                _ => SQUARE.replace("vt 1 1", &format!("vt {far} 0")),
+            };
+            let e = BaseMesh::from_obj(&obj).unwrap_err().to_string();
+            assert!(
+                e.contains("vertex 2 lies at") && e.contains("beyond ±1e9"),
+                "{e}"
+            );
+        }
+        let near = SQUARE.replace("v 1 0 -1", "v 1e9 0 -1e9");
+        assert!(BaseMesh::from_obj(&near).is_ok());
     }
 
     /// A cube corner at the origin (outward normal −(1,1,1)/√3), with the x = 0 face split in
