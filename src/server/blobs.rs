@@ -15,7 +15,7 @@
 //! outside the store.
 
 use crate::error::{Error, Result};
-use crate::util::fs::write_atomic;
+use crate::util::fs::{process_token, temp_name, write_atomic};
 use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey};
 use object_store::path::Path as ObjectPath;
 use object_store::prefix::PrefixStore;
@@ -156,11 +156,7 @@ impl BlobStore {
     pub fn temp_path(&self) -> Result<PathBuf> {
         let dir = self.root.join("tmp");
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-        Ok(dir.join(format!(
-            ".upload.tmp{}-{}",
-            std::process::id(),
-            uuid::Uuid::new_v4().simple()
-        )))
+        Ok(dir.join(temp_name("upload")))
     }
 
     /// Removes blob `key` (a cached preview being evicted); absent blobs are no error.
@@ -193,9 +189,11 @@ impl BlobStore {
     }
 
     /// Removes temporary files that a killed process left in the store (named
-    /// `.NAME.tmpPID-N`): those of processes that no longer run on this host, untouched for
-    /// [`LEFTOVER_AGE`], and any untouched for [`STALE_AGE`] (a process on another machine
-    /// sharing the directory). Returns how many were removed.
+    /// `.NAME.tmpPID-TOKEN-N`, [`temp_name`]; older ones `.NAME.tmpPID-N`): those of
+    /// processes that no longer run on this host — an id that no process has, or this
+    /// process's id with another run's token (a restarted container reuses its ids) —
+    /// untouched for [`LEFTOVER_AGE`], and any untouched for [`STALE_AGE`] (a process on
+    /// another machine sharing the directory). Returns how many were removed.
     pub fn remove_leftovers(&self) -> Result<usize> {
         let mut removed = 0;
         let dirs = std::fs::read_dir(&self.root).map_err(|e| Error::io(&self.root, e))?;
@@ -208,7 +206,7 @@ impl BlobStore {
             };
             for file in files.flatten() {
                 let name = file.file_name().to_string_lossy().into_owned();
-                let Some(pid) = leftover_pid(&name) else {
+                let Some((pid, token)) = leftover_writer(&name) else {
                     continue;
                 };
                 let age = file
@@ -217,7 +215,11 @@ impl BlobStore {
                     .ok()
                     .and_then(|t| t.elapsed().ok())
                     .unwrap_or_default();
-                let dead = pid != std::process::id() && !process_runs(pid);
+                let dead = if pid == std::process::id() {
+                    token.is_some_and(|t| t != process_token())
+                } else {
+                    !process_runs(pid)
+                };
                 if (dead && age >= LEFTOVER_AGE) || age >= STALE_AGE {
                     match std::fs::remove_file(file.path()) {
                         Ok(()) => removed += 1,
@@ -273,10 +275,17 @@ pub const LEFTOVER_AGE: std::time::Duration = std::time::Duration::from_secs(60)
 /// How long any temporary file is left alone before it is taken for a leftover.
 pub const STALE_AGE: std::time::Duration = std::time::Duration::from_secs(3600);
 
-/// The process id in a temporary file's name (`.NAME.tmpPID-N`), if it is one.
-fn leftover_pid(name: &str) -> Option<u32> {
+/// The writer of a temporary file, from its name ([`temp_name`]'s `.NAME.tmpPID-TOKEN-N`,
+/// or the older `.NAME.tmpPID-N`): its process id and run token, if the name is one.
+fn leftover_writer(name: &str) -> Option<(u32, Option<&str>)> {
     let (_, tail) = name.strip_prefix('.')?.rsplit_once(".tmp")?;
-    tail.split_once('-')?.0.parse().ok()
+    let mut parts = tail.split('-');
+    let pid = parts.next()?.parse().ok()?;
+    match (parts.next()?, parts.next(), parts.next()) {
+        (token, Some(_), None) => Some((pid, Some(token))),
+        (_, None, _) => Some((pid, None)),
+        _ => None,
+    }
 }
 
 /// Whether process `pid` runs on this host (always "yes" where that cannot be told).
@@ -476,11 +485,17 @@ mod tests {
             std::time::SystemTime::now(),
         );
         let live_old = make(&format!(".{key}.tmp{}-2", std::process::id()), old);
+        // This process's id from an earlier run (a restarted container's): its writer is dead.
+        let earlier_run = make(
+            &format!(".{key}.tmp{}-0123456789ab-3", std::process::id()),
+            old,
+        );
+        let ours_old = make(&temp_name(&key), old);
         let upload = store.temp_path().unwrap();
         std::fs::write(&upload, b"streaming").unwrap();
-        assert_eq!(store.remove_leftovers().unwrap(), 1);
-        assert!(!dead_old.exists());
-        assert!(dead_fresh.exists() && live_old.exists() && upload.exists());
+        assert_eq!(store.remove_leftovers().unwrap(), 2);
+        assert!(!dead_old.exists() && !earlier_run.exists());
+        assert!(dead_fresh.exists() && live_old.exists() && ours_old.exists() && upload.exists());
         assert_eq!(store.get(&key).unwrap().unwrap(), b"kept");
     }
 

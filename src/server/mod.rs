@@ -32,7 +32,7 @@ use crate::util::limits::Limits;
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::routing::{get, post};
-use blobs::BlobStore;
+use blobs::{BlobStore, LEFTOVER_AGE};
 use config::{ServerConfig, millis};
 use db::Db;
 use health::Metrics;
@@ -205,13 +205,15 @@ pub fn spawn_workers(
 /// How often a running server or worker looks for a killed process's temporary files.
 const LEFTOVER_SWEEP: std::time::Duration = std::time::Duration::from_secs(600);
 
-/// Removes a killed process's temporary files now and then (at start, [`open_state`]
-/// removes those old enough already), until the returned task is aborted.
+/// Removes a killed process's temporary files now and then, until the returned task is
+/// aborted: at start [`open_state`] removes those old enough already; the first sweep here,
+/// [`LEFTOVER_AGE`] later, those of a kill just before a quick restart; then every
+/// [`LEFTOVER_SWEEP`].
 fn spawn_leftover_sweeps(blobs: &BlobStore) -> tokio::task::JoinHandle<()> {
     let blobs = blobs.clone();
     tokio::spawn(async move {
-        let mut every = tokio::time::interval(LEFTOVER_SWEEP);
-        every.tick().await;
+        let first = tokio::time::Instant::now() + LEFTOVER_AGE;
+        let mut every = tokio::time::interval_at(first, LEFTOVER_SWEEP);
         loop {
             every.tick().await;
             let store = blobs.clone();

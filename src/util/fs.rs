@@ -4,6 +4,7 @@ use crate::error::{Error, Result};
 use std::fs::File;
 use std::io::{BufWriter, Read, Write};
 use std::path::Path;
+use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Reads a file of `what` (e.g. "OBJ file"), refusing one larger than `max_bytes`: by its
@@ -30,6 +31,27 @@ pub fn read_bounded(path: &Path, what: &str, max_bytes: u64) -> Result<Vec<u8>> 
     Ok(bytes)
 }
 
+/// A fresh name for a temporary file of `name`, `.NAME.tmpPID-TOKEN-N`: unique per process
+/// and per call, so that concurrent writers of one path (two uploads of the same blob) each
+/// rename their own complete file, and telling a cleanup which process wrote it: its id, and
+/// a token of this run of it ([`process_token`]), which a later process given the same id
+/// (a restarted container's) does not share.
+pub fn temp_name(name: &str) -> String {
+    static CALLS: AtomicU64 = AtomicU64::new(0);
+    format!(
+        ".{name}.tmp{}-{}-{}",
+        std::process::id(),
+        process_token(),
+        CALLS.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+/// A random token of this run of the process (12 hex digits), the same for every call.
+pub fn process_token() -> &'static str {
+    static TOKEN: OnceLock<String> = OnceLock::new();
+    TOKEN.get_or_init(|| uuid::Uuid::new_v4().simple().to_string()[..12].to_string())
+}
+
 /// Writes `bytes` to `path` atomically (see [`write_atomic_with`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |w| w.write_all(bytes))
@@ -48,15 +70,7 @@ pub fn write_atomic_with(
     let name = path
         .file_name()
         .ok_or_else(|| Error::InvalidParameter(format!("{} is not a file path", path.display())))?;
-    // Unique per process and per call: concurrent writers of one path (two uploads of the
-    // same blob) each rename their own complete file.
-    static CALLS: AtomicU64 = AtomicU64::new(0);
-    let tmp = dir.join(format!(
-        ".{}.tmp{}-{}",
-        name.to_string_lossy(),
-        std::process::id(),
-        CALLS.fetch_add(1, Ordering::Relaxed)
-    ));
+    let tmp = dir.join(temp_name(&name.to_string_lossy()));
     let result = (|| {
         let mut w = BufWriter::with_capacity(1 << 20, File::create(&tmp)?);
         fill(&mut w)?;
