@@ -10,7 +10,7 @@
 
 use crate::error::{Error, Result};
 use crate::mesostructure::trimesh::{TriMesh, cross, sub};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// Vertices closer than 1/2²⁰ of a tile (after wrapping) are the same vertex.
 const WELD_SCALE: f64 = (1u64 << 20) as f64;
@@ -22,6 +22,9 @@ pub struct TileReport {
     pub triangles: usize,
     /// Triangles with zero area (dropped).
     pub degenerate: usize,
+    /// Triangles on the same welded corners as an earlier one, either way round (dropped:
+    /// they add no surface, and many copies of one triangle made the BVH build quadratic).
+    pub duplicates: usize,
     /// Edges with a triangle on one side only.
     pub boundary_edges: usize,
     /// Edges used twice in the same direction or by more than two triangles.
@@ -74,6 +77,7 @@ impl MeshTile {
             triangles: Vec::with_capacity(mesh.triangles.len()),
         };
         let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut seen: HashSet<[u32; 3]> = HashSet::new();
         for (n, t) in mesh.triangles.iter().enumerate() {
             let [a, b, c] = mesh.corners(n);
             for axis in 0..2 {
@@ -93,6 +97,12 @@ impl MeshTile {
             let area2 = cross(sub(b, a), sub(c, a));
             if w[0] == w[1] || w[1] == w[2] || w[2] == w[0] || area2 == [0.0; 3] {
                 report.degenerate += 1;
+                continue;
+            }
+            let mut corners = w;
+            corners.sort_unstable();
+            if !seen.insert(corners) {
+                report.duplicates += 1;
                 continue;
             }
             kept.triangles.push(*t);
