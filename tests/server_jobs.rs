@@ -421,6 +421,48 @@ async fn a_dead_workers_job_is_taken_over_and_finishes_once() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_whose_workers_keep_dying_fails_after_its_attempts_and_says_so() {
+    // Three workers claim it and die (their leases expire); the fourth claim gives up
+    // without running it, and the job shows the 3 attempts that ran (it showed 4 of 3).
+    let dir = tempfile::tempdir().unwrap();
+    for url in database_urls(dir.path(), "give_up").await {
+        let data = tempfile::tempdir().unwrap();
+        let s = TestServer::start(&url, data.path(), 1 << 24).await;
+        let volume = upload(&s, SampleKind::Grid, [16, 16, 8]).await;
+        let (_, queued) = submit(
+            &s,
+            &json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]) }),
+        )
+        .await;
+        let id = queued["id"].as_str().unwrap().to_owned();
+        for attempt in 1..=3 {
+            let claimed = s.state.db.claim_job("dying", 1).await.unwrap().unwrap();
+            assert_eq!(
+                (claimed.id.as_str(), claimed.attempt),
+                (id.as_str(), attempt)
+            );
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        spawn_workers(&s.state, 1, &stop);
+        let j = wait_for(&s, &id, |j| j["state"] == "failed").await;
+        assert_eq!(
+            (j["attempts"].as_i64(), j["max_attempts"].as_i64()),
+            (Some(3), Some(3)),
+            "{j}"
+        );
+        assert!(
+            j["error"]
+                .as_str()
+                .unwrap()
+                .contains("gave up after 3 attempts"),
+            "{j}"
+        );
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn previews_render_once_the_package_is_baked() {
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
         eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");

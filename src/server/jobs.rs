@@ -425,6 +425,25 @@ impl Db {
         Ok(done.rows_affected() == 1)
     }
 
+    /// Fails `worker`'s job `id`, just claimed past its last attempt (workers kept losing
+    /// its lease), without running it: the claim's count is taken back, so that the job
+    /// shows the attempts that ran, never more than its `max_attempts`.
+    pub async fn give_up_job(&self, id: &str, worker: &str, error: &str) -> Result<bool> {
+        let done = sqlx::query(
+            "UPDATE jobs SET state = 'failed', error = $3, attempts = attempts - 1, \
+             lease_owner = NULL, lease_expires_ms = NULL, updated_ms = $4 \
+             WHERE id = $1 AND lease_owner = $2 AND state = 'running'",
+        )
+        .bind(id)
+        .bind(worker)
+        .bind(error)
+        .bind(now_ms())
+        .execute(&self.pool)
+        .await
+        .map_err(db_error)?;
+        Ok(done.rows_affected() == 1)
+    }
+
     /// Puts `worker`'s job `id` back in the queue after a transient failure, to run again
     /// after `backoff_ms`; returns whether it still owned the lease.
     pub async fn retry_job(

@@ -174,15 +174,7 @@ async fn run(state: &AppState, worker: &str, job: Claimed, stop: &AtomicBool) ->
     if job.attempt > MAX_ATTEMPTS {
         let error = format!("gave up after {MAX_ATTEMPTS} attempts (workers lost their lease)");
         tracing::warn!("job {} failed: {error}", job.id);
-        db.finish_job(
-            &job.id,
-            worker,
-            "failed",
-            None,
-            Some(&error),
-            &serde_json::json!({}),
-        )
-        .await?;
+        db.give_up_job(&job.id, worker, &error).await?;
         return Ok(());
     }
     if job.attempt == 1 {
