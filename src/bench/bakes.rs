@@ -369,7 +369,9 @@ pub fn run_package(limits: &Limits) -> Result<Vec<PackageRow>> {
     let input = InputInfo {
         kind: "volume".into(),
         bytes: 0,
-        blake3: "chain 64x64x32 (built in)".into(),
+        blake3: blake3::hash(b"chain 64x64x32 (built in)")
+            .to_hex()
+            .to_string(),
     };
     let row = |setting: String, svd: Truncated, q: Quantization| -> Result<PackageRow> {
         let choice = RankChoice::Rank(svd.rank);

@@ -231,6 +231,15 @@ impl Package {
         let dims = Dims::new(x, y, z).map_err(|e| bad(e.to_string()))?;
         let [n_theta, n_phi] = manifest.bake.dirs;
         let dirs = DirectionGrid::new(n_theta, n_phi).map_err(|e| bad(e.to_string()))?;
+        manifest.input.check().map_err(bad)?;
+        if let Some(f) = manifest.bake.fast
+            && !(f.stride >= 1 && f.max_spread.is_finite() && f.max_spread >= 0.0)
+        {
+            return Err(bad(format!(
+                "the fast bake's stride {} and spread {} must be ≥ 1 and finite ≥ 0",
+                f.stride, f.max_spread
+            )));
+        }
         match (manifest.codec, &manifest.gdm, &manifest.occupancy) {
             (GdmCodec::PaperSvd, Some(g), None) => {
                 svd::validate(g, &manifest.sections, dims, dirs, bad)?

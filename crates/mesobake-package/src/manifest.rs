@@ -62,6 +62,35 @@ pub struct InputInfo {
     pub blake3: String,
 }
 
+impl InputInfo {
+    /// Longest `kind` a reader accepts.
+    pub const MAX_KIND: usize = 32;
+
+    /// Checks what readers rely on: a short lowercase `kind` (letters, digits, `_`, `-`)
+    /// and a `blake3` of lowercase hex digits, at most 64 (a BLAKE3 hash has 64); the
+    /// problem, named, where not.
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let kind_ok = (1..=Self::MAX_KIND).contains(&self.kind.len())
+            && (self.kind.bytes()).all(|b| matches!(b, b'a'..=b'z' | b'0'..=b'9' | b'_' | b'-'));
+        if !kind_ok {
+            return Err(format!(
+                "input kind {:?} is not 1 to {} lowercase letters, digits, _ or -",
+                self.kind.chars().take(40).collect::<String>(),
+                Self::MAX_KIND
+            ));
+        }
+        let hex = (1..=64).contains(&self.blake3.len())
+            && (self.blake3.bytes()).all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'));
+        if !hex {
+            return Err(format!(
+                "input blake3 {:?} is not 1 to 64 lowercase hex digits",
+                self.blake3.chars().take(80).collect::<String>()
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// How a package answers the per-pixel algorithm's GDM queries d(x, y, z, θ, φ).
 #[derive(
     Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,

@@ -243,6 +243,7 @@ impl MediumPackage {
         let manifest: MediumManifest = container::parse(&bytes)?;
         let contents = Contents::inflate(bytes, &manifest.sections)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
+        manifest.input.check().map_err(bad)?;
         let info = &manifest.medium;
         if manifest.units != "voxel" {
             return Err(bad(format!(

@@ -121,12 +121,31 @@ pub(crate) fn validate(
     }
     if g.spectrum.len() as u64 != m.min(n)
         || g.spectrum.iter().any(|s| !(s.is_finite() && *s >= 0.0))
+        || g.spectrum.windows(2).any(|w| w[1] > w[0])
     {
         return Err(bad(
-            "the spectrum must hold min(m, n) finite values ≥ 0".into()
+            "the spectrum must hold min(m, n) finite values ≥ 0, descending".into(),
         ));
     }
+    if let RankChoice::MaxRmse(r) = g.rank_choice
+        && !(r.is_finite() && r >= 0.0)
+    {
+        return Err(bad(format!(
+            "the rank choice's max_rmse {r} is not finite ≥ 0"
+        )));
+    }
     let a = &g.accuracy;
+    if ![a.rmse, a.max_abs, a.flip_rate, g.svd_rmse]
+        .iter()
+        .all(|v| v.is_finite() && *v >= 0.0)
+        || a.flips > a.samples
+    {
+        return Err(bad(
+            "the accuracy (rmse, max_abs, flip_rate, svd_rmse, flips of samples) must hold \
+             finite values ≥ 0"
+                .into(),
+        ));
+    }
     if !(0.0..=MAX_ESCAPE_MARGIN).contains(&a.escape_margin) {
         return Err(bad(format!("escape margin {} is invalid", a.escape_margin)));
     }

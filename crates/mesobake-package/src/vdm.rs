@@ -450,6 +450,7 @@ impl VdmPackage {
         let manifest: VdmManifest = container::parse(&bytes)?;
         let contents = Contents::inflate(bytes, &manifest.sections)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
+        manifest.input.check().map_err(bad)?;
         let ReliefInfo { size, depth } = manifest.relief;
         if size.iter().any(|&n| n == 0 || n > MAX_SIDE) {
             return Err(bad(format!(
