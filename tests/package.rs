@@ -373,45 +373,35 @@ fn wrong_versions_and_absurd_sizes_get_clear_errors() {
 fn every_manifest_field_a_reader_relies_on_is_validated() {
     // The probe's accepted mutations (CRCs recomputed), each refused naming the field.
     let bytes = small_package();
-    let cases: [(&str, Box<dyn Fn(&mut serde_json::Value)>); 8] = [
-        (
-            "stride",
-            Box::new(|m| m["bake"]["fast"] = serde_json::json!({ "stride": 0, "max_spread": 1.0 })),
-        ),
-        (
-            "descending",
-            Box::new(|m| {
-                let s = m["gdm"]["spectrum"].as_array_mut().unwrap();
-                s.reverse();
-            }),
-        ),
-        (
-            "accuracy",
-            Box::new(|m| m["gdm"]["accuracy"]["rmse"] = serde_json::json!(-1.0)),
-        ),
-        (
-            "accuracy",
-            Box::new(|m| m["gdm"]["svd_rmse"] = serde_json::json!(-0.5)),
-        ),
-        (
-            "accuracy",
-            Box::new(|m| m["gdm"]["accuracy"]["flips"] = serde_json::json!(u64::MAX)),
-        ),
-        (
-            "max_rmse",
-            Box::new(|m| m["gdm"]["rank_choice"] = serde_json::json!({ "max_rmse": -2.0 })),
-        ),
-        (
-            "input kind",
-            Box::new(|m| m["input"]["kind"] = serde_json::json!("v".repeat(10_000))),
-        ),
-        (
-            "input blake3",
-            Box::new(|m| m["input"]["blake3"] = serde_json::json!("not hex")),
-        ),
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(&str, Edit); 8] = [
+        ("stride", |m| {
+            m["bake"]["fast"] = serde_json::json!({ "stride": 0, "max_spread": 1.0 })
+        }),
+        ("descending", |m| {
+            m["gdm"]["spectrum"].as_array_mut().unwrap().reverse()
+        }),
+        ("accuracy", |m| {
+            m["gdm"]["accuracy"]["rmse"] = serde_json::json!(-1.0)
+        }),
+        ("accuracy", |m| {
+            m["gdm"]["svd_rmse"] = serde_json::json!(-0.5)
+        }),
+        ("accuracy", |m| {
+            m["gdm"]["accuracy"]["flips"] = serde_json::json!(u64::MAX)
+        }),
+        ("max_rmse", |m| {
+            m["gdm"]["rank_choice"] = serde_json::json!({ "max_rmse": -2.0 })
+        }),
+        ("input kind", |m| {
+            m["input"]["kind"] = serde_json::json!("v".repeat(10_000))
+        }),
+        ("input blake3", |m| {
+            m["input"]["blake3"] = serde_json::json!("not hex")
+        }),
     ];
     for (want, edit) in cases {
-        let e = error_of(with_manifest(&bytes, |m| edit(m)));
+        let e = error_of(with_manifest(&bytes, edit));
         assert!(e.contains(want), "{want}: {e}");
     }
 }
