@@ -376,20 +376,14 @@ fn bad_sample_counts_and_codec_choices_are_refused_by_name() {
     )]);
 }
 
-#[test]
-fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene = dir.path().join("scene.json");
-    // A scene whose quality is not the paper's: its default row is its own preset.
-    let mut json: serde_json::Value = serde_json::from_str(SCENE).unwrap();
-    json["quality"] = "balanced".into();
-    std::fs::write(&scene, json.to_string()).unwrap();
-    let out = dir.path().join("report");
+/// Runs `report conformance` on `scenes` (comma-separated) at 4 samples per pixel, 32 px,
+/// one WGSL frame, into `out`: its printed table and its JSON.
+fn conformance(scenes: &str, out: &std::path::Path) -> (String, serde_json::Value) {
     let o = succeeds(&[
         "report",
         "conformance",
         "--scenes",
-        scene.to_str().unwrap(),
+        scenes,
         "--spp",
         "4",
         "--side",
@@ -399,10 +393,24 @@ fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    let table = String::from_utf8_lossy(&o.stdout);
+    let json = std::fs::read(out.join("conformance.json")).unwrap();
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        serde_json::from_slice(&json).unwrap(),
+    )
+}
+
+#[test]
+fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene.json");
+    // A scene whose quality is not the paper's: its default row is its own preset.
+    let mut json: serde_json::Value = serde_json::from_str(SCENE).unwrap();
+    json["quality"] = "balanced".into();
+    std::fs::write(&scene, json.to_string()).unwrap();
+    let out = dir.path().join("report");
+    let (table, json) = conformance(scene.to_str().unwrap(), &out);
     assert!(table.contains("| scene | technique |"), "{table}");
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("conformance.json")).unwrap()).unwrap();
     assert_eq!(json["samples_per_pixel"], 4);
     let rows = json["rows"].as_array().unwrap();
     let presets: Vec<&str> = rows.iter().map(|r| r["preset"].as_str().unwrap()).collect();
@@ -471,23 +479,7 @@ fn the_conformance_report_measures_the_vdm_and_the_media_at_their_accurate_setti
             path.to_str().unwrap().to_string()
         })
         .collect();
-    let out = dir.path().join("report");
-    succeeds(&[
-        "report",
-        "conformance",
-        "--scenes",
-        &paths.join(","),
-        "--spp",
-        "4",
-        "--side",
-        "32",
-        "--frames",
-        "1",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("conformance.json")).unwrap()).unwrap();
+    let (_, json) = conformance(&paths.join(","), &dir.path().join("report"));
     let rows: Vec<(&str, &str, &str, bool)> = json["rows"]
         .as_array()
         .unwrap()

@@ -49,6 +49,13 @@ async fn upload(s: &TestServer, kind: SampleKind, res: [u32; 3]) -> String {
         .to_owned()
 }
 
+/// Uploads a 16×16×8 grid, submits its job and returns the job's id (no worker runs yet).
+async fn queue_grid_job(s: &TestServer) -> String {
+    let volume = upload(s, SampleKind::Grid, [16, 16, 8]).await;
+    let (_, queued) = submit(s, &json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]) })).await;
+    queued["id"].as_str().unwrap().to_owned()
+}
+
 async fn submit(s: &TestServer, body: &Value) -> (u16, Value) {
     let r = reqwest::Client::new()
         .post(s.url("/api/v1/jobs"))
@@ -383,13 +390,7 @@ async fn a_dead_workers_job_is_taken_over_and_finishes_once() {
     for url in database_urls(dir.path(), "lease").await {
         let data = tempfile::tempdir().unwrap();
         let s = TestServer::start(&url, data.path(), 1 << 24).await;
-        let volume = upload(&s, SampleKind::Grid, [16, 16, 8]).await;
-        let (_, queued) = submit(
-            &s,
-            &json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]) }),
-        )
-        .await;
-        let id = queued["id"].as_str().unwrap().to_owned();
+        let id = queue_grid_job(&s).await;
         // A worker claims it with a short lease and dies.
         let claimed = s
             .state
@@ -428,13 +429,7 @@ async fn a_job_whose_workers_keep_dying_fails_after_its_attempts_and_says_so() {
     for url in database_urls(dir.path(), "give_up").await {
         let data = tempfile::tempdir().unwrap();
         let s = TestServer::start(&url, data.path(), 1 << 24).await;
-        let volume = upload(&s, SampleKind::Grid, [16, 16, 8]).await;
-        let (_, queued) = submit(
-            &s,
-            &json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]) }),
-        )
-        .await;
-        let id = queued["id"].as_str().unwrap().to_owned();
+        let id = queue_grid_job(&s).await;
         for attempt in 1..=3 {
             let claimed = s.state.db.claim_job("dying", 1).await.unwrap().unwrap();
             assert_eq!(

@@ -576,8 +576,8 @@ fn report_vdm_turns_each_knob_and_measures_the_gdm_beside_it() {
     assert!(report["rows"][0]["frame_ms"].is_null());
 }
 
-/// The fraction of pixels that `with` shadows (darker than `without` by more than 0.1 in
-/// linear red) among the pixels both images hit.
+/// Per pixel, whether `with` shadows it: both images hit it and `with` is darker than
+/// `without` by more than 0.1 in linear red.
 fn shadowed(with: &Image, without: &Image) -> Vec<bool> {
     (with.rgb.iter().zip(&without.rgb))
         .zip(with.mask.iter().zip(&without.mask))
@@ -585,10 +585,32 @@ fn shadowed(with: &Image, without: &Image) -> Vec<bool> {
         .collect()
 }
 
-/// torus-bumps as shipped, changed by `edit`, loaded, and its default package.
-fn torus_bumps(edit: impl FnOnce(&mut Scene)) -> (LoadedScene, mesobake::package::AnyPackage) {
+/// The supersampled ground truth of `loaded` (its camera's samples per pixel).
+fn truth_image(loaded: &LoadedScene) -> Image {
+    render(
+        loaded,
+        RenderMethod::Truth,
+        MapSource::Bake,
+        &Limits::default(),
+        &(),
+    )
+    .unwrap()
+    .image
+}
+
+/// torus-bumps as shipped at `side`² pixels and `spp` samples per pixel, changed by `edit`,
+/// loaded, and its default package.
+fn torus_bumps(
+    side: u32,
+    spp: u32,
+    edit: impl FnOnce(&mut Scene),
+) -> (LoadedScene, mesobake::package::AnyPackage) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-bumps.json");
     let mut scene = Scene::read(&path).unwrap();
+    scene.camera.width = side;
+    scene.camera.height = side;
+    let spp = mesobake::render::sampling::SamplesPerPixel::new(spp).unwrap();
+    scene.camera.set_samples_per_pixel(spp).unwrap();
     edit(&mut scene);
     let (dir, limits) = (path.parent().unwrap(), Limits::default());
     let loaded = LoadedScene::load(scene, dir, &limits).unwrap();
@@ -608,15 +630,10 @@ fn the_compressed_vdm_shadows_no_lit_bump_the_truth_lights() {
     // the compression's error (what remains: the VDM's bumps sit a little off the truth's),
     // 0.20 with the scene's refinement on the height field (`vdm.refine_texels`) besides,
     // 0.15 with the top triangles' own frames.
-    let limits = Limits::default();
-    let (mut loaded, package) = torus_bumps(|scene| {
-        scene.camera.width = 192;
-        scene.camera.height = 192;
-    });
+    let (mut loaded, package) = torus_bumps(192, 1, |_| {});
     let images = |loaded: &LoadedScene| {
-        let truth = render(loaded, RenderMethod::Truth, MapSource::Bake, &limits, &()).unwrap();
         let vdm = mesobake::scene::preview::render_on_cpu(loaded, &package).unwrap();
-        (truth.image, vdm)
+        (truth_image(loaded), vdm)
     };
     let (truth, vdm) = images(&loaded);
     loaded.scene.effects.retain(|e| *e != Effect::Shadows);
@@ -640,20 +657,10 @@ fn the_refinement_settles_hits_and_silhouettes_on_the_height_field() {
     // (the scene's `vdm.refine_texels`, 16) settles both on the height field. Measured here
     // 22.0 → 25.2 dB, silhouettes 0.79 % → 0.35 % of pixels; at 16 samples per pixel
     // 24.6 → 28.5 dB, 0.76 % → 0.33 %.
-    use mesobake::render::sampling::SamplesPerPixel;
-    let limits = Limits::default();
-    let (mut loaded, package) = torus_bumps(|scene| {
+    let (mut loaded, package) = torus_bumps(128, 4, |scene| {
         assert_eq!(scene.vdm.refine_texels, 16, "the scene as shipped");
-        scene.camera.width = 128;
-        scene.camera.height = 128;
-        scene
-            .camera
-            .set_samples_per_pixel(SamplesPerPixel::new(4).unwrap())
-            .unwrap();
     });
-    let truth = render(&loaded, RenderMethod::Truth, MapSource::Bake, &limits, &())
-        .unwrap()
-        .image;
+    let truth = truth_image(&loaded);
     let mut at = |texels| {
         loaded.scene.vdm.refine_texels = texels;
         let image = mesobake::scene::preview::render_on_cpu(&loaded, &package).unwrap();
@@ -678,27 +685,15 @@ fn shadows_traced_through_the_top_surface_find_the_far_sides_shadows() {
     // VDM lights, over the pixels the truth shadows, and the PSNR against the truth;
     // measured 15.3 % → 6.1 % missed, 18.8 → 23.7 dB.
     use mesobake::render::quality::ShadowMethod;
-    use mesobake::render::sampling::SamplesPerPixel;
     use mesobake::scene::Light;
     let limits = Limits::default();
-    let (mut loaded, package) = torus_bumps(|scene| {
-        scene.camera.width = 128;
-        scene.camera.height = 128;
-        scene
-            .camera
-            .set_samples_per_pixel(SamplesPerPixel::new(4).unwrap())
-            .unwrap();
+    let (mut loaded, package) = torus_bumps(128, 4, |scene| {
         let Light::Point { position, .. } = &mut scene.lights[0] else {
             panic!("torus-bumps's first light is a point light");
         };
         *position = [4.0, 0.6, 0.0];
     });
-    let truth = |loaded: &LoadedScene| {
-        render(loaded, RenderMethod::Truth, MapSource::Bake, &limits, &())
-            .unwrap()
-            .image
-    };
-    let shadowed_truth = truth(&loaded);
+    let shadowed_truth = truth_image(&loaded);
     let vdm = |loaded: &mut LoadedScene, shadows| {
         loaded.scene.vdm.shadows = shadows;
         mesobake::scene::preview::render_on_cpu(loaded, &package).unwrap()
@@ -708,7 +703,7 @@ fn shadows_traced_through_the_top_surface_find_the_far_sides_shadows() {
         vdm(&mut loaded, ShadowMethod::Shell),
     );
     loaded.scene.effects.retain(|e| *e != Effect::Shadows);
-    let (lit_truth, lit_vdm) = (truth(&loaded), vdm(&mut loaded, ShadowMethod::Local));
+    let (lit_truth, lit_vdm) = (truth_image(&loaded), vdm(&mut loaded, ShadowMethod::Local));
     let truth_shadows = shadowed(&shadowed_truth, &lit_truth);
     let missed = |image: &Image| {
         let vdm_shadows = shadowed(image, &lit_vdm);
