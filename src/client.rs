@@ -3,10 +3,10 @@
 //! its bytes hash to the digest the server names and that it parses as a package.
 
 use crate::compress::quantize::Quantization;
-use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::package::Package;
 use crate::package::manifest::GdmCodec;
+use mesobake_core::error::{Error, Result};
 use serde_json::{Value, json};
 use std::path::Path;
 use std::time::Duration;

@@ -6,7 +6,7 @@
 //! ```
 //! use mesobake::bake::gdm::{self, volume_caster::VolumeCaster};
 //! use mesobake::grid::{DirectionGrid, Dims};
-//! use mesobake::util::limits::Limits;
+//! use mesobake_core::limits::Limits;
 //! use mesobake::mesostructure::volume::Volume;
 //!
 //! // A floor: layer 0 of an 8×8×4 volume is solid.
@@ -26,7 +26,6 @@ pub mod bake;
 pub mod bench;
 pub mod client;
 pub mod compress;
-pub mod error;
 pub mod mesostructure;
 pub mod package;
 pub mod realtime;
@@ -35,8 +34,7 @@ pub mod report;
 pub mod scene;
 pub mod server;
 pub mod surface;
-pub mod util;
 
-pub use error::{Error, Result};
+pub use mesobake_core::{Error, Result};
 /// The sampling grids, shared with the package format (crate `mesobake-package`).
 pub use mesobake_package::grid;

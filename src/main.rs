@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand};
 use cli::{bench, explicit, gdm, package, preview, render, report, sample, server, vdm};
 use mesobake::Result;
 use mesobake::bench::counting_alloc::CountingAlloc;
-use mesobake::util::limits::{Limits, parse_bytes};
+use mesobake_core::limits::{Limits, parse_bytes};
 use std::process::ExitCode;
 
 #[global_allocator]

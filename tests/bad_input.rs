@@ -7,7 +7,7 @@ use mesobake::mesostructure::mesh_tile::MeshTile;
 use mesobake::mesostructure::trimesh::TriMesh;
 use mesobake::mesostructure::volume::Volume;
 use mesobake::mesostructure::volume_format::{self, HEADER_BYTES};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 
 fn sample_bytes() -> Vec<u8> {
     let d = Dims::new(4, 4, 2).unwrap();

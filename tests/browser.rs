@@ -11,7 +11,7 @@ use binary_server::BinaryServer;
 use fantoccini::{ClientBuilder, Locator};
 use mesobake::grid::Dims;
 use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 

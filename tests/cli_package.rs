@@ -1,7 +1,7 @@
 //! The CI commands end to end: bake → package → unpack (.npy, EXR, KTX2), and report accuracy.
 
 use mesobake::package::Package;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 mod common;

@@ -13,9 +13,9 @@ use mesobake::render::gdm_lookup::{GdmLookup, Lookup, RawLookup};
 use mesobake::render::gdm_renderer::{GdmRenderer, longest_segment, prepare_prisms};
 use mesobake::render::render_image;
 use mesobake::report::codecs::{CodecSweep, codec_report};
-use mesobake::scene::Effect;
 use mesobake::scene::render::load_scene;
-use mesobake::util::limits::Limits;
+use mesobake_core::effect::Effect;
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 mod common;

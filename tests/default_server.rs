@@ -15,7 +15,7 @@ use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
 use mesobake::package::manifest::GdmCodec;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use serde_json::{Value, json};
 use std::process::Command;
 use std::time::{Duration, Instant};

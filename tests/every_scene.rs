@@ -13,11 +13,11 @@ use mesobake::package::AnyPackage;
 use mesobake::package::manifest::GdmCodec;
 use mesobake::realtime::gpu::Gpu;
 use mesobake::render::image::{Image, compare};
-use mesobake::render::quality::Preset;
 use mesobake::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
 use mesobake::scene::preview::{preview, render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
+use mesobake_core::quality::Preset;
 use std::path::{Path, PathBuf};
 
 /// The image's longer side in these tests.
@@ -165,9 +165,9 @@ fn every_opaque_scene_s_gdm_renders_alike_with_both_codecs_at_every_preset() {
 /// 17.6 dB against `paper`'s 36.0 (`report conformance`, 16 samples per pixel).
 #[test]
 fn every_preset_is_at_least_as_close_to_the_truth_as_the_paper_s_algorithm() {
-    use mesobake::render::sampling::SamplesPerPixel;
-    use mesobake::scene::Effect;
     use mesobake::scene::render::{MapSource, RenderMethod, render};
+    use mesobake_core::effect::Effect;
+    use mesobake_core::samples_per_pixel::SamplesPerPixel;
     let limits = Limits::default();
     let mut failures = Vec::new();
     for path in scene_files() {

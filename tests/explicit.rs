@@ -11,7 +11,7 @@ use mesobake::mesostructure::trimesh::TriMesh;
 use mesobake::surface::base_mesh::{BaseMesh, BuiltinMesh};
 use mesobake::surface::explicit::{Explicit, ExplicitParams, export};
 use mesobake::surface::shell::{PrismPoint, Shell, ShellParams};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::collections::HashMap;
 
 fn base(mesh: BuiltinMesh) -> BaseMesh {

@@ -14,7 +14,7 @@ use mesobake::render::image::compare;
 use mesobake::render::render_image;
 use mesobake::render::truth::{TruthRenderer, TruthShading};
 use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 mod common;

@@ -14,7 +14,7 @@ use mesobake::mesostructure::mesh_tile::MeshTile;
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::trimesh::TriMesh;
 use mesobake::mesostructure::volume::Volume;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use proptest::prelude::*;
 
 fn dims(x: u32, y: u32, z: u32) -> Dims {

@@ -8,7 +8,7 @@ use mesobake::bake::gdm::volume_caster::VolumeCaster;
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::mesostructure::mesh_tile::MeshTile;
 use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 
 /// On every sample at 32×32×16 with 8×16 directions, the default fast bake stays within the
 /// targets of the W1 benchmark: mean absolute error ≤ 0.25 voxel over samples both bakes hit,

@@ -7,7 +7,7 @@ use mesobake::bake::gi::environment::{Environment, Sky, direction};
 use mesobake::bake::gi::prt::{Visibility, transfer, vertex_frames};
 use mesobake::bake::gi::sh::{self, COEFFS, Quadrature};
 use mesobake::surface::base_mesh::BaseMesh;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::f64::consts::PI;
 
 /// The SH convention's direction of polar angle θ (from +z) and azimuth φ.

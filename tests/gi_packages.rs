@@ -10,7 +10,7 @@ use mesobake::package::Package;
 use mesobake::scene::gi::GiShading;
 use mesobake::scene::package::{ScenePackageParams, bake_scene_package};
 use mesobake::scene::render::load_scene;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::path::{Path, PathBuf};
 
 /// A small GI scene (wavy plane, weave 32×32×16, 16×32 directions, overcast sky, glossy

@@ -13,7 +13,7 @@ use mesobake::scene::package::{
 };
 use mesobake::scene::preview::{medium_render_on_cpu, render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use serde_json::{Value, json};
 use std::path::Path;
 

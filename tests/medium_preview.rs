@@ -22,7 +22,7 @@ use mesobake::scene::transparency::{
     CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
 };
 use mesobake::scene::{LoadedScene, Scene};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 /// The shipped torus-fur scene at `side`² pixels with a `base` segment grid (its own

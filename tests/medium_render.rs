@@ -21,8 +21,9 @@ use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::transparency::{
     CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
 };
-use mesobake::scene::{Light, LoadedScene, Scene};
-use mesobake::util::limits::Limits;
+use mesobake::scene::{LoadedScene, Scene};
+use mesobake_core::light::Light;
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 /// Exact integration of each cell.

@@ -12,7 +12,7 @@ use mesobake::mesostructure::volume::Occupancy;
 use mesobake::package::bake::{PackageParams, bake_info, bake_package};
 use mesobake::package::manifest::{GdmCodec, InputInfo, Manifest};
 use mesobake::package::{GdmPayload, OCCUPANCY_SECTION, Package, container};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use proptest::prelude::*;
 
 fn params(rank: usize, quantization: Quantization) -> PackageParams {

@@ -12,8 +12,9 @@ use mesobake::realtime::gpu::Gpu;
 use mesobake::render::image::{Image, compare};
 use mesobake::scene::package::{ScenePackageParams, gdm_scene_package};
 use mesobake::scene::preview::{gdm_preview, gdm_render_on_cpu};
-use mesobake::scene::{Effect, LoadedScene, Scene};
-use mesobake::util::limits::Limits;
+use mesobake::scene::{LoadedScene, Scene};
+use mesobake_core::effect::Effect;
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 /// Whether GPU tests run here; panics with the reason when no adapter exists and skipping
@@ -110,7 +111,7 @@ fn torus_chain_matches_the_cpu_gdm_renderer() {
 /// `balanced` preset and with chords.
 #[test]
 fn every_quality_knob_matches_the_cpu_gdm_renderer() {
-    use mesobake::render::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
+    use mesobake_core::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
     if !gpu_or_skip() {
         return;
     }
@@ -234,7 +235,7 @@ fn plane_weave_matches_with_refinements_and_partial_groups() {
 #[test]
 fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for() {
     use mesobake::realtime::variant::{BVH_BINDING, GI_BINDING, SHADOW_QUERY_FN, ShaderVariant};
-    use mesobake::render::quality::ShadowMethod;
+    use mesobake_core::quality::ShadowMethod;
     let mut count = 0;
     for variant in ShaderVariant::all() {
         let module = naga::front::wgsl::parse_str(&variant.source()).unwrap_or_else(|e| {

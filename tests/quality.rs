@@ -5,10 +5,10 @@
 //! must buy what it is for. Images at 256² (the targets hold at the scenes' 512²:
 //! docs/BENCHMARKS.md); the package is the scene's default (the exact occupancy march).
 
-use mesobake::render::quality::Preset;
 use mesobake::report::quality::{QualityRow, default_settings, quality_report};
 use mesobake::scene::render::load_scene;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
+use mesobake_core::quality::Preset;
 use std::path::Path;
 
 mod common;

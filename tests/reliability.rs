@@ -12,7 +12,7 @@ use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
 use mesobake::server::jobs::JobSpec;
 use mesobake::server::spawn_workers;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use serde_json::json;
 use server::{TestServer, database_urls};
 use std::process::{Child, Command};

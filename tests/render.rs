@@ -15,14 +15,14 @@ use mesobake::mesostructure::volume::Volume;
 use mesobake::render::gdm_lookup::RawLookup;
 use mesobake::render::gdm_renderer::{GdmRenderer, Substitutions};
 use mesobake::render::image::compare;
-use mesobake::render::quality::{Quality, ShadingFrame, ShadowMethod};
 use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::render::{MapSource, RenderMethod, render};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake::surface::base_mesh::BaseMesh;
 use mesobake::surface::shell::{Shell, ShellParams};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
+use mesobake_core::quality::{Quality, ShadingFrame, ShadowMethod};
 
 const SLAB_SCENE: &str = r#"{
   "base_mesh": { "builtin": { "plane": {} } },

@@ -6,7 +6,7 @@ use mesobake::grid::Dims;
 use mesobake::mesostructure::mesh_tile::MeshTile;
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 
 /// The OBJ tile's inside classification of voxel centres agrees with the volume's solid voxels
 /// for at least 97 % of voxels (they differ only within about half a voxel of the surface,

@@ -9,7 +9,7 @@ use mesobake::grid::Dims;
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
 use mesobake::server::db::{PackageRow, now_ms};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use server::{TestServer, database_urls};
 
 fn volume_bytes(kind: SampleKind, res: u32) -> Vec<u8> {

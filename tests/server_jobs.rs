@@ -9,7 +9,7 @@ use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
 use mesobake::server::spawn_workers;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use object_store::ObjectStoreExt;
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};

@@ -12,7 +12,7 @@ use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
 use mesobake::server::config::ServerConfig;
 use mesobake::server::db::{PackageRow, now_ms};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};
 use std::time::{Duration, Instant};

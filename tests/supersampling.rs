@@ -7,12 +7,12 @@ mod common;
 use mesobake::package::AnyPackage;
 use mesobake::render::image::{Image, compare};
 use mesobake::render::render_image;
-use mesobake::render::sampling::SamplesPerPixel;
 use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::package::scene_package;
 use mesobake::scene::preview::{preview, render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
+use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use std::path::Path;
 
 fn load(name: &str, width: u32, height: u32) -> LoadedScene {

@@ -1,7 +1,7 @@
 //! Truncated SVD against nalgebra's full SVD (f64) on small matrices, and its hard cases.
 
 use mesobake::compress::svd::{DenseRows, RankChoice, Truncated, truncated_svd};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use nalgebra::DMatrix;
 
 /// Deterministic uniform numbers in [-1, 1).
@@ -247,7 +247,7 @@ struct CancelAfter {
     asked: std::sync::atomic::AtomicUsize,
 }
 
-impl mesobake::bake::gdm::BakeObserver for CancelAfter {
+impl mesobake_core::observer::BakeObserver for CancelAfter {
     fn cancelled(&self) -> bool {
         self.asked
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed)

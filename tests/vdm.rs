@@ -12,7 +12,7 @@ use mesobake::mesostructure::height_field::HeightField;
 use mesobake::mesostructure::reliefs::{self, ReliefKind};
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::package::vdm::VdmPackage;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 
 mod common;
 use common::{each_fails_with, succeeds};

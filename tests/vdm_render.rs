@@ -11,9 +11,10 @@ use mesobake::render::image::{Comparison, Image, compare};
 use mesobake::render::render_image;
 use mesobake::render::vdm_renderer::{VdmRenderer, exit_arc};
 use mesobake::scene::LoadedScene;
+use mesobake::scene::Scene;
 use mesobake::scene::render::{MapSource, RenderMethod, render, render_substituted};
-use mesobake::scene::{Effect, Scene};
-use mesobake::util::limits::Limits;
+use mesobake_core::effect::Effect;
+use mesobake_core::limits::Limits;
 
 /// VDM settings that leave out compression's error: every component, in f32.
 const UNCOMPRESSED: &str = r#"{ "rank": 64, "mvm_rank": 16, "quantization": "f32" }"#;
@@ -463,7 +464,7 @@ fn the_wgsl_pipeline_renders_what_its_cpu_specification_renders() {
         (PLANE, PLANE_SHELL, [0.0, 0.5, 0.9], "{}", from_above),
     ] {
         let mut loaded = scene(base, shell, eye, &["silhouettes", "shadows"], vdm);
-        loaded.scene.lights[0] = mesobake::scene::Light::Point {
+        loaded.scene.lights[0] = mesobake_core::light::Light::Point {
             position: light,
             intensity: [110.0, 105.0, 95.0],
         };
@@ -609,7 +610,7 @@ fn torus_bumps(
     let mut scene = Scene::read(&path).unwrap();
     scene.camera.width = side;
     scene.camera.height = side;
-    let spp = mesobake::render::sampling::SamplesPerPixel::new(spp).unwrap();
+    let spp = mesobake_core::samples_per_pixel::SamplesPerPixel::new(spp).unwrap();
     scene.camera.set_samples_per_pixel(spp).unwrap();
     edit(&mut scene);
     let (dir, limits) = (path.parent().unwrap(), Limits::default());
@@ -684,8 +685,8 @@ fn shadows_traced_through_the_top_surface_find_the_far_sides_shadows() {
     // into the top surface wherever it enters. Here: the pixels the truth shadows and the
     // VDM lights, over the pixels the truth shadows, and the PSNR against the truth;
     // measured 15.3 % → 6.1 % missed, 18.8 → 23.7 dB.
-    use mesobake::render::quality::ShadowMethod;
-    use mesobake::scene::Light;
+    use mesobake_core::light::Light;
+    use mesobake_core::quality::ShadowMethod;
     let limits = Limits::default();
     let (mut loaded, package) = torus_bumps(128, 4, |scene| {
         let Light::Point { position, .. } = &mut scene.lights[0] else {

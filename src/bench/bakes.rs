@@ -11,13 +11,13 @@ use crate::compress::accuracy::Accuracy;
 use crate::compress::layout::GdmRows;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::{DenseRows, GramEigen, RankChoice, RowSource, Truncated, truncated_svd};
-use crate::error::Result;
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::samples::{self, SampleKind};
 use crate::package::manifest::InputInfo;
 use crate::package::{GdmPayload, Package};
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
 use std::time::Instant;
 
 /// Peak heap usage, measured by the binary's allocator.

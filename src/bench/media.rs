@@ -3,7 +3,6 @@
 //! pipeline's frame time in each cell order against the CPU specification's seconds per
 //! image in the same run, the per-view sort's share, and each WGSL image against the CPU's.
 
-use crate::error::{Error, Result};
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::medium_pipeline::MediumPreview;
 use crate::render::image::{Comparison, compare};
@@ -11,7 +10,8 @@ use crate::render::medium_cells::CellRenderer;
 use crate::render::render_image;
 use crate::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
 use crate::scene::{LoadedScene, Scene};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

@@ -2,18 +2,18 @@
 //! renderer on the same scene and package, in the same run, over every GDM codec, quality
 //! preset, image size and volume depth, with and without the early depth test.
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::Result;
 use crate::package::manifest::GdmCodec;
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
 use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::quality::Preset;
 use crate::render::render_image;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::scene::{LoadedScene, Scene};
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
+use mesobake_core::quality::Preset;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

@@ -2,7 +2,6 @@
 //! in the same run where one exists. Package downloads are compared with nginx serving the
 //! same file (both measured with wrk on loopback; both programs must be installed).
 
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::samples::{self, SampleKind};
 use crate::mesostructure::volume::Volume;
@@ -10,7 +9,8 @@ use crate::mesostructure::volume_format;
 use crate::server::config::ServerConfig;
 use crate::server::jobs::JobSpec;
 use crate::server::{AppState, open_state, serve_on, spawn_workers};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use serde_json::{Value, json};
 use std::process::Command;
 use std::sync::Arc;
@@ -208,7 +208,7 @@ async fn run_async(database_url: Option<&str>, limits: &Limits) -> Result<String
     // Baseline: what the store cannot avoid, writing the same bytes durably, one by one.
     let start = Instant::now();
     for (n, b) in bodies.iter().enumerate() {
-        crate::util::fs::write_atomic(&dir.join(format!("copy{n}")), b)?;
+        mesobake_core::fs::write_atomic(&dir.join(format!("copy{n}")), b)?;
     }
     let write_rate = total as f64 / start.elapsed().as_secs_f64();
     out += &format!(

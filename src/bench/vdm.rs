@@ -2,7 +2,6 @@
 //! renderers' seconds per image and the real-time pipelines' frame times, and each image's
 //! error against the ground truth (the height field cast exactly through the shell).
 
-use crate::error::Result;
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
 use crate::realtime::vdm_pipeline::VdmPreview;
@@ -15,7 +14,8 @@ use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::scene::render::load_scene;
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

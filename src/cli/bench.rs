@@ -5,9 +5,9 @@ use super::output::Progress;
 use clap::Subcommand;
 use mesobake::bench::counting_alloc::CountingAlloc;
 use mesobake::bench::{bakes, media, preview, server, vdm};
-use mesobake::render::quality::Preset;
-use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::quality::Preset;
 use std::path::PathBuf;
 
 /// The benchmarks.
@@ -36,7 +36,7 @@ pub enum BenchCommand {
         /// Scene file.
         #[arg(long, default_value = "scenes/torus-chain.json")]
         scene: PathBuf,
-        /// Quality presets, comma-separated.
+        /// Quality presets, comma-separated: paper, balanced, high.
         #[arg(long, value_delimiter = ',', default_value = "paper")]
         presets: Vec<Preset>,
         /// Square image sizes.

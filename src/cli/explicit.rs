@@ -3,9 +3,9 @@
 
 use super::output::{Progress, print_json};
 use mesobake::surface::explicit::{ExplicitInput, parse_pair};
-use mesobake::util::fs::write_atomic;
-use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
+use mesobake_core::fs::write_atomic;
+use mesobake_core::limits::Limits;
 use std::path::PathBuf;
 use std::time::Instant;
 

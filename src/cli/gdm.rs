@@ -3,12 +3,12 @@
 
 use super::output::{Progress, print_json};
 use clap::ValueEnum;
+use mesobake::bake::gdm::npy;
 use mesobake::bake::gdm::{self, Method};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::mesostructure::input;
-use mesobake::util::limits::Limits;
-use mesobake::util::npy;
 use mesobake::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -3,7 +3,7 @@
 //! of JSON on stdout.
 
 use indicatif::{ProgressBar, ProgressStyle};
-use mesobake::bake::gdm::BakeObserver;
+use mesobake_core::observer::BakeObserver;
 use std::io::IsTerminal;
 
 /// A progress bar on stderr, drawn only when stderr is a terminal.

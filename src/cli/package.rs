@@ -6,6 +6,7 @@ use super::codec::CodecOptions;
 use super::gdm::BakeOptions;
 use super::output::{Progress, print_json};
 use mesobake::bake::gdm::Method;
+use mesobake::bake::gdm::npy::write_gdm;
 use mesobake::bake::vdm::{NO_HIT, VdmGrid};
 use mesobake::client::Client;
 use mesobake::compress::svd::RankChoice;
@@ -17,10 +18,10 @@ use mesobake::package::vdm::VdmPackage;
 use mesobake::package::{GdmPayload, Package};
 use mesobake::scene::package::{ScenePayload, bake_scene_package};
 use mesobake::scene::render::load_scene;
-use mesobake::util::fs::{read_bounded, write_atomic};
-use mesobake::util::limits::Limits;
-use mesobake::util::npy;
 use mesobake::{Error, Result};
+use mesobake_core::fs::{read_bounded, write_atomic};
+use mesobake_core::limits::Limits;
+use mesobake_core::npy::write_array;
 use mesobake_package::vdm::{VDM_FORMAT_NAME, VdmQuery};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -341,7 +342,7 @@ pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
             let g = pkg.manifest().bake.grid;
             let [w, h] = pkg.manifest().relief.size;
             let shape = [g.n_curvature, g.n_theta, g.n_phi, h, w].map(u64::from);
-            npy::write_array(out, &shape, &values)?;
+            write_array(out, &shape, &values)?;
         }
         return write_ktx2(args.ktx2.as_deref(), &pkg.manifest().sections, |name| {
             pkg.section(name)
@@ -349,7 +350,7 @@ pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
     }
     let pkg = Package::parse(bytes).map_err(|e| e.context(args.package.display()))?;
     if let Some(out) = &args.out {
-        npy::write_gdm(&pkg.reconstruct(limits)?, out)?;
+        write_gdm(&pkg.reconstruct(limits)?, out)?;
     }
     if let Some(path) = args.exr {
         mesobake::package::exr_export::write_factors(&pkg, &path)?;

@@ -4,12 +4,12 @@ use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
 use mesobake::Result;
 use mesobake::package::AnyPackage;
-use mesobake::render::quality::Quality;
-use mesobake::render::sampling::SamplesPerPixel;
 use mesobake::scene::package::{check_any_package_input, scene_package};
 use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake::scene::render::load_scene;
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
+use mesobake_core::quality::Quality;
+use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -8,13 +8,13 @@ use mesobake::bake::vdm::VdmMethod;
 use mesobake::compress::quantize::Quantization;
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::realtime::gpu::Gpu;
-use mesobake::render::sampling::SamplesPerPixel;
 use mesobake::report::{accuracy, codecs, conformance, gi, quality, render, transparency, vdm};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::render::load_scene;
-use mesobake::util::fs::write_atomic;
-use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
+use mesobake_core::fs::write_atomic;
+use mesobake_core::limits::Limits;
+use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use std::path::{Path, PathBuf};
 
 /// The reports.
@@ -249,14 +249,14 @@ pub enum ReportCommand {
 }
 
 /// Writes `files` (name, contents) into `out`, prints `table` and says what was written.
-/// Refuses an image side outside 1..=[`mesobake::scene::MAX_IMAGE_SIDE`].
+/// Refuses an image side outside 1..=[`mesobake_core::camera::MAX_IMAGE_SIDE`].
 fn check_side(side: u32) -> Result<()> {
-    if (1..=mesobake::scene::MAX_IMAGE_SIDE).contains(&side) {
+    if (1..=mesobake_core::camera::MAX_IMAGE_SIDE).contains(&side) {
         Ok(())
     } else {
         Err(Error::InvalidParameter(format!(
             "--side must be between 1 and {}, got {side}",
-            mesobake::scene::MAX_IMAGE_SIDE
+            mesobake_core::camera::MAX_IMAGE_SIDE
         )))
     }
 }

@@ -5,15 +5,15 @@
 use super::output::Progress;
 use clap::ValueEnum;
 use mesobake::bake::gdm;
+use mesobake::bake::gdm::npy;
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::mesostructure::raw_medium::{self, RawFormat};
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume_format;
 use mesobake::render::flat_preview;
-use mesobake::util::fs::write_atomic;
-use mesobake::util::limits::Limits;
-use mesobake::util::npy;
 use mesobake::{Error, Result};
+use mesobake_core::fs::write_atomic;
+use mesobake_core::limits::Limits;
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -5,8 +5,8 @@ use clap::Subcommand;
 use mesobake::server::auth::Scope;
 use mesobake::server::config::ServerConfig;
 use mesobake::server::db::Db;
-use mesobake::util::limits::Limits;
 use mesobake::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::path::PathBuf;
 
 /// Options of `mesobake serve` and `mesobake worker`.

@@ -9,10 +9,10 @@ use mesobake::compress::vdm::compress;
 use mesobake::mesostructure::height_field::HeightField;
 use mesobake::mesostructure::reliefs::{self, ReliefKind};
 use mesobake::package;
-use mesobake::util::fs::{read_bounded, write_atomic};
-use mesobake::util::limits::Limits;
-use mesobake::util::npy;
 use mesobake::{Error, Result};
+use mesobake_core::fs::{read_bounded, write_atomic};
+use mesobake_core::limits::Limits;
+use mesobake_core::npy;
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -14,7 +14,7 @@
 use super::layout::GdmRows;
 use super::svd::{RowSource, gemm};
 use crate::bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 use rayon::prelude::*;
 
 /// Resolution of the relative escape margin.

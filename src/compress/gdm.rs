@@ -6,8 +6,8 @@ use super::layout::GdmRows;
 use super::quantize::{Quantization, QuantizedFactor};
 use super::svd::{GramEigen, RankChoice, Truncated};
 use crate::bake::gdm::Gdm;
-use crate::error::Result;
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
 use std::time::Instant;
 
 /// A compressed GDM: its factorization, the quantized factors, and their accuracy.

@@ -2,7 +2,7 @@
 
 use super::svd::{BlockOrder, RowSource};
 use crate::bake::gdm::{EscapeConvention, Gdm};
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 
 /// The GDM as a matrix with rows (x, y, φ) and columns (θ, z): row r = (b·Y + j)·X + i,
 /// column c = a·Z + k, so that weight maps are 3D textures W(x, y, φ) (x fastest) and

@@ -10,8 +10,8 @@
 use super::tiled::{TiledSvd, compress_tiled};
 use crate::bake::gdm::{EscapeConvention, Gdm};
 use crate::compress::quantize::Quantization;
-use crate::error::{Error, Result};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 
 /// Reconstructed capped distances this close to the cap (voxels) or closer read as "no hit
 /// within the cap": the compression blurs the cap both ways, and a segment reaches the cap

@@ -21,9 +21,9 @@
 //! orthonormal columns. Singular values below 10⁻⁶ σ₁ (f32 data carries no information there)
 //! are dropped, so a zero matrix has rank 0, a constant one rank 1, and no NaN arises.
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 

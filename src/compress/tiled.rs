@@ -10,8 +10,8 @@ use super::accuracy::{Accuracy, measure_dense};
 use super::quantize::{Quantization, QuantizedFactor};
 use super::svd::{DenseRows, GramEigen, RankChoice, gemm};
 use crate::bake::gdm::{EscapeConvention, Gdm};
-use crate::error::{Error, Result};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 
 /// A GDM compressed tile by tile.
 pub struct TiledSvd {

@@ -15,8 +15,8 @@
 use crate::bake::vdm::{NO_HIT, Vdm, VdmGrid};
 use crate::compress::quantize::{Quantization, QuantizedFactor};
 use crate::compress::svd::{BlockOrder, RankChoice, RowSource, truncated_svd};
-use crate::error::{Error, Result};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 pub use mesobake_package::vdm::{MAX_VDM_RANK, VdmAccuracy, VdmQuery};
 use rayon::prelude::*;
 use std::f64::consts::FRAC_PI_2;

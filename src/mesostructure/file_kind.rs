@@ -1,7 +1,7 @@
 //! What an input file holds, told by its content: magic numbers first, then whether it is
 //! JSON or OBJ text. A file's extension is only a hint, used in messages when it disagrees.
 
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 use std::io::Read;
 use std::path::Path;
 

@@ -4,10 +4,10 @@
 //! solid, and so is the bottom layer (the relief's floor), so every GDM path (and every
 //! renderer) handles it like any other volume.
 
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::volume::Volume;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 /// The PNG signature, by which inputs are recognized as height fields.

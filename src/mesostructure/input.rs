@@ -4,14 +4,14 @@ use crate::bake::gdm::caster::Caster;
 use crate::bake::gdm::height_field_caster::HeightFieldCaster;
 use crate::bake::gdm::mesh_caster::MeshCaster;
 use crate::bake::gdm::volume_caster::VolumeCaster;
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::file_kind::FileKind;
 use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume_format;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 /// A loaded mesostructure input.

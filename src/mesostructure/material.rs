@@ -13,6 +13,7 @@ use crate::grid::{Dims, Wrap, trilinear_corners};
 use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::volume::{Occupancy, Volume};
 use glam::{DVec3, Vec3};
+use mesobake_core::color::srgb_to_linear;
 
 /// How far past a hit, in voxels along the ray, the albedo is read.
 pub const ALBEDO_DEPTH: f64 = 0.25;
@@ -210,15 +211,6 @@ pub fn linear_albedo(albedo: &[[u8; 3]]) -> Vec<Vec3> {
         .iter()
         .map(|c| Vec3::from(c.map(|v| srgb_to_linear(v as f32 / 255.0))))
         .collect()
-}
-
-/// The sRGB transfer function's inverse.
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 #[cfg(test)]

@@ -7,10 +7,10 @@
 //! and sampled at voxel centres; the volumes carry the opacity channel, their colour as
 //! albedo, and the opaque voxels (α = 1) as their solid (density = opacity, threshold 1).
 
-use crate::error::Result;
 use crate::grid::Dims;
 use crate::mesostructure::volume::Volume;
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
 use std::f64::consts::TAU;
 
 /// The built-in translucent media.

@@ -265,7 +265,7 @@ pub fn translucent_refusal(what: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::util::limits::Limits;
+    use mesobake_core::limits::Limits;
 
     fn layered(opacity_of_layer: impl Fn(u32) -> f32) -> Medium {
         let dims = Dims::new(4, 4, 8).unwrap();

@@ -8,8 +8,8 @@
 //! parts overlap. Open tiles are rejected by default: with `allow_open` they are treated as
 //! infinitely thin sheets (no sample is inside solid; rays stop at the sheet).
 
-use crate::error::{Error, Result};
 use crate::mesostructure::trimesh::{TriMesh, cross, sub};
+use mesobake_core::error::{Error, Result};
 use std::collections::{HashMap, HashSet};
 
 /// Vertices closer than 1/2²⁰ of a tile (after wrapping) are the same vertex.

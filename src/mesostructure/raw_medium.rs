@@ -7,11 +7,11 @@
 //! volume: the colour as albedo, the opacity channel, and the opaque voxels (α = 1) as its
 //! solid, like the built-in media.
 
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::volume::Volume;
-use crate::render::image::linear_to_srgb;
-use crate::util::limits::Limits;
+use mesobake_core::color::linear_to_srgb;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 /// How a raw file stores each channel.
@@ -220,7 +220,7 @@ mod tests {
     /// are refused by name, before anything is written.
     #[test]
     fn an_exr_image_of_stacked_slices_reads_as_the_raw_file() {
-        use crate::mesostructure::material::srgb_to_linear;
+        use mesobake_core::color::srgb_to_linear;
         let dir = tempfile::tempdir().unwrap();
         let d = dims();
         let code = |v: usize, c: usize| [v as u8 * 7, 200 - v as u8, 3, v as u8 * 2][c];

@@ -4,11 +4,11 @@
 //! that a GDM of the volume and a VDM of the relief see the same detail where the sample is a
 //! height field). Each is also the volume under it ([`HeightField::to_volume`]).
 
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::samples::{self, SampleKind};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 
 /// The built-in reliefs.
 #[derive(

@@ -8,11 +8,11 @@
 //! (closed parametric surfaces), so both are deterministic and agree up to tessellation and
 //! voxelization.
 
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume::Volume;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use rayon::prelude::*;
 use std::f64::consts::{PI, TAU};
 

@@ -1,6 +1,6 @@
 //! Indexed triangle meshes and their OBJ text form.
 
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -177,7 +177,7 @@ impl TriMesh {
 
     /// Reads and parses an OBJ file, refusing files larger than `max_bytes`.
     pub fn read_obj(path: &Path, max_bytes: u64) -> Result<Self> {
-        let bytes = crate::util::fs::read_bounded(path, "OBJ file", max_bytes)?;
+        let bytes = mesobake_core::fs::read_bounded(path, "OBJ file", max_bytes)?;
         let text = std::str::from_utf8(&bytes)
             .map_err(|e| Error::MeshTile(format!("not UTF-8 text: {e}")))?;
         Self::from_obj(text)

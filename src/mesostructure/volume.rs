@@ -1,9 +1,9 @@
 //! Voxel mesostructure volumes: density with a solid threshold, optional per-voxel albedo and
 //! opacity (a translucent medium, [`crate::mesostructure::medium`]), tileable in x and y. The file format lives in [`crate::mesostructure::volume_format`].
 
-use crate::error::{Error, Result};
 use crate::grid::{Dims, Wrap};
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use mesobake_package::occupancy::OccupancyField;
 
 /// A tileable X×Y×Z mesostructure volume. Voxel (i, j, k) is the box [i,i+1]×[j,j+1]×[k,k+1]

@@ -22,10 +22,10 @@
 //! (truncated or oversized files are errors), the CRC, finite densities, and refuses sizes
 //! over the memory limit before allocating.
 
-use crate::error::{Error, Result};
 use crate::grid::{Dims, MAX_AXIS};
 use crate::mesostructure::volume::Volume;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::path::Path;
 
 /// The file's first eight bytes.
@@ -230,5 +230,5 @@ fn open_checked(path: &Path, limits: &Limits) -> Result<(std::fs::File, Vec<u8>,
 
 /// Writes `volume` to `path` atomically (temporary file, then rename).
 pub fn write(volume: &Volume, path: &Path) -> Result<()> {
-    crate::util::fs::write_atomic(path, &encode(volume))
+    mesobake_core::fs::write_atomic(path, &encode(volume))
 }

@@ -3,18 +3,19 @@
 //! runs (and that the server will queue), with the time each takes.
 
 use crate::bake::gdm::fast::FastParams;
-use crate::bake::gdm::{self, BakeObserver, EscapeConvention, Gdm, Method};
+use crate::bake::gdm::{self, EscapeConvention, Gdm, Method};
 use crate::compress::gdm::{CompressedGdm, compress};
 use crate::compress::layout::GdmRows;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::{GramEigen, RankChoice};
-use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::input::{self, Mesostructure};
 use crate::package::manifest::{BakeInfo, GdmCodec, InputInfo};
 use crate::package::{GdmPayload, Package};
-use crate::util::fs::read_bounded;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::fs::read_bounded;
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use std::path::Path;
 use std::time::Instant;
 

@@ -3,9 +3,9 @@
 //! top to bottom), layer `E<i>` eigenmap i (width Z, height Nθ); each holds one f32 channel
 //! `Y` with the dequantized values.
 
-use crate::error::{Error, Result};
 use crate::package::Package;
 use exr::prelude::*;
+use mesobake_core::error::{Error, Result};
 use std::path::Path;
 
 /// One single-channel f32 layer.
@@ -62,5 +62,5 @@ pub fn write_factors(package: &Package, path: &Path) -> Result<()> {
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| Error::InvalidParameter(format!("EXR encoding failed: {e}")))?;
-    crate::util::fs::write_atomic(path, bytes.get_ref())
+    mesobake_core::fs::write_atomic(path, bytes.get_ref())
 }

@@ -7,9 +7,9 @@ use super::manifest::GiInfo;
 use crate::bake::gi::compressed_rtv::CompressedRtv;
 use crate::bake::gi::prt::geometry_hash;
 use crate::bake::gi::sh::{COEFFS, ShMatrix};
-use crate::error::{Error, Result};
 use crate::surface::base_mesh::BaseMesh;
 use half::f16;
+use mesobake_core::error::{Error, Result};
 use mesobake_package::GiContent;
 
 pub use mesobake_package::gi::{PRT_TRANSFER, RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};

@@ -2,9 +2,9 @@
 //! renderers read them, in the format of the crate's [`mesobake_package::medium`] (see
 //! `docs/package-format.md`).
 
-use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
 use crate::scene::transparency::TransparencySettings;
+use mesobake_core::error::{Error, Result};
 use mesobake_package::manifest::InputInfo;
 pub use mesobake_package::medium::MediumPackage;
 use mesobake_package::medium::{MediumLevel, coarser_res};

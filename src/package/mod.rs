@@ -18,12 +18,12 @@ use crate::bake::gdm::{EscapeConvention, Gdm, exact};
 use crate::compress::accuracy::resolve_escapes;
 use crate::compress::gdm::CompressedGdm;
 use crate::compress::occupancy::OccupancyField;
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::volume::Occupancy;
-use crate::util::fs::read_bounded;
-use crate::util::limits::Limits;
 use manifest::{BakeInfo, GdmCodec, InputInfo};
+use mesobake_core::error::{Error, Result};
+use mesobake_core::fs::read_bounded;
+use mesobake_core::limits::Limits;
 use mesobake_package::GdmContent;
 use mesobake_package::svd::SvdFactors;
 use std::path::Path;
@@ -67,7 +67,7 @@ impl AnyPackage {
 
     /// Reads and validates the package at `path`, refusing files over the memory limit.
     pub fn read(path: &Path, limits: &Limits) -> Result<AnyPackage> {
-        let bytes = crate::util::fs::read_bounded(path, "package", limits.memory_bytes)?;
+        let bytes = mesobake_core::fs::read_bounded(path, "package", limits.memory_bytes)?;
         AnyPackage::parse(bytes).map_err(|e| e.context(path.display()))
     }
 

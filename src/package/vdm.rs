@@ -3,10 +3,10 @@
 
 use crate::bake::vdm::{Vdm, VdmParams};
 use crate::compress::vdm::CompressedVdm;
-use crate::error::{Error, Result};
 use crate::mesostructure::height_field::HeightField;
-use crate::util::fs::read_bounded;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::fs::read_bounded;
+use mesobake_core::limits::Limits;
 use mesobake_package::manifest::InputInfo;
 pub use mesobake_package::vdm::VdmPackage;
 use mesobake_package::vdm::{ReliefInfo, VdmBakeInfo, VdmContent};

@@ -1,7 +1,7 @@
 //! The GPU: which adapter (by name, from the command line or `MESOBAKE_ADAPTER`; otherwise
 //! wgpu's default choice, honouring `WGPU_BACKEND` and `WGPU_POWER_PREF`) and its device.
 
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 use serde::Serialize;
 
 /// The environment variable that names the adapter to use (a case-insensitive substring of

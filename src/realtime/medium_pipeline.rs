@@ -16,17 +16,20 @@ use super::pipeline::{
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
 use super::variant::COMMON;
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
 use crate::render::cell_order::ViewSort;
 use crate::render::image::Image;
 use crate::render::medium_cells::{Cell, CellRenderer};
 use crate::render::medium_shadow_map::{LightFrame, Projection, map_frames};
 use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
+use crate::scene::Scene;
 use crate::scene::transparency::{CellIntegration, ShadowMethod};
-use crate::scene::{Camera, Effect, Light, Scene};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
+use mesobake_core::camera::Camera;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::light::Light;
+use mesobake_core::observer::BakeObserver;
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 

@@ -12,17 +12,19 @@ use super::resources::{
 };
 use super::target::{DrawState, HitTargets, Target, target_pipeline, time_frames};
 use super::variant::ShaderVariant;
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
 use crate::package::Package;
 use crate::package::manifest::GdmCodec;
 use crate::render::gdm_renderer::prepare_prisms;
 use crate::render::image::Image;
-use crate::render::quality::ShadowMethod;
-use crate::scene::{Camera, Light, LoadedScene, Scene};
+use crate::scene::{LoadedScene, Scene};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
 use glam::{DMat4, DVec3};
+use mesobake_core::camera::Camera;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::light::Light;
+use mesobake_core::observer::BakeObserver;
+use mesobake_core::quality::ShadowMethod;
 use wgpu::util::DeviceExt;
 
 /// The shader's `View`.

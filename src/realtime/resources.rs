@@ -7,13 +7,13 @@
 //! has its own, narrower texture. Each section is copied byte for byte into its slab.
 
 use super::gpu::Gpu;
-use crate::error::{Error, Result};
 use crate::mesostructure::material::MaterialVolume;
 use crate::package::Package;
 use crate::package::manifest::TexelFormat;
 use crate::render::gdm_renderer::PreparedPrism;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
+use mesobake_core::error::{Error, Result};
 use serde::Serialize;
 use wgpu::util::DeviceExt;
 

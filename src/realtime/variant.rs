@@ -3,8 +3,9 @@
 //! switched off at run time). The variant matrix is documented in ARCHITECTURE.md.
 
 use crate::package::manifest::GdmCodec;
-use crate::render::quality::{MAX_CHORDS, ShadingFrame, ShadowMethod};
-use crate::scene::{Effect, MAX_GDM_REFINEMENTS, Scene};
+use crate::scene::{MAX_GDM_REFINEMENTS, Scene};
+use mesobake_core::effect::Effect;
+use mesobake_core::quality::{MAX_CHORDS, ShadingFrame, ShadowMethod};
 use serde::Serialize;
 
 /// What every real-time pipeline's source starts with (`shaders/common.wgsl`).

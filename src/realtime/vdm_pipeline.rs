@@ -11,16 +11,17 @@ use super::pipeline::{
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::COMMON;
-use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
-use crate::error::Result;
 use crate::render::image::Image;
-use crate::render::quality::ShadowMethod;
 use crate::render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
-use crate::scene::{Effect, LoadedScene};
+use crate::scene::LoadedScene;
 use crate::surface::curvature::VertexCurvature;
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::Result;
+use mesobake_core::observer::BakeObserver;
+use mesobake_core::quality::ShadowMethod;
 use mesobake_package::vdm::VdmQuery;
 use wgpu::util::DeviceExt;
 

@@ -12,14 +12,15 @@
 
 use super::lighting::shade;
 use super::truth::EXACT_SHADOW_OFFSET;
-use crate::error::{Error, Result};
 use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
 use crate::mesostructure::trimesh::TriMesh;
-use crate::scene::{Effect, LoadedScene, Scene};
+use crate::scene::{LoadedScene, Scene};
 use crate::surface::explicit::{ExplicitParams, TriangleSource, export};
 use crate::surface::shell::{Prism, Shell};
-use crate::util::limits::Limits;
 use glam::DVec3;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use obvhs::{
     BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris, ray::Ray, ray::RayHit,
     triangle::Triangle,

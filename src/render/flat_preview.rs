@@ -9,9 +9,9 @@
 
 use crate::bake::gdm::Gdm;
 use crate::bake::gdm::interpolate::sample_layer;
-use crate::error::{Error, Result};
 use crate::grid::Wrap;
 use crate::mesostructure::volume::Volume;
+use mesobake_core::error::{Error, Result};
 
 /// What to render.
 #[derive(Clone, Copy, Debug)]

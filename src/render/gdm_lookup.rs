@@ -25,11 +25,11 @@ use crate::compress::accuracy::is_escape;
 use crate::compress::occupancy::OccupancyField;
 use crate::compress::quantize::QuantizedFactor;
 use crate::compress::split::SplitGdm;
-use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid, Wrap};
 use crate::mesostructure::volume::Occupancy;
 use crate::package::Package;
 use glam::DVec3;
+use mesobake_core::error::{Error, Result};
 use std::f64::consts::{PI, TAU};
 
 /// The answer to one query.

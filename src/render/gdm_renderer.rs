@@ -55,15 +55,16 @@ use super::accel::BoxBvh;
 use super::gdm_lookup::GdmLookup;
 use super::lighting::{SHADOW_OFFSET, shade};
 use super::prism_map::PrismMap;
-use super::quality::{Quality, ShadingFrame, ShadowMethod};
 use super::truth::{TruthRenderer, light_start};
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
+use crate::scene::Scene;
 use crate::scene::gi::GiShading;
-use crate::scene::{Effect, Scene};
 use crate::surface::shell::{FaceTriangle, Shell};
 use glam::{DMat3, DVec3};
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::quality::{Quality, ShadingFrame, ShadowMethod};
 
 /// How far short of the previous estimate, in voxels, a refinement query is made: close enough
 /// that the neighbouring samples agree on the remaining distance, far enough to stay in front

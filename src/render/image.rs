@@ -1,9 +1,10 @@
 //! Rendered images: linear RGB with a hit/miss mask; PNG (sRGB, alpha = mask) and OpenEXR
 //! (linear float, A = mask) files; `compare`.
 
-use crate::error::{Error, Result};
-use crate::scene::MAX_IMAGE_SIDE;
-use crate::util::fs::write_atomic;
+use mesobake_core::camera::MAX_IMAGE_SIDE;
+use mesobake_core::color::linear_to_srgb;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::fs::write_atomic;
 use serde::Serialize;
 use std::path::Path;
 
@@ -19,16 +20,6 @@ pub struct Image {
     pub rgb: Vec<[f32; 3]>,
     /// Hit (true) or miss, row-major.
     pub mask: Vec<bool>,
-}
-
-/// Linear → sRGB-encoded, clamped to [0, 1].
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = c.clamp(0.0, 1.0);
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
 }
 
 impl Image {
@@ -157,7 +148,7 @@ fn read_png(path: &Path) -> Result<Image> {
         .enumerate()
     {
         image.rgb[i] =
-            [0, 1, 2].map(|c| crate::mesostructure::material::srgb_to_linear(px[c] as f32 / 255.0));
+            [0, 1, 2].map(|c| mesobake_core::color::srgb_to_linear(px[c] as f32 / 255.0));
         image.mask[i] = channels == 3 || px[3] >= 128;
     }
     Ok(image)
@@ -204,7 +195,7 @@ pub fn difference(a: &Image, b: &Image) -> Result<Image> {
                 let d = (0..3)
                     .map(|c| (linear_to_srgb(a.rgb[i][c]) - linear_to_srgb(b.rgb[i][c])).abs())
                     .fold(0.0f32, f32::max);
-                [crate::mesostructure::material::srgb_to_linear((4.0 * d).min(1.0)); 3]
+                [mesobake_core::color::srgb_to_linear((4.0 * d).min(1.0)); 3]
             }
         };
     }

@@ -2,8 +2,9 @@
 //! f = albedo/π + specular·(s + 8)/(8π)·(n·h)^s, times the irradiance E·max(0, n·l) of each
 //! point or directional light that is visible, plus albedo × the ambient radiance.
 
-use crate::scene::{Light, MaterialParams};
 use glam::DVec3;
+use mesobake_core::light::Light;
+use mesobake_core::light::MaterialParams;
 use std::f64::consts::PI;
 
 /// Where every renderer's shadow test starts, in voxels from the hit along the unit

@@ -37,9 +37,10 @@
 //! [`SHADOW_START`]: super::medium_truth::SHADOW_START
 
 use super::medium_cells::CellRenderer;
+use crate::scene::Scene;
 use crate::scene::transparency::ShadowMethod;
-use crate::scene::{Light, Scene};
 use glam::DVec3;
+use mesobake_core::light::Light;
 use rayon::prelude::*;
 use std::ops::ControlFlow;
 

@@ -23,9 +23,10 @@
 use super::lighting::shade_transmitted;
 use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
 use crate::mesostructure::medium::Medium;
-use crate::scene::{Effect, Scene};
+use crate::scene::Scene;
 use crate::surface::shell::Shell;
 use glam::{DMat3, DVec3};
+use mesobake_core::effect::Effect;
 use std::ops::ControlFlow;
 
 /// Where shadow rays start, in voxels from the shaded point towards the light.

@@ -17,18 +17,17 @@ pub mod medium_shadow_map;
 pub mod medium_truth;
 pub mod path_tracer;
 pub mod prism_map;
-pub mod quality;
 pub mod sampling;
 pub mod shell_walk;
 pub mod truth;
 pub mod vdm_refine;
 pub mod vdm_renderer;
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
-use crate::scene::Camera;
 use glam::DVec3;
 use image::Image;
+use mesobake_core::camera::Camera;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::observer::BakeObserver;
 use rayon::prelude::*;
 use sampling::Accumulator;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -132,7 +131,7 @@ mod tests {
             fov_y_degrees: 40.0,
             width,
             height,
-            samples_per_pixel: sampling::SamplesPerPixel::new(spp).unwrap(),
+            samples_per_pixel: mesobake_core::samples_per_pixel::SamplesPerPixel::new(spp).unwrap(),
             subpixel: [0.5, 0.5],
         }
     }

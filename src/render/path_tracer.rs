@@ -22,9 +22,10 @@ use super::environment_sampler::EnvironmentSampler;
 use super::truth::{Surface, TruthRenderer};
 use crate::bake::gi::environment::Environment;
 use crate::bake::gi::prt::Occluder;
-use crate::error::{Error, Result};
-use crate::scene::{Effect, LoadedScene, Scene};
+use crate::scene::{LoadedScene, Scene};
 use glam::DVec3;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
 use std::f64::consts::{PI, TAU};
 
 /// The glossy lobe of the environment light's BRDF.

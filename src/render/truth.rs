@@ -25,9 +25,10 @@ use super::lighting::{SHADOW_OFFSET, shade};
 use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
 use crate::bake::gdm::caster::{Caster, Trace};
 use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
-use crate::scene::{Effect, Scene};
+use crate::scene::Scene;
 use crate::surface::shell::{PrismPoint, Shell};
 use glam::{DMat3, DVec3};
+use mesobake_core::effect::Effect;
 use std::ops::ControlFlow;
 
 /// Where rays into the environment (the path tracer's bounces) start, in voxels back along

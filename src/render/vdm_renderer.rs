@@ -53,12 +53,13 @@ use super::lighting::shade;
 use super::truth::TruthRenderer;
 use super::vdm_refine::BentRay;
 use crate::bake::vdm::Relief;
-use crate::error::{Error, Result};
-use crate::render::quality::ShadowMethod;
-use crate::scene::{Effect, Scene};
+use crate::scene::Scene;
 use crate::surface::curvature::{VertexCurvature, vertex_curvatures};
 use crate::surface::shell::{FaceTriangle, Shell};
 use glam::{DMat3, DVec2, DVec3};
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::quality::ShadowMethod;
 use mesobake_package::vdm::VdmQuery;
 use std::f64::consts::FRAC_PI_2;
 

@@ -2,17 +2,18 @@
 //! costs in bake time, SVD time and package bytes, and what it buys in accuracy, all against
 //! the exact uncompressed GDM. Rendered as Markdown, CSV and an SVG plot.
 
-use crate::bake::gdm::{self, BakeObserver, EscapeConvention, Method};
+use crate::bake::gdm::{self, EscapeConvention, Method};
 use crate::compress::gdm::quantize;
 use crate::compress::layout::GdmRows;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::{GramEigen, RankChoice};
-use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::package::bake::{bake_info, load_input};
 use crate::package::{GdmPayload, Package};
 use crate::report::plot::plot_error;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use std::path::Path;
 use std::time::Instant;
 

@@ -11,12 +11,11 @@
 //! primary query's distances capped at the scene's longest prism segment and compressed by
 //! SVD, the shadow query's escape bits at a reduced direction resolution).
 
-use crate::bake::gdm::{BakeObserver, EscapeConvention, Gdm};
+use crate::bake::gdm::{EscapeConvention, Gdm};
 use crate::compress::quantize::Quantization;
 use crate::compress::split::{CAP_MARGIN, SplitGdm, compress_split};
 use crate::compress::svd::RankChoice;
 use crate::compress::tiled::compress_tiled;
-use crate::error::Result;
 use crate::grid::DirectionGrid;
 use crate::package::bake::check_codec_options;
 use crate::package::manifest::GdmCodec;
@@ -31,7 +30,9 @@ use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use std::path::Path;
 use std::time::Instant;
 

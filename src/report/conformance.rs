@@ -11,13 +11,9 @@
 //! shadows them with maps, with shadows traced through the cells (the maps' reference).
 //! Packages are the scene's defaults (the `occupancy` codec for the GDM).
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
 use crate::package::AnyPackage;
 use crate::realtime::gpu::Gpu;
 use crate::render::image::{Comparison, Image, compare, difference};
-use crate::render::quality::{Preset, ShadowMethod};
-use crate::render::sampling::SamplesPerPixel;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
@@ -25,8 +21,13 @@ use crate::scene::preview::{preview, render_on_cpu};
 use crate::scene::render::{MapSource, RenderMethod, render};
 use crate::scene::technique::Technique;
 use crate::scene::transparency::ShadowMethod as MediumShadows;
-use crate::scene::{Effect, LoadedScene, Scene};
-use crate::util::limits::Limits;
+use crate::scene::{LoadedScene, Scene};
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
+use mesobake_core::quality::{Preset, ShadowMethod};
+use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -285,7 +286,7 @@ fn measure(
     loaded: &mut LoadedScene,
     candidate: &Candidate,
     truths: &Truths,
-    (spp, camera): (SamplesPerPixel, crate::scene::Camera),
+    (spp, camera): (SamplesPerPixel, mesobake_core::camera::Camera),
     gpu: Option<&Gpu>,
     frames: u32,
 ) -> Result<(ConformanceRow, Image)> {

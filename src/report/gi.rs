@@ -15,13 +15,12 @@
 //!   scene's own GI settings, each against the path tracer at the largest count (PSNR of the
 //!   sRGB images, as in `report render`), on the scene's camera reduced by `image_scale`.
 
-use crate::bake::gdm::{self, BakeObserver};
+use crate::bake::gdm;
 use crate::bake::gi::compressed_rtv::CompressedRtv;
 use crate::bake::gi::environment::RgbSh;
 use crate::bake::gi::prt::{self, Visibility};
 use crate::bake::gi::rtv::{self, Rtv, RtvParams};
 use crate::bake::gi::sh;
-use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
 use crate::render::gdm_lookup::RawLookup;
 use crate::render::gdm_renderer::GdmRenderer;
@@ -31,8 +30,10 @@ use crate::render::render_image;
 use crate::report::accuracy::table;
 use crate::scene::LoadedScene;
 use crate::scene::gi::{GiShading, rtv_params};
-use crate::util::limits::Limits;
 use glam::{DMat3, DVec3};
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use serde::Serialize;
 use std::time::Instant;
 

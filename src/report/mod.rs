@@ -18,8 +18,8 @@ pub mod render;
 pub mod transparency;
 pub mod vdm;
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
+use mesobake_core::observer::BakeObserver;
 
 /// A report's progress: counts its finished steps out of a total for an observer, and stops
 /// the report at a cancellation.

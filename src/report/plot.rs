@@ -1,6 +1,6 @@
 //! SVG figures with one panel per scene (plotters), shared by the reports.
 
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 

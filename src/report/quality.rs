@@ -4,22 +4,23 @@
 //! an adapter exists, by the real-time pipeline) from the scene's default package, against
 //! the truth rendered once per scene. PSNR against time is the curve the user chooses on.
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
 use crate::package::Package;
 use crate::realtime::gpu::Gpu;
 use crate::render::gdm_lookup::package_lookup;
 use crate::render::gdm_renderer::GdmRenderer;
 use crate::render::image::compare;
-use crate::render::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
 use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
+use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
-use crate::scene::{Effect, LoadedScene};
-use crate::util::limits::Limits;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
+use mesobake_core::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

@@ -6,12 +6,11 @@
 //! error budget then substitutes the algorithm's own approximations ([`Substitutions`]) one
 //! at a time and all together, to show what each one costs.
 
-use crate::bake::gdm::{self, BakeObserver, EscapeConvention};
+use crate::bake::gdm::{self, EscapeConvention};
 use crate::compress::gdm::quantize;
 use crate::compress::layout::GdmRows;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::{GramEigen, RankChoice};
-use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
 use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
@@ -20,7 +19,9 @@ use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
 use crate::scene::LoadedScene;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use std::time::Instant;
 
 /// The settings the report covers.

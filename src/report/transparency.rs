@@ -11,9 +11,7 @@
 //! sorted lists) on the CPU, and for each per-view sort the time to sort the cells once for
 //! the view and the pixels it misorders, are measured on their own.
 
-use crate::bake::gdm::BakeObserver;
 use crate::compress::quantize::Quantization;
-use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
 use crate::package::manifest::InputInfo;
 use crate::package::medium::{self as medium_package, MediumPackage};
@@ -26,9 +24,12 @@ use crate::render::render_image;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
+use crate::scene::LoadedScene;
 use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod, TransparencySettings};
-use crate::scene::{Effect, LoadedScene};
 use glam::DVec3;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::observer::BakeObserver;
 use serde::Serialize;
 use std::time::Instant;
 

@@ -8,12 +8,10 @@
 //! package. With both bake methods in the sweep, the paper's bake is also measured against
 //! the exact one on the scene's grid.
 
-use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::compare::{VdmError, compare as compare_vdm};
 use crate::bake::vdm::{self, Vdm, VdmMethod};
 use crate::compress::quantize::Quantization;
 use crate::compress::vdm::compress;
-use crate::error::Result;
 use crate::package::vdm as vdm_package;
 use crate::realtime::gpu::Gpu;
 use crate::realtime::vdm_pipeline::VdmPreview;
@@ -31,7 +29,9 @@ use crate::scene::package::{ScenePackageParams, gdm_scene_package, input_identit
 use crate::scene::preview::gdm_preview;
 use crate::scene::technique::Technique;
 use crate::scene::vdm::{VdmSettings, relief_depth};
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;

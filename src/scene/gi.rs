@@ -8,17 +8,19 @@
 //! axes, which are orthonormal only where the mapping is conformal and voxels are cubic in
 //! object space; directions in the RTV are texture-space directions.
 
-use crate::bake::gdm::{BakeObserver, Gdm};
+use crate::bake::gdm::Gdm;
 use crate::bake::gi::compressed_rtv::CompressedRtv;
 use crate::bake::gi::environment::RgbSh;
 use crate::bake::gi::prt::{self, Visibility};
 use crate::bake::gi::rtv::{self, Glossy, Rtv, RtvParams, RtvStats};
 use crate::bake::gi::sh::{self, COEFFS, ShMatrix};
-use crate::error::{Error, Result};
 use crate::package::Package;
-use crate::scene::{Effect, LoadedScene, Scene};
-use crate::util::limits::Limits;
+use crate::scene::{LoadedScene, Scene};
 use glam::{DVec2, DVec3};
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use serde::Serialize;
 use std::time::Instant;
 

@@ -13,13 +13,12 @@ pub mod technique;
 pub mod transparency;
 pub mod vdm;
 
+use crate::bake::gdm::Gdm;
 use crate::bake::gdm::caster::Caster;
 use crate::bake::gdm::height_field_caster::HeightFieldCaster;
 use crate::bake::gdm::mesh_caster::MeshCaster;
 use crate::bake::gdm::volume_caster::VolumeCaster;
-use crate::bake::gdm::{BakeObserver, Gdm};
 use crate::bake::gi::environment::{Environment, Sky};
-use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::input::Mesostructure;
@@ -32,13 +31,17 @@ use crate::mesostructure::samples::{self, SampleKind};
 use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume::Volume;
 use crate::mesostructure::volume_format;
-use crate::render::quality::Quality;
-use crate::render::sampling::{MAX_IMAGE_SAMPLES, SamplesPerPixel};
 use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
 use crate::surface::shell::{Shell, ShellParams};
-use crate::util::fs::read_bounded;
-use crate::util::limits::Limits;
 use glam::DVec3;
+use mesobake_core::camera::Camera;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::fs::read_bounded;
+use mesobake_core::light::{Light, MaterialParams};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
+use mesobake_core::quality::Quality;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use technique::{Technique, TechniqueChoice};
@@ -47,9 +50,6 @@ use vdm::VdmSettings;
 
 /// Largest accepted scene file.
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
-
-/// Largest accepted image side in pixels.
-pub const MAX_IMAGE_SIDE: u32 = 8192;
 
 /// A scene as written in its JSON file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -211,279 +211,6 @@ pub enum MesostructureSource {
     /// A built-in translucent medium ([`crate::mesostructure::media`]) on the scene's
     /// resolution (X = Y).
     Medium(MediumKind),
-}
-
-/// Blinn–Phong reflectance; the diffuse albedo comes from the volume where it has one.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct MaterialParams {
-    /// Linear diffuse albedo where the mesostructure has none.
-    pub albedo: [f64; 3],
-    /// Linear specular colour of the Blinn–Phong lobe.
-    pub specular: [f64; 3],
-    /// Blinn–Phong exponent.
-    pub shininess: f64,
-}
-
-impl Default for MaterialParams {
-    fn default() -> Self {
-        MaterialParams {
-            albedo: [0.7, 0.7, 0.7],
-            specular: [0.15, 0.15, 0.15],
-            shininess: 32.0,
-        }
-    }
-}
-
-/// A pinhole camera.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Camera {
-    /// Eye position.
-    pub eye: [f64; 3],
-    /// The point looked at (centre of the image).
-    pub target: [f64; 3],
-    /// Up direction (need not be orthogonal to the view).
-    #[serde(default = "default_up")]
-    pub up: [f64; 3],
-    /// Vertical field of view in degrees.
-    pub fov_y_degrees: f64,
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// Camera rays averaged per pixel (see `render::sampling`); 1, the pixel's centre, by
-    /// default.
-    #[serde(default, skip_serializing_if = "SamplesPerPixel::is_one")]
-    pub samples_per_pixel: SamplesPerPixel,
-    /// Where in each pixel [`Camera::ray`] passes, from its top-left corner in pixels: the
-    /// centre, unless a supersampled render moves it to one of its samples.
-    #[serde(skip, default = "pixel_centre")]
-    pub subpixel: [f64; 2],
-}
-
-fn pixel_centre() -> [f64; 2] {
-    [0.5, 0.5]
-}
-
-fn default_up() -> [f64; 3] {
-    [0.0, 1.0, 0.0]
-}
-
-/// A camera's eye and its image plane at unit distance along the view: the pixel at
-/// continuous image position (x, y) (pixel centres at half-integers, row 0 at the top) looks
-/// along `forward + right·sx + up·sy`, sx = (2x/width − 1)·`half_width`,
-/// sy = (1 − 2y/height)·`half_height`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ImagePlane {
-    /// Eye position.
-    pub eye: DVec3,
-    /// Unit viewing direction.
-    pub forward: DVec3,
-    /// Unit image-right direction.
-    pub right: DVec3,
-    /// Unit image-up direction.
-    pub up: DVec3,
-    /// Half the image plane's width at unit distance.
-    pub half_width: f64,
-    /// Half its height (tan of half the vertical field of view).
-    pub half_height: f64,
-    size: [f64; 2],
-    subpixel: [f64; 2],
-}
-
-impl ImagePlane {
-    /// Where `point` projects to, as a continuous image position (see [`ImagePlane`]), or
-    /// `None` if it does not lie in front of the eye.
-    pub fn project(&self, point: DVec3) -> Option<[f64; 2]> {
-        let d = point - self.eye;
-        let z = d.dot(self.forward);
-        (z > 0.0).then(|| {
-            let sx = d.dot(self.right) / (z * self.half_width);
-            let sy = d.dot(self.up) / (z * self.half_height);
-            [
-                (sx + 1.0) * 0.5 * self.size[0],
-                (1.0 - sy) * 0.5 * self.size[1],
-            ]
-        })
-    }
-
-    /// The unit direction through pixel (`x`, `y`) at the camera's sub-pixel position (its
-    /// centre unless supersampling moved it).
-    pub fn pixel_direction(&self, x: u32, y: u32) -> DVec3 {
-        self.direction_at(x, y, self.subpixel)
-    }
-
-    /// The unit direction through pixel (`x`, `y`) at `offset` from its top-left corner.
-    pub fn direction_at(&self, x: u32, y: u32, offset: [f64; 2]) -> DVec3 {
-        // In the camera's historical association, so that images stay bit for bit.
-        let aspect = self.size[0] / self.size[1];
-        let sx = ((x as f64 + offset[0]) / self.size[0] * 2.0 - 1.0) * self.half_height * aspect;
-        let sy = (1.0 - (y as f64 + offset[1]) / self.size[1] * 2.0) * self.half_height;
-        (self.forward + self.right * sx + self.up * sy).normalize()
-    }
-
-    /// How far, in the image plane at unit distance, the camera's sub-pixel position lies
-    /// from the pixel's centre: what moves a pipeline that casts through pixel centres onto
-    /// the sub-pixel position.
-    pub fn subpixel_shift(&self) -> DVec3 {
-        let [ox, oy] = self.subpixel;
-        self.right * ((ox - 0.5) * 2.0 * self.half_width / self.size[0])
-            - self.up * ((oy - 0.5) * 2.0 * self.half_height / self.size[1])
-    }
-}
-
-impl Camera {
-    /// The eye and image plane.
-    pub fn image_plane(&self) -> ImagePlane {
-        let eye = DVec3::from(self.eye);
-        let forward = (DVec3::from(self.target) - eye).normalize();
-        let right = forward.cross(DVec3::from(self.up)).normalize();
-        let half_height = (self.fov_y_degrees.to_radians() * 0.5).tan();
-        ImagePlane {
-            eye,
-            forward,
-            right,
-            up: right.cross(forward),
-            half_width: half_height * self.width as f64 / self.height as f64,
-            half_height,
-            size: [self.width as f64, self.height as f64],
-            subpixel: self.subpixel,
-        }
-    }
-
-    /// Sets the samples per pixel, refusing an image whose rays would exceed
-    /// [`MAX_IMAGE_SAMPLES`] in all.
-    pub fn set_samples_per_pixel(&mut self, spp: SamplesPerPixel) -> Result<()> {
-        spp.check_image(self.width, self.height, MAX_IMAGE_SAMPLES)?;
-        self.samples_per_pixel = spp;
-        Ok(())
-    }
-
-    /// This camera with its rays through `offset` in each pixel (from the top-left corner).
-    pub fn at_subpixel(&self, offset: [f64; 2]) -> Camera {
-        Camera {
-            subpixel: offset,
-            ..*self
-        }
-    }
-
-    /// Eye, and the unit direction through pixel (`x`, `y`) (row 0 at the top) at the
-    /// camera's sub-pixel position.
-    pub fn ray(&self, x: u32, y: u32) -> (DVec3, DVec3) {
-        let plane = self.image_plane();
-        (plane.eye, plane.pixel_direction(x, y))
-    }
-
-    fn validate(&self) -> Result<()> {
-        let vectors = [self.eye, self.target, self.up];
-        if !vectors.iter().flatten().all(|c| c.is_finite()) {
-            return Err(Error::Scene("camera: non-finite eye, target or up".into()));
-        }
-        let forward = DVec3::from(self.target) - DVec3::from(self.eye);
-        if forward.length_squared() == 0.0 {
-            return Err(Error::Scene("camera: eye and target coincide".into()));
-        }
-        if forward.normalize().cross(DVec3::from(self.up)).length() < 1e-9 {
-            return Err(Error::Scene(
-                "camera: up is parallel to the viewing direction (or zero)".into(),
-            ));
-        }
-        if !(self.fov_y_degrees > 0.0 && self.fov_y_degrees < 179.0) {
-            return Err(Error::Scene(format!(
-                "camera: fov_y_degrees must be in (0, 179), got {}",
-                self.fov_y_degrees
-            )));
-        }
-        for (name, side) in [("width", self.width), ("height", self.height)] {
-            if side == 0 || side > MAX_IMAGE_SIDE {
-                return Err(Error::Scene(format!(
-                    "camera: {name} must be in 1..={MAX_IMAGE_SIDE}, got {side}"
-                )));
-            }
-        }
-        self.samples_per_pixel
-            .check_image(self.width, self.height, MAX_IMAGE_SAMPLES)
-            .map_err(|e| Error::Scene(format!("camera: {e}")))
-    }
-}
-
-/// A light source. Radiometric quantities are linear RGB.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case", deny_unknown_fields)]
-pub enum Light {
-    /// An isotropic point light: irradiance intensity / r² at distance r.
-    Point {
-        /// Position.
-        position: [f64; 3],
-        /// Radiant intensity.
-        intensity: [f64; 3],
-    },
-    /// A distant light.
-    Directional {
-        /// The direction the light travels (from the light towards the scene).
-        direction: [f64; 3],
-        /// Irradiance on a surface facing the light.
-        irradiance: [f64; 3],
-    },
-    /// Constant light from everywhere, never shadowed: adds albedo × radiance.
-    Ambient {
-        /// Ambient radiance.
-        radiance: [f64; 3],
-    },
-}
-
-impl Light {
-    fn validate(&self) -> Result<()> {
-        let (vectors, colour): (Vec<[f64; 3]>, [f64; 3]) = match *self {
-            Light::Point {
-                position,
-                intensity,
-            } => (vec![position], intensity),
-            Light::Directional {
-                direction,
-                irradiance,
-            } => {
-                if DVec3::from(direction).length_squared() == 0.0 {
-                    return Err(Error::Scene("directional light: zero direction".into()));
-                }
-                (vec![direction], irradiance)
-            }
-            Light::Ambient { radiance } => (vec![], radiance),
-        };
-        if !vectors.iter().flatten().all(|c| c.is_finite())
-            || !colour.iter().all(|c| c.is_finite() && *c >= 0.0)
-        {
-            return Err(Error::Scene(format!(
-                "light {self:?}: coordinates must be finite and colours finite and non-negative"
-            )));
-        }
-        Ok(())
-    }
-}
-
-/// An effect a scene can call for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Effect {
-    /// Mesostructure silhouettes: rays that leave the shell without a hit show the background.
-    /// Intrinsic to GDM rendering, listed for completeness.
-    Silhouettes,
-    /// Shadows from point and directional lights.
-    Shadows,
-    /// Distant light from the scene's `environment`, through the macro-scale PRT and the
-    /// mesostructure's radiance transfer volume (bounces included).
-    EnvironmentLighting,
-    /// The base mesh shadowing the environment light (shadowed PRT; without it, the PRT is a
-    /// pure rotation).
-    MacroShadows,
-    /// The material's specular lobe under the environment light: a view-dependent RTV
-    /// (without it, the RTV is Lambertian and view-independent).
-    EnvironmentGloss,
-    /// The mesostructure as a semi-transparent 3D texture: its opacity channel, or α = 1 in
-    /// its solid voxels, rendered by the translucent-media pipeline (implied by a translucent
-    /// mesostructure).
-    Transparency,
 }
 
 impl Scene {

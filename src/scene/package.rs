@@ -10,13 +10,12 @@
 //! environment itself is not baked in: packages hold transfer, which any environment lights.
 
 use crate::bake::gdm::fast::FastParams;
-use crate::bake::gdm::{BakeObserver, EscapeConvention, Method};
+use crate::bake::gdm::{EscapeConvention, Method};
 use crate::bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
 use crate::bake::gi::prt::geometry_hash;
 use crate::bake::gi::rtv::{self, RtvStats};
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::RankChoice;
-use crate::error::{Error, Result};
 use crate::mesostructure::reliefs;
 use crate::package::bake::{PackageParams, StageSeconds, compress_gdm};
 use crate::package::gi::GiPayload;
@@ -28,8 +27,11 @@ use crate::package::{AnyPackage, GdmPayload, Package};
 use crate::scene::gi::{prt_matrices, rtv_params};
 use crate::scene::plan::{Plan, plan};
 use crate::scene::technique::{self, Technique, TechniqueChoice};
-use crate::scene::{Effect, LoadedScene, MesostructureSource, Scene};
-use crate::util::limits::Limits;
+use crate::scene::{LoadedScene, MesostructureSource, Scene};
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use mesobake_package::medium::{MediumAccuracy, MediumManifest};
 use mesobake_package::vdm::VdmAccuracy;
 use serde::{Deserialize, Serialize};

@@ -3,8 +3,9 @@
 //! the reason. Nothing else is baked.
 
 use crate::package::manifest::GdmCodec;
+use crate::scene::Scene;
 use crate::scene::technique::{Technique, TechniqueChoice, is_height_field};
-use crate::scene::{Effect, Scene};
+use mesobake_core::effect::Effect;
 use serde::{Deserialize, Serialize};
 
 /// A stage the planner left out, and why.

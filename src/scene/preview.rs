@@ -3,9 +3,7 @@
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
 //! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's.
 
-use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
-use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
 use crate::package::medium as medium_package;
 use crate::package::vdm::{VdmPackage, height_field};
@@ -26,7 +24,10 @@ use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::LoadedScene;
 use crate::scene::gi::GiShading;
 use crate::scene::technique::Technique;
-use crate::scene::{Camera, Effect};
+use mesobake_core::camera::Camera;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::observer::BakeObserver;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 

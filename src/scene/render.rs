@@ -1,9 +1,7 @@
 //! Scene → image: loads what the scene names, bakes or reads the GDM when the method needs
 //! one, picks the renderer and times each stage (`mesobake render`).
 
-use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::Relief;
-use crate::error::{Error, Result};
 use crate::mesostructure::medium::Medium;
 use crate::package::Package;
 use crate::package::medium::{self as medium_package, MediumPackage};
@@ -19,9 +17,12 @@ use crate::render::render_image_observed;
 use crate::render::truth::TruthRenderer;
 use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::gi::{GiReport, GiShading};
-use crate::scene::{Effect, LoadedScene, Scene};
-use crate::util::limits::Limits;
+use crate::scene::{LoadedScene, Scene};
 use glam::DVec3;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use serde::Serialize;
 use std::path::Path;
 use std::str::FromStr;

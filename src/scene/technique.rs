@@ -15,11 +15,12 @@
 //! setting (they set nothing in a VDM render), and a relief shallow enough for the VDM's
 //! curvature range (|c|·depth < 1 in tiles). Everywhere else it picks GDM.
 
-use super::{Effect, MesostructureSource, Scene};
-use crate::error::{Error, Result};
-use crate::render::quality::Quality;
+use super::{MesostructureSource, Scene};
 use crate::surface::base_mesh::MeshReport;
 use crate::surface::shell::Shell;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::quality::Quality;
 use serde::{Deserialize, Serialize};
 
 /// The technique a scene asks for.

@@ -2,8 +2,8 @@
 //! 3D textures ([`crate::render::medium_cells`]).
 
 use crate::compress::quantize::Quantization;
-use crate::error::{Error, Result};
 use crate::render::cell_order::ViewSort;
+use mesobake_core::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// Most samples per cell.

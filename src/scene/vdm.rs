@@ -2,15 +2,15 @@
 //! ([`VdmSettings`]), the depth of its relief in tiles, and the bake itself.
 
 use super::LoadedScene;
-use crate::bake::gdm::BakeObserver;
 use crate::bake::vdm::{self, MAX_OVERSAMPLING, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
 use crate::compress::quantize::Quantization;
 use crate::compress::vdm::{CompressedVdm, MAX_VDM_RANK, compress};
-use crate::error::{Error, Result};
 use crate::mesostructure::height_field::HeightField;
-use crate::render::quality::ShadowMethod;
 use crate::surface::shell::Shell;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
+use mesobake_core::quality::ShadowMethod;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 

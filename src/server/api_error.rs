@@ -1,9 +1,9 @@
 //! Errors as HTTP responses: a status and `{"error": "..."}` naming the problem.
 
-use crate::error::Error;
 use axum::Json;
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+use mesobake_core::error::Error;
 
 /// An error answer.
 #[derive(Debug)]

@@ -10,11 +10,11 @@
 use super::AppState;
 use super::api_error::ApiError;
 use super::db::{Db, db_error, now_ms};
-use crate::error::{Error, Result};
 use axum::extract::{Request, State};
 use axum::http::{Method, StatusCode, header};
 use axum::middleware::Next;
 use axum::response::Response;
+use mesobake_core::error::{Error, Result};
 use sqlx::Row;
 
 /// What a key may do.

@@ -4,7 +4,7 @@
 //! Two backends, chosen by `blob_url` in the configuration:
 //! - **local** (the default, `blob_url = ""`): files at `DATA_DIR/blobs/<first two hex>/<hash>`.
 //!   Writes go to a temporary file in the same directory, are synced and renamed into place
-//!   (`fsutil::write_atomic`), so a crash never leaves a half-written blob under a valid key.
+//!   (`mesobake_core::fs::write_atomic`), so a crash never leaves a half-written blob under a valid key.
 //! - **S3** (`blob_url = "s3://BUCKET[/PREFIX]"`, through the `object_store` crate): objects at
 //!   `PREFIX/<hash>`, shared by every server and worker on every machine. An S3 PUT is atomic
 //!   (the object appears whole or not at all). The local directory becomes a read-through
@@ -14,8 +14,8 @@
 //! its key. Keys are validated before they become paths, so no name from a request can reach
 //! outside the store.
 
-use crate::error::{Error, Result};
-use crate::util::fs::{process_token, temp_name, write_atomic};
+use mesobake_core::error::{Error, Result};
+use mesobake_core::fs::{process_token, temp_name, write_atomic};
 use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey};
 use object_store::path::Path as ObjectPath;
 use object_store::prefix::PrefixStore;

@@ -2,9 +2,9 @@
 //! environment variables `MESOBAKE_<KEY>`, each overriding the one before. Relative paths
 //! are resolved once, when the configuration is loaded, against the working directory.
 
-use crate::error::{Error, Result};
 use figment::Figment;
 use figment::providers::{Env, Format, Toml};
+use mesobake_core::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

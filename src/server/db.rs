@@ -3,7 +3,7 @@
 //! embedded in the binary), and the queries on assets and packages. Job queries live in
 //! [`super::jobs`].
 
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 use serde::Serialize;
 use sqlx::any::{AnyPoolOptions, install_default_drivers};
 use sqlx::{AnyPool, Row};

@@ -27,8 +27,6 @@ pub mod request_limits;
 pub mod scenes;
 pub mod worker;
 
-use crate::error::{Error, Result};
-use crate::util::limits::Limits;
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::routing::{get, post};
@@ -36,6 +34,8 @@ use blobs::{BlobStore, LEFTOVER_AGE};
 use config::{ServerConfig, millis};
 use db::Db;
 use health::Metrics;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use tower_http::limit::RequestBodyLimitLayer;

@@ -5,7 +5,7 @@
 
 use super::AppState;
 use super::db::{db_error, now_ms};
-use crate::error::Result;
+use mesobake_core::error::Result;
 use sqlx::Row;
 
 /// The cached PNG of `key`, marked as used now; `None` when absent (or its blob is gone).
@@ -26,7 +26,7 @@ pub async fn lookup(state: &AppState, key: &str) -> Result<Option<Vec<u8>>> {
     let blobs = state.blobs.clone();
     let png = tokio::task::spawn_blocking(move || blobs.get(&digest))
         .await
-        .map_err(|e| crate::error::Error::Database(format!("preview cache: {e}")))??;
+        .map_err(|e| mesobake_core::error::Error::Database(format!("preview cache: {e}")))??;
     let update = match png {
         Some(_) => sqlx::query("UPDATE previews SET used_ms = $2 WHERE cache_key = $1")
             .bind(key)
@@ -44,7 +44,7 @@ pub async fn store(state: &AppState, key: &str, png: Vec<u8>) -> Result<()> {
     let blobs = state.blobs.clone();
     let digest = tokio::task::spawn_blocking(move || blobs.put(&png))
         .await
-        .map_err(|e| crate::error::Error::Database(format!("preview cache: {e}")))??;
+        .map_err(|e| mesobake_core::error::Error::Database(format!("preview cache: {e}")))??;
     let now = now_ms();
     sqlx::query(
         "INSERT INTO previews (cache_key, png_digest, created_ms, bytes, used_ms) \
@@ -103,7 +103,9 @@ async fn evict(state: &AppState) -> Result<()> {
             let blobs = state.blobs.clone();
             tokio::task::spawn_blocking(move || blobs.remove(&digest))
                 .await
-                .map_err(|e| crate::error::Error::Database(format!("preview cache: {e}")))??;
+                .map_err(|e| {
+                    mesobake_core::error::Error::Database(format!("preview cache: {e}"))
+                })??;
         }
     }
 }

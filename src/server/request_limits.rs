@@ -4,11 +4,11 @@
 
 use super::api_error::{ApiError, ApiResult};
 use super::config::ServerConfig;
-use crate::error::Error;
 use crate::scene::technique::{Technique, is_height_field};
 use crate::scene::{BaseMeshSource, Scene};
-use crate::util::limits::Limits;
 use axum::http::StatusCode;
+use mesobake_core::error::Error;
+use mesobake_core::limits::Limits;
 
 /// Refuses `scene` with 422 when its cost is out of the bounds of `config` and `limits`.
 pub fn check_scene_cost(scene: &Scene, config: &ServerConfig, limits: &Limits) -> ApiResult<()> {

@@ -114,7 +114,7 @@ mod tests {
     use crate::scene::technique::{Surface, choose};
     use crate::scene::{Scene, load_base_mesh};
     use crate::surface::shell::Shell;
-    use crate::util::limits::Limits;
+    use mesobake_core::limits::Limits;
 
     #[test]
     fn every_listed_scene_parses_and_names_the_technique_its_plan_chooses() {

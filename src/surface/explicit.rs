@@ -80,16 +80,16 @@
 //!   inside out and may intersect its neighbours ([`ExplicitStats::folded_prisms`]).
 //! - Deterministic: prisms run in parallel but are merged in order.
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::samples;
 use crate::mesostructure::trimesh::TriMesh;
 use crate::scene::{BaseMeshSource, MesostructureSource, Scene};
 use crate::surface::base_mesh::BaseMesh;
 use crate::surface::shell::{Prism, PrismPoint, Shell, ShellParams};
-use crate::util::limits::Limits;
 use glam::{DVec2, DVec3};
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::HashMap;

@@ -15,9 +15,9 @@
 //! (B₁−B₀)×(B₂−B₀) points out of the surface; every face triangle below is listed with its
 //! outward normal by the right-hand rule.
 
-use crate::error::{Error, Result};
 use crate::surface::base_mesh::BaseMesh;
 use glam::{DMat3, DVec2, DVec3};
+use mesobake_core::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 

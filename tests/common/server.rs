@@ -2,7 +2,7 @@
 #![allow(dead_code)] // each test file uses part of it
 
 use mesobake::server::{AppState, config::ServerConfig, open_state, serve_on};
-use mesobake::util::limits::Limits;
+use mesobake_core::limits::Limits;
 use std::net::SocketAddr;
 
 /// The PostgreSQL server of the test machine (trust authentication).

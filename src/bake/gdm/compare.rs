@@ -1,7 +1,7 @@
 //! Error of an approximate GDM against a reference on the same grids.
 
 use super::Gdm;
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 
 /// How far an approximate GDM is from a reference.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]

@@ -1,10 +1,11 @@
 //! The exact GDM bake: every sample's ray in every direction, cast to its first hit or escape.
 
+use super::Gdm;
 use super::caster::{Caster, Trace};
-use super::{BakeObserver, Gdm};
-use crate::error::Result;
 use crate::grid::DirectionGrid;
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 
 /// Bakes every sample of every direction exactly, in parallel over directions: with the
 /// caster's own per-direction route where it has one ([`Caster::bake_direction`]: ray

@@ -15,13 +15,14 @@
 //! end, so stride ≥ Z is the exact bake) and `max_spread` (0 traces every ray that does not
 //! escape with all its neighbours; +∞ interpolates wherever neighbours agree on hit or escape).
 
+use super::Gdm;
 use super::caster::{Caster, Trace};
 use super::interpolate::LayerStencil;
 use super::template::{self, Template};
-use super::{BakeObserver, Gdm};
-use crate::error::{Error, Result};
 use crate::grid::DirectionGrid;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 
 pub use mesobake_package::manifest::FastParams;
 

@@ -8,11 +8,11 @@
 //! approximates.
 
 use super::caster::{Caster, Trace};
-use crate::error::Result;
 use crate::grid::Dims;
 use crate::mesostructure::height_field::HeightField;
 use crate::mesostructure::volume::Occupancy;
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
 
 /// Cells a ray may cross before it is reported as escaping (only horizontal rays, which never
 /// leave through z = 0 or z = Z, come near it).

@@ -13,13 +13,13 @@
 
 use super::caster::{Caster, Trace};
 use super::mesh_template::BinnedTriangles;
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::mesh_tile::MeshTile;
 use crate::mesostructure::trimesh::TriMesh;
 use crate::mesostructure::volume::Occupancy;
-use crate::util::limits::Limits;
 use glam::Vec3A;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use obvhs::{
     BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris, ray::Ray, ray::RayHit,
     triangle::Triangle,

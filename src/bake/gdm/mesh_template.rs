@@ -12,11 +12,11 @@
 //! frame of the tile cell the voxel belongs to), so both paths return the same distances.
 
 use super::template::{Template, rotated_word};
-use crate::error::{Error, Result};
 use crate::grid::Dims;
 use crate::mesostructure::volume::Occupancy;
-use crate::util::limits::Limits;
 use glam::Vec3A;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use obvhs::triangle::Triangle;
 
 /// A triangle with its edges and normal computed once, intersected exactly like

@@ -13,12 +13,14 @@ pub mod height_field_caster;
 pub mod interpolate;
 pub mod mesh_caster;
 pub mod mesh_template;
+pub mod npy;
 pub mod template;
 pub mod volume_caster;
 
-use crate::error::Result;
 use crate::grid::{Dims, DirectionGrid, boundary_distance};
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 
 /// How a GDM stores rays that escape without a hit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -35,22 +37,6 @@ pub enum EscapeConvention {
 /// Relative tolerance of the escape test in the boundary convention. A true hit can only reach
 /// its boundary distance where the ray touches solid exactly on the top or bottom plane.
 pub const ESCAPE_TOLERANCE: f32 = 1.0 - 1e-5;
-
-/// Observes a bake: progress for progress bars and event streams, and cancellation.
-pub trait BakeObserver: Sync {
-    /// `done` of `total` work units are finished. Called from worker threads.
-    fn progress(&self, _done: u64, _total: u64) {}
-    /// Whether the bake should stop (it then returns [`crate::Error::Cancelled`]).
-    fn cancelled(&self) -> bool {
-        false
-    }
-    /// A pipeline of several bakes begins its stage `name`; [`BakeObserver::progress`] then
-    /// counts that stage's work.
-    fn stage(&self, _name: &str) {}
-}
-
-/// The observer that ignores everything.
-impl BakeObserver for () {}
 
 /// A dense GDM over a voxel grid and a direction grid.
 ///

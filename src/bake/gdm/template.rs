@@ -9,10 +9,10 @@
 //! of all samples of row (j, k) are the occupancy bits of row (j+dj, k+dk) rotated by di,
 //! so one rotate-and-mask tests 64 rays. Results are bit-identical to per-ray traversal.
 
-use crate::error::Result;
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::volume::Occupancy;
-use crate::util::limits::Limits;
+use mesobake_core::error::Result;
+use mesobake_core::limits::Limits;
 
 /// One voxel visited by the template ray.
 #[derive(Clone, Copy, Debug)]

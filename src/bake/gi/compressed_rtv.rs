@@ -21,11 +21,11 @@
 
 use super::rtv::{Rtv, interpolate_samples};
 use super::sh::{self, COEFFS, Sh};
-use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid, bilinear_direction_corners};
-use crate::util::limits::Limits;
 use glam::DVec3;
 use half::f16;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 use std::time::Instant;

@@ -11,9 +11,9 @@
 //! map the error falls as O(1/H²); a constant map projects exactly.
 
 use super::sh::{self, COEFFS, Sh};
-use crate::error::{Error, Result};
-use crate::util::limits::Limits;
 use glam::DVec3;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::path::Path;

@@ -17,9 +17,9 @@
 //!   meets the opaque base surface.
 
 use super::sh::{self, COEFFS, Quadrature, ShMatrix};
-use crate::error::{Error, Result};
 use crate::surface::base_mesh::BaseMesh;
 use glam::{DMat3, DVec2, DVec3, Vec3A};
+use mesobake_core::error::{Error, Result};
 use obvhs::{
     BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris, ray::Ray,
     triangle::Triangle,

@@ -38,12 +38,13 @@
 //! coefficients, not of the bake.
 
 use super::sh::{self, COEFFS, Sh};
-use crate::bake::gdm::{BakeObserver, Gdm};
-use crate::error::{Error, Result};
+use crate::bake::gdm::Gdm;
 use crate::grid::{Dims, Wrap, trilinear_corners};
 use crate::mesostructure::material::MaterialVolume;
-use crate::util::limits::Limits;
 use glam::{DMat3, DVec3};
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

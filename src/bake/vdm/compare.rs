@@ -2,7 +2,7 @@
 //! the same texels and grid.
 
 use super::{NO_HIT, Vdm};
-use crate::error::{Error, Result};
+use mesobake_core::error::{Error, Result};
 
 /// How far an approximate VDM is from a reference.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]

@@ -40,9 +40,9 @@
 
 use super::bend::Bend;
 use super::{NO_HIT, Relief, VdmGrid, bake_by_azimuth};
-use crate::bake::gdm::BakeObserver;
-use crate::error::Result;
 use crate::mesostructure::height_field::HeightField;
+use mesobake_core::error::Result;
+use mesobake_core::observer::BakeObserver;
 use std::f64::consts::PI;
 
 /// Largest error of a hit's arc length σ along the reference surface (tile units).

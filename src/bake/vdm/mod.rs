@@ -29,10 +29,10 @@ pub mod exact;
 pub use compare::{VdmError, compare};
 pub mod paper;
 
-use crate::bake::gdm::BakeObserver;
-use crate::error::{Error, Result};
 use crate::mesostructure::height_field::HeightField;
-use crate::util::limits::Limits;
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
+use mesobake_core::observer::BakeObserver;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 

@@ -10,8 +10,8 @@
 use super::bend::Bend;
 use super::exact::{Fans, Scratch};
 use super::{NO_HIT, Relief, VdmGrid, bake_by_azimuth};
-use crate::bake::gdm::BakeObserver;
-use crate::error::Result;
+use mesobake_core::error::Result;
+use mesobake_core::observer::BakeObserver;
 use std::f64::consts::FRAC_PI_2;
 
 /// Bakes in parallel over azimuths, casting `oversampling` flat rays per θ bin (1 is the

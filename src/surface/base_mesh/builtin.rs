@@ -1,8 +1,8 @@
 //! The built-in base meshes and the parametric surfaces they are made of.
 
 use super::{BaseMesh, MeshReport, teapot};
-use crate::error::{Error, Result};
 use glam::{DVec2, DVec3};
+use mesobake_core::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 

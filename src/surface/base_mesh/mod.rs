@@ -34,9 +34,9 @@ mod teapot;
 
 pub use builtin::BuiltinMesh;
 
-use crate::error::{Error, Result};
-use crate::util::limits::Limits;
 use glam::{DVec2, DVec3};
+use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -166,7 +166,7 @@ impl BaseMesh {
     /// Reads and parses an OBJ file (see [`from_obj`](Self::from_obj)), refusing files larger
     /// than `limits.memory_bytes / 8` before reading them.
     pub fn read_obj(path: &Path, limits: &Limits) -> Result<(BaseMesh, MeshReport)> {
-        let bytes = crate::util::fs::read_bounded(path, "OBJ file", limits.memory_bytes / 8)?;
+        let bytes = mesobake_core::fs::read_bounded(path, "OBJ file", limits.memory_bytes / 8)?;
         let in_file = |message: String| Error::BaseMesh(format!("{}: {message}", path.display()));
         let text =
             std::str::from_utf8(&bytes).map_err(|e| in_file(format!("not UTF-8 text: {e}")))?;

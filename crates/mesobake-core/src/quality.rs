@@ -50,7 +50,7 @@ pub enum ShadingFrame {
 }
 
 /// The named presets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Preset {
     /// The paper's algorithm, unchanged.
@@ -197,6 +197,19 @@ impl<'de> Deserialize<'de> for Quality {
             }
         }
         deserializer.deserialize_any(QualityVisitor)
+    }
+}
+
+impl std::str::FromStr for Preset {
+    type Err = Error;
+
+    /// `paper`, `balanced` or `high`.
+    fn from_str(text: &str) -> Result<Preset> {
+        serde_json::from_value(serde_json::Value::String(text.trim().to_owned())).map_err(|_| {
+            Error::InvalidParameter(format!(
+                "quality preset {text:?}: expected paper, balanced or high"
+            ))
+        })
     }
 }
 
