@@ -5,10 +5,10 @@
 
 use glam::{DVec2, DVec3};
 use mesobake::bake::gdm::caster::{Caster, Trace};
+use mesobake::bake::gdm::input::Mesostructure;
 use mesobake::bake::gdm::volume_caster::VolumeCaster;
 use mesobake::bake::gdm::{self, Gdm};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::input::Mesostructure;
 use mesobake::mesostructure::material::MaterialVolume;
 use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::mesostructure::volume::Volume;

@@ -2,7 +2,8 @@
 //! binary glTF.
 
 use super::output::{Progress, print_json};
-use mesobake::surface::explicit::{ExplicitInput, parse_pair};
+use mesobake::scene::explicit::explicit_input;
+use mesobake::surface::explicit::ExplicitInput;
 use mesobake::{Error, Result};
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
@@ -27,7 +28,7 @@ pub struct ExplicitArgs {
     #[arg(long, conflicts_with = "scene")]
     thickness: Option<f64>,
     /// Tiles per UV unit along u and v, e.g. 24x10 [default: 1x1].
-    #[arg(long, value_parser = parse_pair, conflicts_with = "scene")]
+    #[arg(long, value_parser = parse_tiling, conflicts_with = "scene")]
     tiles: Option<[f64; 2]>,
     /// The tile's height H in tile units (Z/X of its grid) [default: 0.5].
     #[arg(long, conflicts_with = "scene")]
@@ -58,7 +59,7 @@ pub fn explicit(args: ExplicitArgs, limits: &Limits) -> Result<()> {
         json,
     } = args;
     let input = match (&scene, &mesh, &tile) {
-        (Some(scene), _, _) => ExplicitInput::from_scene(scene, limits)?,
+        (Some(scene), _, _) => explicit_input(scene, limits)?,
         (None, Some(mesh), Some(tile)) => ExplicitInput::from_files(
             mesh,
             tile,
@@ -123,4 +124,33 @@ pub fn explicit(args: ExplicitArgs, limits: &Limits) -> Result<()> {
         }));
     }
     Ok(())
+}
+
+/// Parses "AxB" (e.g. "24x10") into two positive finite numbers.
+fn parse_tiling(text: &str) -> Result<[f64; 2]> {
+    let bad =
+        || Error::InvalidParameter(format!("{text:?} is not two positive numbers like 24x10"));
+    let (a, b) = text.split_once(['x', 'X']).ok_or_else(bad)?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .ok_or_else(bad)
+    };
+    Ok([parse(a)?, parse(b)?])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_tiling_reads_tilings() {
+        assert_eq!(parse_tiling("24x10").unwrap(), [24.0, 10.0]);
+        assert_eq!(parse_tiling("1.5X2").unwrap(), [1.5, 2.0]);
+        for bad in ["24", "0x1", "ax2", "1x-2", "infx1"] {
+            assert!(parse_tiling(bad).is_err(), "{bad}");
+        }
+    }
 }

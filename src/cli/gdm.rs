@@ -3,10 +3,10 @@
 
 use super::output::{Progress, print_json};
 use clap::ValueEnum;
+use mesobake::bake::gdm::input;
 use mesobake::bake::gdm::npy;
 use mesobake::bake::gdm::{self, Method};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::input;
 use mesobake::{Error, Result};
 use mesobake_core::limits::Limits;
 use std::path::{Path, PathBuf};

@@ -50,7 +50,7 @@ impl FileKind {
                 &crate::mesostructure::height_field::PNG_MAGIC,
                 FileKind::Png,
             ),
-            (&crate::package::container::MAGIC, FileKind::Package),
+            (&mesobake_package::container::MAGIC, FileKind::Package),
             (&[0x76, 0x2f, 0x31, 0x01], FileKind::Exr),
             (b"\x93NUMPY", FileKind::Npy),
         ];

@@ -1,15 +1,14 @@
 //! Mesostructure inputs: what a tile of surface detail is made of, and how it is read.
 //! Voxel volumes ([`volume`], the `.mbvol` format in [`volume_format`]), closed OBJ tiles
 //! ([`trimesh`], validated on the tiling by [`mesh_tile`]), grayscale height fields
-//! ([`height_field`]), translucent media ([`medium`], built-in ones in [`media`]), the built-in analytic samples ([`samples`]) and reliefs ([`reliefs`]),
-//! the empty-space distance
-//! that makes exact casting fast ([`empty_space`]), and the loader that turns any input file
-//! into a ray caster ([`input`]), telling its kind by content ([`file_kind`]).
+//! ([`height_field`]), translucent media ([`medium`], built-in ones in [`media`]), the
+//! built-in analytic samples ([`samples`]) and reliefs ([`reliefs`]), the empty-space distance
+//! that makes exact casting fast ([`empty_space`]), and what an input file holds, told by
+//! content ([`file_kind`]). [`crate::bake::gdm::input`] loads any input file as a ray caster.
 
 pub mod empty_space;
 pub mod file_kind;
 pub mod height_field;
-pub mod input;
 pub mod material;
 pub mod media;
 pub mod medium;

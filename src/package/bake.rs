@@ -3,13 +3,13 @@
 //! runs (and that the server will queue), with the time each takes.
 
 use crate::bake::gdm::fast::FastParams;
+use crate::bake::gdm::input::{self, Mesostructure};
 use crate::bake::gdm::{self, EscapeConvention, Gdm, Method};
 use crate::compress::gdm::{CompressedGdm, compress};
 use crate::compress::layout::GdmRows;
 use crate::compress::quantize::Quantization;
 use crate::compress::svd::{GramEigen, RankChoice};
 use crate::grid::{Dims, DirectionGrid};
-use crate::mesostructure::input::{self, Mesostructure};
 use crate::package::manifest::{BakeInfo, GdmCodec, InputInfo};
 use crate::package::{GdmPayload, Package};
 use mesobake_core::error::{Error, Result};

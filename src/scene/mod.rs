@@ -4,6 +4,7 @@
 //! scene calls for, in order: [`plan`] (the stages its effects need), [`package`] (baking
 //! them), [`render`] (CPU images) and [`preview`] (the real-time pipeline).
 
+pub mod explicit;
 pub mod gi;
 pub mod package;
 pub mod plan;
@@ -16,12 +17,12 @@ pub mod vdm;
 use crate::bake::gdm::Gdm;
 use crate::bake::gdm::caster::Caster;
 use crate::bake::gdm::height_field_caster::HeightFieldCaster;
+use crate::bake::gdm::input::Mesostructure;
 use crate::bake::gdm::mesh_caster::MeshCaster;
 use crate::bake::gdm::volume_caster::VolumeCaster;
 use crate::bake::gi::environment::{Environment, Sky};
 use crate::grid::{Dims, DirectionGrid};
 use crate::mesostructure::height_field::HeightField;
-use crate::mesostructure::input::Mesostructure;
 use crate::mesostructure::material::MaterialVolume;
 use crate::mesostructure::media::{self, MediumKind};
 use crate::mesostructure::medium::{self, Medium};

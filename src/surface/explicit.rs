@@ -81,9 +81,7 @@
 //! - Deterministic: prisms run in parallel but are merged in order.
 
 use crate::mesostructure::mesh_tile::MeshTile;
-use crate::mesostructure::samples;
 use crate::mesostructure::trimesh::TriMesh;
-use crate::scene::{BaseMeshSource, MesostructureSource, Scene};
 use crate::surface::base_mesh::BaseMesh;
 use crate::surface::shell::{Prism, PrismPoint, Shell, ShellParams};
 use glam::{DVec2, DVec3};
@@ -1359,56 +1357,6 @@ impl ExplicitInput {
         })
     }
 
-    /// Reads a scene file: its base mesh (scaled by `mesh_scale`), shell, and mesostructure —
-    /// an OBJ tile, or a built-in sample tessellated for the scene's resolution; the tile
-    /// height is the resolution's Z/X. Volumes have no triangles and are refused.
-    pub fn from_scene(path: &Path, limits: &Limits) -> Result<ExplicitInput> {
-        let scene = Scene::read(path)?;
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let (mut base, _) = match &scene.base_mesh {
-            BaseMeshSource::Builtin(b) => b.build()?,
-            BaseMeshSource::Obj(p) => BaseMesh::read_obj(&dir.join(p), limits)?,
-        };
-        for p in &mut base.positions {
-            *p *= scene.mesh_scale;
-        }
-        let dims = scene.dims()?;
-        let tile = match &scene.mesostructure {
-            MesostructureSource::Sample(kind) | MesostructureSource::SampleTile(kind) => {
-                samples::mesh(*kind, dims)?
-            }
-            MesostructureSource::Tile(p) => {
-                TriMesh::read_obj(&dir.join(p), limits.memory_bytes / 8)?
-            }
-            MesostructureSource::Relief(_) => {
-                return Err(Error::Scene(
-                    "explicit geometry needs triangles, but the mesostructure is a relief".into(),
-                ));
-            }
-            MesostructureSource::Medium(_) => {
-                return Err(Error::Scene(
-                    "explicit geometry needs triangles, but the mesostructure is a translucent \
-                     medium"
-                        .into(),
-                ));
-            }
-            MesostructureSource::Volume(p) | MesostructureSource::HeightField(p) => {
-                return Err(Error::Scene(format!(
-                    "{}: explicit geometry needs triangles, but the mesostructure is the \
-                     volume (or height field) {}; use a tile or a sample",
-                    path.display(),
-                    p.display()
-                )));
-            }
-        };
-        Ok(ExplicitInput {
-            base,
-            shell: scene.shell,
-            tile,
-            tile_height: f64::from(dims.z) / f64::from(dims.x),
-        })
-    }
-
     /// Builds the shell and exports; `tolerance` defaults to
     /// [`DEFAULT_RELATIVE_TOLERANCE`] × thickness.
     pub fn export(
@@ -1453,21 +1401,6 @@ pub fn proportional_thickness(
              pass --thickness"
         )))
     }
-}
-
-/// Parses "AxB" (e.g. "24x10") into two positive finite numbers.
-pub fn parse_pair(text: &str) -> Result<[f64; 2]> {
-    let bad =
-        || Error::InvalidParameter(format!("{text:?} is not two positive numbers like 24x10"));
-    let (a, b) = text.split_once(['x', 'X']).ok_or_else(bad)?;
-    let parse = |s: &str| {
-        s.trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|v| v.is_finite() && *v > 0.0)
-            .ok_or_else(bad)
-    };
-    Ok([parse(a)?, parse(b)?])
 }
 
 #[cfg(test)]
@@ -1587,14 +1520,5 @@ mod tests {
             "{} vs {want}",
             area(&out.mesh)
         );
-    }
-
-    #[test]
-    fn parse_pair_reads_tilings() {
-        assert_eq!(parse_pair("24x10").unwrap(), [24.0, 10.0]);
-        assert_eq!(parse_pair("1.5X2").unwrap(), [1.5, 2.0]);
-        for bad in ["24", "0x1", "ax2", "1x-2", "infx1"] {
-            assert!(parse_pair(bad).is_err(), "{bad}");
-        }
     }
 }

@@ -10,6 +10,7 @@ pub mod compare;
 pub mod exact;
 pub mod fast;
 pub mod height_field_caster;
+pub mod input;
 pub mod interpolate;
 pub mod mesh_caster;
 pub mod mesh_template;
