@@ -2,10 +2,10 @@
 //! an input, submits its bake, follows the job and downloads the package, verifying that
 //! its bytes hash to the digest the server names and that it parses as a package.
 
-use crate::compress::quantize::Quantization;
 use crate::grid::{Dims, DirectionGrid};
 use crate::package::Package;
 use crate::package::manifest::GdmCodec;
+use mesobake_bake::compress::quantize::Quantization;
 use mesobake_core::error::{Error, Result};
 use serde_json::{Value, json};
 use std::path::Path;

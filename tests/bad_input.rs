@@ -1,12 +1,12 @@
 //! Bad input gets a clear error naming the problem, never a panic.
 
 use mesobake::Error;
-use mesobake::bake::gdm::{self, Method};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::mesh_tile::MeshTile;
-use mesobake::mesostructure::trimesh::TriMesh;
-use mesobake::mesostructure::volume::Volume;
-use mesobake::mesostructure::volume_format::{self, HEADER_BYTES};
+use mesobake_bake::gdm::{self, Method};
+use mesobake_bake::mesostructure::mesh_tile::MeshTile;
+use mesobake_bake::mesostructure::trimesh::TriMesh;
+use mesobake_bake::mesostructure::volume::Volume;
+use mesobake_bake::mesostructure::volume_format::{self, HEADER_BYTES};
 use mesobake_core::limits::Limits;
 
 fn sample_bytes() -> Vec<u8> {
@@ -108,7 +108,7 @@ fn non_finite_density_is_named() {
 fn gdm_over_memory_limit_is_refused() {
     let d = Dims::new(4, 4, 2).unwrap();
     let v = Volume::from_fn(d, &Limits::default(), |_, _, _| false).unwrap();
-    let c = mesobake::bake::gdm::volume_caster::VolumeCaster::new(&v);
+    let c = mesobake_bake::gdm::volume_caster::VolumeCaster::new(&v);
     let limits = Limits {
         memory_bytes: 1000,
         ..Limits::default()
@@ -156,13 +156,13 @@ fn obj_errors_name_the_problem() {
     // With allow_open the sheet is accepted, and nothing is inside.
     let tile = MeshTile::new(TriMesh::from_obj(open).unwrap(), true).unwrap();
     assert!(!tile.closed);
-    let c = mesobake::bake::gdm::mesh_caster::MeshCaster::new(
+    let c = mesobake_bake::gdm::mesh_caster::MeshCaster::new(
         &tile,
         Dims::new(8, 8, 4).unwrap(),
         &Limits::default(),
     )
     .unwrap();
-    use mesobake::bake::gdm::caster::Caster;
+    use mesobake_bake::gdm::caster::Caster;
     assert_eq!(c.centres_inside().solid_count(), 0);
     assert!(TriMesh::from_obj("v 0 0 0\nf 1 1 x\n").is_err());
     let e = MeshTile::new(
@@ -185,7 +185,7 @@ fn copies_of_one_triangle_are_dropped_as_duplicates() {
     assert_eq!(tile.mesh.triangles.len(), 1);
     assert_eq!(tile.report.duplicates, 99_999);
     assert_eq!(tile.report.triangles, 100_000);
-    let caster = mesobake::bake::gdm::mesh_caster::MeshCaster::new(
+    let caster = mesobake_bake::gdm::mesh_caster::MeshCaster::new(
         &tile,
         Dims::new(8, 8, 4).unwrap(),
         &Limits::default(),
@@ -195,13 +195,13 @@ fn copies_of_one_triangle_are_dropped_as_duplicates() {
 
 #[test]
 fn mesh_grid_must_be_square() {
-    let mesh = mesobake::mesostructure::samples::mesh(
-        mesobake::mesostructure::samples::SampleKind::Chain,
+    let mesh = mesobake_bake::mesostructure::samples::mesh(
+        mesobake_bake::mesostructure::samples::SampleKind::Chain,
         Dims::new(8, 8, 4).unwrap(),
     )
     .unwrap();
     let tile = MeshTile::new(mesh, false).unwrap();
-    let e = mesobake::bake::gdm::mesh_caster::MeshCaster::new(
+    let e = mesobake_bake::gdm::mesh_caster::MeshCaster::new(
         &tile,
         Dims::new(8, 16, 4).unwrap(),
         &Limits::default(),

@@ -10,7 +10,7 @@ mod binary_server;
 use binary_server::BinaryServer;
 use fantoccini::{ClientBuilder, Locator};
 use mesobake::grid::Dims;
-use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_core::limits::Limits;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -109,7 +109,7 @@ async fn upload_bake_and_preview_in_a_browser() {
     )
     .unwrap();
     let file = dir.path().join("weave.mbvol");
-    mesobake::mesostructure::volume_format::write(&volume, &file).unwrap();
+    mesobake_bake::mesostructure::volume_format::write(&volume, &file).unwrap();
 
     let mut caps = serde_json::Map::new();
     caps.insert(

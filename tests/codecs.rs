@@ -7,13 +7,13 @@
 //! tracer, and their GDM part is the one of the same mesostructure under point lights.
 
 use glam::DVec3;
-use mesobake::bake::gdm::EscapeConvention;
 use mesobake::grid::Dims;
 use mesobake::render::gdm_lookup::{GdmLookup, Lookup, RawLookup};
 use mesobake::render::gdm_renderer::{GdmRenderer, longest_segment, prepare_prisms};
 use mesobake::render::render_image;
 use mesobake::report::codecs::{CodecSweep, codec_report};
 use mesobake::scene::render::load_scene;
+use mesobake_bake::gdm::EscapeConvention;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
 use std::path::Path;

@@ -7,8 +7,6 @@
 
 mod common;
 
-use mesobake::compress::quantize::Quantization;
-use mesobake::compress::svd::RankChoice;
 use mesobake::package::AnyPackage;
 use mesobake::package::manifest::GdmCodec;
 use mesobake::realtime::gpu::Gpu;
@@ -16,6 +14,8 @@ use mesobake::render::image::{Image, compare};
 use mesobake::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
 use mesobake::scene::preview::{preview, render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::svd::RankChoice;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Preset;
 use std::path::{Path, PathBuf};

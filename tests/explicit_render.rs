@@ -9,11 +9,11 @@
 //! convention (the material volume's smooth normals and a voxel's shadow offset) must not.
 
 use mesobake::grid::Dims;
-use mesobake::mesostructure::samples::{SampleKind, mesh};
 use mesobake::render::image::compare;
 use mesobake::render::render_image;
 use mesobake::render::truth::{TruthRenderer, TruthShading};
 use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render};
+use mesobake_bake::mesostructure::samples::{SampleKind, mesh};
 use mesobake_core::limits::Limits;
 use std::path::Path;
 

@@ -5,15 +5,15 @@
 //! f64 traces are compared at 1e-9 voxel. The mesh path works in f32 (obvhs), so it is compared
 //! at 2e-3 voxel over distances of at most a few hundred voxels.
 
-use mesobake::bake::gdm::caster::{Caster, Trace};
-use mesobake::bake::gdm::mesh_caster::MeshCaster;
-use mesobake::bake::gdm::volume_caster::VolumeCaster;
-use mesobake::bake::gdm::{self, EscapeConvention, Gdm, Method};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::mesh_tile::MeshTile;
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::trimesh::TriMesh;
-use mesobake::mesostructure::volume::Volume;
+use mesobake_bake::gdm::caster::{Caster, Trace};
+use mesobake_bake::gdm::mesh_caster::MeshCaster;
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::gdm::{self, EscapeConvention, Gdm, Method};
+use mesobake_bake::mesostructure::mesh_tile::MeshTile;
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::trimesh::TriMesh;
+use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_core::limits::Limits;
 use proptest::prelude::*;
 

@@ -1,13 +1,13 @@
 //! The fast (sweep) bake against the exact bake, with the error bounds it must hold.
 
-use mesobake::bake::gdm::compare::compare;
-use mesobake::bake::gdm::exact;
-use mesobake::bake::gdm::fast::{self, FastParams};
-use mesobake::bake::gdm::mesh_caster::MeshCaster;
-use mesobake::bake::gdm::volume_caster::VolumeCaster;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::mesh_tile::MeshTile;
-use mesobake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::gdm::compare::compare;
+use mesobake_bake::gdm::exact;
+use mesobake_bake::gdm::fast::{self, FastParams};
+use mesobake_bake::gdm::mesh_caster::MeshCaster;
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::mesostructure::mesh_tile::MeshTile;
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_core::limits::Limits;
 
 /// On every sample at 32×32×16 with 8×16 directions, the default fast bake stays within the

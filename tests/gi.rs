@@ -3,10 +3,10 @@
 //! macro-scale PRT (a flat plane's hemisphere, a wall's solid angle, the unshadowed rotation).
 
 use glam::{DMat3, DVec2, DVec3};
-use mesobake::bake::gi::environment::{Environment, Sky, direction};
-use mesobake::bake::gi::prt::{Visibility, transfer, vertex_frames};
-use mesobake::bake::gi::sh::{self, COEFFS, Quadrature};
-use mesobake::surface::base_mesh::BaseMesh;
+use mesobake_bake::gi::environment::{Environment, Sky, direction};
+use mesobake_bake::gi::prt::{Visibility, transfer, vertex_frames};
+use mesobake_bake::gi::sh::{self, COEFFS, Quadrature};
+use mesobake_bake::surface::base_mesh::BaseMesh;
 use mesobake_core::limits::Limits;
 use std::f64::consts::PI;
 
@@ -322,8 +322,8 @@ fn without_macro_shadows_the_transfer_is_the_rotation_into_the_frame() {
 }
 
 /// A Lambertian RTV bake with `bounces` bounces.
-fn lambert(bounces: u32) -> mesobake::bake::gi::rtv::RtvParams {
-    mesobake::bake::gi::rtv::RtvParams {
+fn lambert(bounces: u32) -> mesobake_bake::gi::rtv::RtvParams {
+    mesobake_bake::gi::rtv::RtvParams {
         bounces,
         glossy: None,
     }
@@ -331,13 +331,13 @@ fn lambert(bounces: u32) -> mesobake::bake::gi::rtv::RtvParams {
 
 /// The exact GDM (16×32 directions) and the material of `volume`, whose albedo is `rho`.
 fn gdm_and_material(
-    volume: &mesobake::mesostructure::volume::Volume,
+    volume: &mesobake_bake::mesostructure::volume::Volume,
     rho: f64,
 ) -> (
-    mesobake::bake::gdm::Gdm,
-    mesobake::mesostructure::material::MaterialVolume,
+    mesobake_bake::gdm::Gdm,
+    mesobake_bake::mesostructure::material::MaterialVolume,
 ) {
-    use mesobake::bake::gdm::{self, Method, fast::FastParams, volume_caster::VolumeCaster};
+    use mesobake_bake::gdm::{self, Method, fast::FastParams, volume_caster::VolumeCaster};
     let dirs = mesobake::grid::DirectionGrid::new(16, 32).unwrap();
     let g = gdm::bake(
         &VolumeCaster::new(volume),
@@ -348,18 +348,23 @@ fn gdm_and_material(
         &(),
     )
     .unwrap();
-    let material =
-        mesobake::mesostructure::material::MaterialVolume::from_volume(volume, DVec3::splat(rho));
+    let material = mesobake_bake::mesostructure::material::MaterialVolume::from_volume(
+        volume,
+        DVec3::splat(rho),
+    );
     (g, material)
 }
 
 #[test]
 fn a_flat_slab_reflects_the_clamped_cosine_and_nothing_bounces() {
-    use mesobake::bake::gi::rtv;
+    use mesobake_bake::gi::rtv;
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
-    let slab =
-        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |_, _, k| k < 3)
-            .unwrap();
+    let slab = mesobake_bake::mesostructure::volume::Volume::from_fn(
+        dims,
+        &Limits::default(),
+        |_, _, k| k < 3,
+    )
+    .unwrap();
     let rho = 0.5;
     let (g, material) = gdm_and_material(&slab, rho);
     let (rtv, stats) = rtv::bake(&g, &material, &lambert(4), &Limits::default(), &()).unwrap();
@@ -386,15 +391,16 @@ fn a_flat_slab_reflects_the_clamped_cosine_and_nothing_bounces() {
 
 #[test]
 fn a_white_furnace_converges_to_the_light_with_bounces() {
-    use mesobake::bake::gi::rtv;
+    use mesobake_bake::gi::rtv;
     // A floor with pillars and bars over them (overhangs): every downward ray hits something,
     // so with albedo 1 under constant radiance 1 every surface point must reach radiance 1.
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
-    let volume =
-        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
-            k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5)
-        })
-        .unwrap();
+    let volume = mesobake_bake::mesostructure::volume::Volume::from_fn(
+        dims,
+        &Limits::default(),
+        |i, j, k| k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5),
+    )
+    .unwrap();
     let (g, material) = gdm_and_material(&volume, 1.0);
     let mut light = [[0.0; COEFFS]; 3];
     for c in &mut light {
@@ -707,14 +713,15 @@ fn path_traced_and_rtv_white_furnaces_agree() {
     // with enough bounces (without macro shadows the incident SH is the constant's).
     let dir = tempfile::tempdir().unwrap();
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
-    let volume =
-        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
-            k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5)
-        })
-        .unwrap();
+    let volume = mesobake_bake::mesostructure::volume::Volume::from_fn(
+        dims,
+        &Limits::default(),
+        |i, j, k| k == 0 || (k < 5 && i % 8 < 3 && j % 8 < 3) || (k == 5 && i % 8 < 5),
+    )
+    .unwrap();
     std::fs::write(
         dir.path().join("pillars.mbvol"),
-        mesobake::mesostructure::volume_format::encode(&volume),
+        mesobake_bake::mesostructure::volume_format::encode(&volume),
     )
     .unwrap();
     let scene = serde_json::json!({
@@ -781,11 +788,14 @@ fn the_phong_lobe_convolves_by_its_closed_form() {
 
 #[test]
 fn a_glossy_slab_reflects_the_phong_filtered_upper_hemisphere() {
-    use mesobake::bake::gi::rtv::{self, Glossy, RtvParams};
+    use mesobake_bake::gi::rtv::{self, Glossy, RtvParams};
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
-    let slab =
-        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |_, _, k| k < 3)
-            .unwrap();
+    let slab = mesobake_bake::mesostructure::volume::Volume::from_fn(
+        dims,
+        &Limits::default(),
+        |_, _, k| k < 3,
+    )
+    .unwrap();
     // No diffuse part: what leaves is the glossy lobe alone.
     let (g, material) = gdm_and_material(&slab, 0.0);
     let (exponent, k_s) = (8.0, 0.5);
@@ -833,15 +843,16 @@ fn a_glossy_slab_reflects_the_phong_filtered_upper_hemisphere() {
 
 #[test]
 fn the_rtv_svd_is_the_dense_svd_and_reports_its_error_exactly() {
-    use mesobake::bake::gi::compressed_rtv::{CompressedRtv, MATRICES};
-    use mesobake::bake::gi::rtv::{self, Glossy, RtvParams};
+    use mesobake_bake::gi::compressed_rtv::{CompressedRtv, MATRICES};
+    use mesobake_bake::gi::rtv::{self, Glossy, RtvParams};
     // Pillars and bars over a floor: view-dependent glossy transfer with bounces.
     let dims = mesobake::grid::Dims::new(8, 8, 6).unwrap();
-    let volume =
-        mesobake::mesostructure::volume::Volume::from_fn(dims, &Limits::default(), |i, j, k| {
-            k == 0 || (k < 4 && i % 4 < 2 && j % 4 < 2) || (k == 4 && i % 4 < 3)
-        })
-        .unwrap();
+    let volume = mesobake_bake::mesostructure::volume::Volume::from_fn(
+        dims,
+        &Limits::default(),
+        |i, j, k| k == 0 || (k < 4 && i % 4 < 2 && j % 4 < 2) || (k == 4 && i % 4 < 3),
+    )
+    .unwrap();
     let (g, material) = gdm_and_material(&volume, 0.6);
     let params = RtvParams {
         bounces: 2,

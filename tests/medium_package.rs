@@ -271,13 +271,14 @@ fn scenes_and_packages_that_do_not_fit_are_refused_by_name() {
     // is loaded: environment lighting is refused then, before anything is baked.
     let dir = tempfile::tempdir().unwrap();
     let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
-    let clouds = mesobake::mesostructure::media::volume(
-        mesobake::mesostructure::media::MediumKind::Clouds,
+    let clouds = mesobake_bake::mesostructure::media::volume(
+        mesobake_bake::mesostructure::media::MediumKind::Clouds,
         dims,
         &Limits::default(),
     )
     .unwrap();
-    mesobake::mesostructure::volume_format::write(&clouds, &dir.path().join("c.mbvol")).unwrap();
+    mesobake_bake::mesostructure::volume_format::write(&clouds, &dir.path().join("c.mbvol"))
+        .unwrap();
     let mut lit = fur();
     lit["mesostructure"] = json!({ "volume": "c.mbvol" });
     lit["effects"] = json!(["environment_lighting"]);

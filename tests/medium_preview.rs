@@ -13,8 +13,6 @@ mod common;
 use common::{gpu, succeeds};
 use mesobake::Error;
 use mesobake::grid::Dims;
-use mesobake::mesostructure::volume::Volume;
-use mesobake::mesostructure::volume_format;
 use mesobake::realtime::gpu::Gpu;
 use mesobake::render::image::{Comparison, Image, compare};
 use mesobake::scene::preview::{medium_preview, medium_render_on_cpu};
@@ -22,6 +20,8 @@ use mesobake::scene::transparency::{
     CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
 };
 use mesobake::scene::{LoadedScene, Scene};
+use mesobake_bake::mesostructure::volume::Volume;
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
 use std::path::Path;
 

@@ -4,13 +4,7 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::compress::quantize::Quantization;
 use mesobake::grid::Dims;
-use mesobake::mesostructure::media::ABSORBING_OPACITY;
-use mesobake::mesostructure::medium::Medium;
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume::Volume;
-use mesobake::mesostructure::volume_format;
 use mesobake::render::cell_order::ViewSort;
 use mesobake::render::image::Image;
 use mesobake::render::image::{Comparison, compare};
@@ -22,6 +16,12 @@ use mesobake::scene::transparency::{
     CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
 };
 use mesobake::scene::{LoadedScene, Scene};
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::mesostructure::media::ABSORBING_OPACITY;
+use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume::Volume;
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::light::Light;
 use mesobake_core::limits::Limits;
 use std::path::Path;

@@ -1,17 +1,17 @@
 //! GDM packages: round trips, determinism, and rejection of every kind of corrupt file.
 
-use mesobake::bake::gdm::volume_caster::VolumeCaster;
-use mesobake::bake::gdm::{self, EscapeConvention, Gdm, Method};
-use mesobake::compress::gdm::{CompressedGdm, compress};
-use mesobake::compress::layout::GdmRows;
-use mesobake::compress::quantize::Quantization;
-use mesobake::compress::svd::{GramEigen, RankChoice};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume::Occupancy;
 use mesobake::package::bake::{PackageParams, bake_info, bake_package};
 use mesobake::package::manifest::{GdmCodec, InputInfo, Manifest};
 use mesobake::package::{GdmPayload, OCCUPANCY_SECTION, Package, container};
+use mesobake_bake::compress::gdm::{CompressedGdm, compress};
+use mesobake_bake::compress::layout::GdmRows;
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::svd::{GramEigen, RankChoice};
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::gdm::{self, EscapeConvention, Gdm, Method};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume::Occupancy;
 use mesobake_core::limits::Limits;
 use proptest::prelude::*;
 
@@ -119,7 +119,7 @@ fn packages_are_byte_identical_across_runs_and_thread_counts() {
     let limits = Limits::default();
     let volume =
         samples::volume(SampleKind::Chain, Dims::new(16, 16, 8).unwrap(), &limits).unwrap();
-    mesobake::mesostructure::volume_format::write(&volume, &path).unwrap();
+    mesobake_bake::mesostructure::volume_format::write(&volume, &path).unwrap();
     let bake = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -144,7 +144,7 @@ fn occupancy_package(dir: &std::path::Path) -> Vec<u8> {
     let limits = Limits::default();
     let volume =
         samples::volume(SampleKind::Chain, Dims::new(16, 16, 8).unwrap(), &limits).unwrap();
-    mesobake::mesostructure::volume_format::write(&volume, &path).unwrap();
+    mesobake_bake::mesostructure::volume_format::write(&volume, &path).unwrap();
     let p = PackageParams {
         codec: GdmCodec::Occupancy,
         ..params(8, Quantization::F16)

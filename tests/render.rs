@@ -4,14 +4,7 @@
 //! a nearly inverted shell. Tolerances are stated with each assertion.
 
 use glam::{DVec2, DVec3};
-use mesobake::bake::gdm::caster::{Caster, Trace};
-use mesobake::bake::gdm::input::Mesostructure;
-use mesobake::bake::gdm::volume_caster::VolumeCaster;
-use mesobake::bake::gdm::{self, Gdm};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::material::MaterialVolume;
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume::Volume;
 use mesobake::render::gdm_lookup::RawLookup;
 use mesobake::render::gdm_renderer::{GdmRenderer, Substitutions};
 use mesobake::render::image::compare;
@@ -19,8 +12,15 @@ use mesobake::render::render_image;
 use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::render::{MapSource, RenderMethod, render};
 use mesobake::scene::{LoadedScene, Scene};
-use mesobake::surface::base_mesh::BaseMesh;
-use mesobake::surface::shell::{Shell, ShellParams};
+use mesobake_bake::gdm::caster::{Caster, Trace};
+use mesobake_bake::gdm::input::Mesostructure;
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::gdm::{self, Gdm};
+use mesobake_bake::mesostructure::material::MaterialVolume;
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume::Volume;
+use mesobake_bake::surface::base_mesh::BaseMesh;
+use mesobake_bake::surface::shell::{Shell, ShellParams};
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::{Quality, ShadingFrame, ShadowMethod};
 
@@ -627,13 +627,13 @@ fn gdm_refinement_moves_hits_onto_the_surface() {
 
 /// A package of `volume`'s exact GDM at `rank` (f32) and the raw GDM.
 fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
-    use mesobake::bake::gdm::EscapeConvention;
-    use mesobake::compress::gdm::compress;
-    use mesobake::compress::layout::GdmRows;
-    use mesobake::compress::quantize::Quantization;
-    use mesobake::compress::svd::{GramEigen, RankChoice};
     use mesobake::package::Package;
     use mesobake::package::manifest::InputInfo;
+    use mesobake_bake::compress::gdm::compress;
+    use mesobake_bake::compress::layout::GdmRows;
+    use mesobake_bake::compress::quantize::Quantization;
+    use mesobake_bake::compress::svd::{GramEigen, RankChoice};
+    use mesobake_bake::gdm::EscapeConvention;
     let limits = Limits::default();
     let raw = bake(&VolumeCaster::new(volume));
     let mut boundary = raw.clone();

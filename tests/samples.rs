@@ -1,11 +1,11 @@
 //! Built-in samples: deterministic, closed on the tiling, and the volume and OBJ forms agree.
 
-use mesobake::bake::gdm::caster::Caster;
-use mesobake::bake::gdm::mesh_caster::MeshCaster;
 use mesobake::grid::Dims;
-use mesobake::mesostructure::mesh_tile::MeshTile;
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume_format;
+use mesobake_bake::gdm::caster::Caster;
+use mesobake_bake::gdm::mesh_caster::MeshCaster;
+use mesobake_bake::mesostructure::mesh_tile::MeshTile;
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
 
 /// The OBJ tile's inside classification of voxel centres agrees with the volume's solid voxels
@@ -39,9 +39,9 @@ fn every_sample_is_closed_deterministic_and_consistent() {
         let signed: f64 = (0..mesh.triangles.len())
             .map(|t| {
                 let [a, b, c] = mesh.corners(t);
-                let n = mesobake::mesostructure::trimesh::cross(
-                    mesobake::mesostructure::trimesh::sub(b, a),
-                    mesobake::mesostructure::trimesh::sub(c, a),
+                let n = mesobake_bake::mesostructure::trimesh::cross(
+                    mesobake_bake::mesostructure::trimesh::sub(b, a),
+                    mesobake_bake::mesostructure::trimesh::sub(c, a),
                 );
                 n[2] / 2.0 * (a[2] + b[2] + c[2]) / 3.0
             })

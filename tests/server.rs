@@ -6,9 +6,9 @@
 mod server;
 
 use mesobake::grid::Dims;
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume_format;
 use mesobake::server::db::{PackageRow, now_ms};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
 use server::{TestServer, database_urls};
 

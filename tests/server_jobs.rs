@@ -5,10 +5,10 @@
 mod server;
 
 use mesobake::grid::Dims;
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume_format;
 use mesobake::package::Package;
 use mesobake::server::spawn_workers;
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
 use object_store::ObjectStoreExt;
 use serde_json::{Value, json};
@@ -1111,8 +1111,8 @@ async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
         }
 
         // An uploaded volume with an opacity channel is found translucent from its header.
-        let medium = mesobake::mesostructure::media::volume(
-            mesobake::mesostructure::media::MediumKind::Clouds,
+        let medium = mesobake_bake::mesostructure::media::volume(
+            mesobake_bake::mesostructure::media::MediumKind::Clouds,
             Dims::new(16, 16, 8).unwrap(),
             &Limits::default(),
         )

@@ -8,10 +8,10 @@
 mod server;
 
 use mesobake::grid::Dims;
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume_format;
 use mesobake::server::config::ServerConfig;
 use mesobake::server::db::{PackageRow, now_ms};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};

@@ -1,6 +1,6 @@
 //! Truncated SVD against nalgebra's full SVD (f64) on small matrices, and its hard cases.
 
-use mesobake::compress::svd::{DenseRows, RankChoice, Truncated, truncated_svd};
+use mesobake_bake::compress::svd::{DenseRows, RankChoice, Truncated, truncated_svd};
 use mesobake_core::limits::Limits;
 use nalgebra::DMatrix;
 
@@ -214,11 +214,11 @@ fn bad_matrices_are_refused() {
 /// (+∞) are refused.
 #[test]
 fn gdm_layout_rows_and_columns() {
-    use mesobake::bake::gdm::{EscapeConvention, exact, volume_caster::VolumeCaster};
-    use mesobake::compress::layout::GdmRows;
-    use mesobake::compress::svd::RowSource;
     use mesobake::grid::{Dims, DirectionGrid};
-    use mesobake::mesostructure::volume::Volume;
+    use mesobake_bake::compress::layout::GdmRows;
+    use mesobake_bake::compress::svd::RowSource;
+    use mesobake_bake::gdm::{EscapeConvention, exact, volume_caster::VolumeCaster};
+    use mesobake_bake::mesostructure::volume::Volume;
     let d = Dims::new(5, 3, 4).unwrap();
     let limits = Limits::default();
     let v = Volume::from_fn(d, &limits, |i, j, k| (i + 2 * j + k) % 4 == 0).unwrap();
@@ -257,7 +257,7 @@ impl mesobake_core::observer::BakeObserver for CancelAfter {
 
 #[test]
 fn the_gram_accumulation_stops_when_cancelled() {
-    use mesobake::compress::svd::GramEigen;
+    use mesobake_bake::compress::svd::GramEigen;
     // 8192 rows make 4 row blocks of 2048.
     let data = test_matrix(8192, 12, 0.5, 1e-3, 7);
     let a = DenseRows::new(&data, 12).unwrap();

@@ -2,16 +2,16 @@
 //! against a plain brute-force march, and the paper's resampled bake against the exact one.
 
 use glam::DVec3;
-use mesobake::bake::gdm::caster::{Caster, Trace};
-use mesobake::bake::gdm::height_field_caster::HeightFieldCaster;
-use mesobake::bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, bend::Bend, exact};
-use mesobake::compress::quantize::Quantization;
-use mesobake::compress::vdm::{VdmMatrix, compress};
 use mesobake::grid::Dims;
-use mesobake::mesostructure::height_field::HeightField;
-use mesobake::mesostructure::reliefs::{self, ReliefKind};
-use mesobake::mesostructure::samples::{self, SampleKind};
 use mesobake::package::vdm::VdmPackage;
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::vdm::{VdmMatrix, compress};
+use mesobake_bake::gdm::caster::{Caster, Trace};
+use mesobake_bake::gdm::height_field_caster::HeightFieldCaster;
+use mesobake_bake::mesostructure::height_field::HeightField;
+use mesobake_bake::mesostructure::reliefs::{self, ReliefKind};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, bend::Bend, exact};
 use mesobake_core::limits::Limits;
 
 mod common;

@@ -5,7 +5,6 @@
 mod common;
 
 use common::{each_fails_with, gpu, succeeds};
-use mesobake::bake::vdm::bend::Bend;
 use mesobake::realtime::vdm_pipeline::VdmPreview;
 use mesobake::render::image::{Comparison, Image, compare};
 use mesobake::render::render_image;
@@ -13,6 +12,7 @@ use mesobake::render::vdm_renderer::{VdmRenderer, exit_arc};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::Scene;
 use mesobake::scene::render::{MapSource, RenderMethod, render, render_substituted};
+use mesobake_bake::vdm::bend::Bend;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
 

@@ -1,21 +1,23 @@
 //! `mesobake bench gdm`: the GDM bake workloads W1–W3 of the benchmark plan, timed in one run
 //! with their baselines, error against the exact bake and peak memory.
 
-use crate::bake::gdm::caster::Caster;
-use crate::bake::gdm::compare::{GdmError, compare};
-use crate::bake::gdm::fast::FastParams;
-use crate::bake::gdm::mesh_caster::MeshCaster;
-use crate::bake::gdm::volume_caster::VolumeCaster;
-use crate::bake::gdm::{EscapeConvention, Gdm, exact, fast};
-use crate::compress::accuracy::Accuracy;
-use crate::compress::layout::GdmRows;
-use crate::compress::quantize::Quantization;
-use crate::compress::svd::{DenseRows, GramEigen, RankChoice, RowSource, Truncated, truncated_svd};
 use crate::grid::{Dims, DirectionGrid};
-use crate::mesostructure::mesh_tile::MeshTile;
-use crate::mesostructure::samples::{self, SampleKind};
 use crate::package::manifest::InputInfo;
 use crate::package::{GdmPayload, Package};
+use mesobake_bake::compress::accuracy::Accuracy;
+use mesobake_bake::compress::layout::GdmRows;
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::svd::{
+    DenseRows, GramEigen, RankChoice, RowSource, Truncated, truncated_svd,
+};
+use mesobake_bake::gdm::caster::Caster;
+use mesobake_bake::gdm::compare::{GdmError, compare};
+use mesobake_bake::gdm::fast::FastParams;
+use mesobake_bake::gdm::mesh_caster::MeshCaster;
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::gdm::{EscapeConvention, Gdm, exact, fast};
+use mesobake_bake::mesostructure::mesh_tile::MeshTile;
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use std::time::Instant;
@@ -273,7 +275,7 @@ fn svd_rmse(a: &dyn RowSource, t: &Truncated) -> f64 {
 }
 
 /// The W1 GDM (chain 64×64×32, 16×32 directions, exact) with boundary escapes.
-fn w1_gdm(limits: &Limits) -> Result<crate::bake::gdm::Gdm> {
+fn w1_gdm(limits: &Limits) -> Result<mesobake_bake::gdm::Gdm> {
     let volume = samples::volume(SampleKind::Chain, Dims::new(64, 64, 32)?, limits)?;
     let caster = VolumeCaster::new(&volume);
     let mut gdm = exact::bake(&caster, DirectionGrid::PAPER, limits, &())?;
@@ -375,8 +377,8 @@ pub fn run_package(limits: &Limits) -> Result<Vec<PackageRow>> {
     };
     let row = |setting: String, svd: Truncated, q: Quantization| -> Result<PackageRow> {
         let choice = RankChoice::Rank(svd.rank);
-        let c = crate::compress::gdm::quantize(&gdm, svd, choice, q)?;
-        let method = crate::bake::gdm::Method::Exact;
+        let c = mesobake_bake::compress::gdm::quantize(&gdm, svd, choice, q)?;
+        let method = mesobake_bake::gdm::Method::Exact;
         let info = crate::package::bake::bake_info(&gdm, method, Default::default(), false);
         Ok(PackageRow {
             setting,

@@ -3,12 +3,12 @@
 //! same file (both measured with wrk on loopback; both programs must be installed).
 
 use crate::grid::Dims;
-use crate::mesostructure::samples::{self, SampleKind};
-use crate::mesostructure::volume::Volume;
-use crate::mesostructure::volume_format;
 use crate::server::config::ServerConfig;
 use crate::server::jobs::JobSpec;
 use crate::server::{AppState, open_state, serve_on, spawn_workers};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume::Volume;
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use serde_json::{Value, json};

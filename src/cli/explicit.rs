@@ -3,8 +3,8 @@
 
 use super::output::{Progress, print_json};
 use mesobake::scene::explicit::explicit_input;
-use mesobake::surface::explicit::ExplicitInput;
 use mesobake::{Error, Result};
+use mesobake_bake::surface::explicit::ExplicitInput;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
 use std::path::PathBuf;

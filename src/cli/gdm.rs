@@ -3,11 +3,11 @@
 
 use super::output::{Progress, print_json};
 use clap::ValueEnum;
-use mesobake::bake::gdm::input;
-use mesobake::bake::gdm::npy;
-use mesobake::bake::gdm::{self, Method};
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::{Error, Result};
+use mesobake_bake::gdm::input;
+use mesobake_bake::gdm::npy;
+use mesobake_bake::gdm::{self, Method};
 use mesobake_core::limits::Limits;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

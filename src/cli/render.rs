@@ -3,7 +3,6 @@
 
 use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
-use mesobake::compress::quantize::Quantization;
 use mesobake::package::AnyPackage;
 use mesobake::package::manifest::GdmCodec;
 use mesobake::render::gdm_renderer::Substitutions;
@@ -12,6 +11,7 @@ use mesobake::scene::package::{check_any_package_input, gdm_scene_package, scene
 use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
 use mesobake::scene::technique::Technique;
 use mesobake::{Error, Result};
+use mesobake_bake::compress::quantize::Quantization;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Quality;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;

@@ -4,14 +4,14 @@
 use super::output::Progress;
 use super::vdm::parse_pair;
 use clap::Subcommand;
-use mesobake::bake::vdm::VdmMethod;
-use mesobake::compress::quantize::Quantization;
 use mesobake::grid::{Dims, DirectionGrid};
 use mesobake::realtime::gpu::Gpu;
 use mesobake::report::{accuracy, codecs, conformance, gi, quality, render, transparency, vdm};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::render::load_scene;
 use mesobake::{Error, Result};
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::vdm::VdmMethod;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;

@@ -4,14 +4,14 @@
 
 use super::output::Progress;
 use clap::ValueEnum;
-use mesobake::bake::gdm;
-use mesobake::bake::gdm::npy;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::mesostructure::raw_medium::{self, RawFormat};
-use mesobake::mesostructure::samples::{self, SampleKind};
-use mesobake::mesostructure::volume_format;
 use mesobake::render::flat_preview;
 use mesobake::{Error, Result};
+use mesobake_bake::gdm;
+use mesobake_bake::gdm::npy;
+use mesobake_bake::mesostructure::raw_medium::{self, RawFormat};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
 use std::path::PathBuf;

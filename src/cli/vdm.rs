@@ -3,13 +3,13 @@
 //! relief as a 16-bit PNG.
 
 use super::output::{Progress, print_json};
-use mesobake::bake::vdm::{self, NO_HIT, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
-use mesobake::compress::quantize::Quantization;
-use mesobake::compress::vdm::compress;
-use mesobake::mesostructure::height_field::HeightField;
-use mesobake::mesostructure::reliefs::{self, ReliefKind};
 use mesobake::package;
 use mesobake::{Error, Result};
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::vdm::compress;
+use mesobake_bake::mesostructure::height_field::HeightField;
+use mesobake_bake::mesostructure::reliefs::{self, ReliefKind};
+use mesobake_bake::vdm::{self, NO_HIT, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
 use mesobake_core::fs::{read_bounded, write_atomic};
 use mesobake_core::limits::Limits;
 use mesobake_core::npy;

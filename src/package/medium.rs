@@ -2,8 +2,8 @@
 //! renderers read them, in the format of the crate's [`mesobake_package::medium`] (see
 //! `docs/package-format.md`).
 
-use crate::mesostructure::medium::Medium;
 use crate::scene::transparency::TransparencySettings;
+use mesobake_bake::mesostructure::medium::Medium;
 use mesobake_core::error::{Error, Result};
 use mesobake_package::manifest::InputInfo;
 pub use mesobake_package::medium::MediumPackage;

@@ -13,14 +13,14 @@ pub mod vdm;
 
 pub use mesobake_package::{OCCUPANCY_SECTION, container, ktx2, manifest};
 
-use crate::bake::gdm::volume_caster::VolumeCaster;
-use crate::bake::gdm::{EscapeConvention, Gdm, exact};
-use crate::compress::accuracy::resolve_escapes;
-use crate::compress::gdm::CompressedGdm;
-use crate::compress::occupancy::OccupancyField;
 use crate::grid::Dims;
-use crate::mesostructure::volume::Occupancy;
 use manifest::{BakeInfo, GdmCodec, InputInfo};
+use mesobake_bake::compress::accuracy::resolve_escapes;
+use mesobake_bake::compress::gdm::CompressedGdm;
+use mesobake_bake::compress::occupancy::OccupancyField;
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::gdm::{EscapeConvention, Gdm, exact};
+use mesobake_bake::mesostructure::volume::Occupancy;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::fs::read_bounded;
 use mesobake_core::limits::Limits;

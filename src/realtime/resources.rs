@@ -7,12 +7,12 @@
 //! has its own, narrower texture. Each section is copied byte for byte into its slab.
 
 use super::gpu::Gpu;
-use crate::mesostructure::material::MaterialVolume;
 use crate::package::Package;
 use crate::package::manifest::TexelFormat;
 use crate::render::gdm_renderer::PreparedPrism;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
+use mesobake_bake::mesostructure::material::MaterialVolume;
 use mesobake_core::error::{Error, Result};
 use serde::Serialize;
 use wgpu::util::DeviceExt;

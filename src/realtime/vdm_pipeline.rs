@@ -11,13 +11,13 @@ use super::pipeline::{
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::COMMON;
-use crate::bake::vdm::Relief;
 use crate::render::image::Image;
 use crate::render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 use crate::scene::LoadedScene;
-use crate::surface::curvature::VertexCurvature;
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
+use mesobake_bake::surface::curvature::VertexCurvature;
+use mesobake_bake::vdm::Relief;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::Result;
 use mesobake_core::observer::BakeObserver;

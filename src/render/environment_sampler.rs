@@ -6,8 +6,8 @@
 //! bright sun disc, which cosine-sampled paths find only by chance, is then found by most
 //! light samples.
 
-use crate::bake::gi::environment::Environment;
 use glam::DVec3;
+use mesobake_bake::gi::environment::Environment;
 use std::f64::consts::PI;
 
 /// A direction drawn from the map's distribution.

@@ -12,12 +12,12 @@
 
 use super::lighting::shade;
 use super::truth::EXACT_SHADOW_OFFSET;
-use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
-use crate::mesostructure::trimesh::TriMesh;
 use crate::scene::{LoadedScene, Scene};
-use crate::surface::explicit::{ExplicitParams, TriangleSource, export};
-use crate::surface::shell::{Prism, Shell};
 use glam::DVec3;
+use mesobake_bake::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
+use mesobake_bake::mesostructure::trimesh::TriMesh;
+use mesobake_bake::surface::explicit::{ExplicitParams, TriangleSource, export};
+use mesobake_bake::surface::shell::{Prism, Shell};
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;

@@ -7,10 +7,10 @@
 //! the GDM towards the light (a grid direction) reports a hit; an escape shows the base surface.
 //! The full renderer on curved base meshes comes with the scene format.
 
-use crate::bake::gdm::Gdm;
-use crate::bake::gdm::interpolate::sample_layer;
 use crate::grid::Wrap;
-use crate::mesostructure::volume::Volume;
+use mesobake_bake::gdm::Gdm;
+use mesobake_bake::gdm::interpolate::sample_layer;
+use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_core::error::{Error, Result};
 
 /// What to render.

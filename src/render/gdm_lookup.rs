@@ -18,17 +18,17 @@
 //!   shadow queries from its escape bits, both as a raw GDM.
 
 use super::gdm_renderer::{REFINEMENT_BACKOFF, advance_to_samples};
-use crate::bake::gdm::caster::{Caster, Trace};
-use crate::bake::gdm::volume_caster::VolumeCaster;
-use crate::bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
-use crate::compress::accuracy::is_escape;
-use crate::compress::occupancy::OccupancyField;
-use crate::compress::quantize::QuantizedFactor;
-use crate::compress::split::SplitGdm;
 use crate::grid::{Dims, DirectionGrid, Wrap};
-use crate::mesostructure::volume::Occupancy;
 use crate::package::Package;
 use glam::DVec3;
+use mesobake_bake::compress::accuracy::is_escape;
+use mesobake_bake::compress::occupancy::OccupancyField;
+use mesobake_bake::compress::quantize::QuantizedFactor;
+use mesobake_bake::compress::split::SplitGdm;
+use mesobake_bake::gdm::caster::{Caster, Trace};
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::gdm::{ESCAPE_TOLERANCE, EscapeConvention, Gdm};
+use mesobake_bake::mesostructure::volume::Occupancy;
 use mesobake_core::error::{Error, Result};
 use std::f64::consts::{PI, TAU};
 

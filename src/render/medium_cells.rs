@@ -1,6 +1,6 @@
 //! The real-time algorithm for translucent media (semi-transparent 3D textures), its CPU
 //! specification: the shell as cells, three tetrahedra per prism
-//! ([`crate::surface::shell::Prism::tetrahedra`]), each mapped to texture space by one affine
+//! ([`mesobake_bake::surface::shell::Prism::tetrahedra`]), each mapped to texture space by one affine
 //! map; per ray, the cells it crosses in order, each integrated on its own and composited
 //! front to back.
 //!
@@ -38,11 +38,11 @@ use super::explicit::intersect;
 use super::lighting::shade_transmitted;
 use super::medium_shadow_map::{OPAQUE_EXTINCTION, ShadowMap, build_maps};
 use super::medium_truth::{DEFAULT_LIGHT_STEP, Gathered, SHADOW_START, integrate_voxel};
-use crate::mesostructure::medium::Medium;
 use crate::scene::Scene;
 use crate::scene::transparency::{CellIntegration, TransparencySettings};
-use crate::surface::shell::{PrismPoint, Shell};
 use glam::{DAffine3, DMat3, DVec3};
+use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::surface::shell::{PrismPoint, Shell};
 use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
 use rayon::prelude::*;

@@ -1,4 +1,4 @@
-//! The ground truth for translucent media ([`crate::mesostructure::medium`]): camera rays
+//! The ground truth for translucent media ([`mesobake_bake::mesostructure::medium`]): camera rays
 //! walk the whole shell with the exact mapping ([`super::shell_walk`]); along each chord the
 //! medium's voxels are visited exactly, and the emission–absorption integral is composited
 //! front to back in closed form per piece of constant medium:
@@ -22,10 +22,10 @@
 
 use super::lighting::shade_transmitted;
 use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
-use crate::mesostructure::medium::Medium;
 use crate::scene::Scene;
-use crate::surface::shell::Shell;
 use glam::{DMat3, DVec3};
+use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::surface::shell::Shell;
 use mesobake_core::effect::Effect;
 use std::ops::ControlFlow;
 

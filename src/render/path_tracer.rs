@@ -5,7 +5,7 @@
 //! (the full-resolution map, not its SH projection).
 //!
 //! At each hit the reflected light is estimated with `samples` paths of at most `depth`
-//! bounces. Every surface reflects as the RTV models it ([`crate::bake::gi::rtv`]): Lambert with the
+//! bounces. Every surface reflects as the RTV models it ([`mesobake_bake::gi::rtv`]): Lambert with the
 //! material volume's albedo ρ, plus, when the scene calls for `environment_gloss`, the
 //! normalized Phong lobe k_s·(s+1)/(2π)·cos^s α about the mirror direction (s = shininess/4,
 //! no cosine at the light, nothing from below the surface). Each bounce picks one lobe, the
@@ -20,10 +20,10 @@
 
 use super::environment_sampler::EnvironmentSampler;
 use super::truth::{Surface, TruthRenderer};
-use crate::bake::gi::environment::Environment;
-use crate::bake::gi::prt::Occluder;
 use crate::scene::{LoadedScene, Scene};
 use glam::DVec3;
+use mesobake_bake::gi::environment::Environment;
+use mesobake_bake::gi::prt::Occluder;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use std::f64::consts::{PI, TAU};

@@ -131,8 +131,8 @@ mod tests {
     use super::*;
     use crate::grid::Dims;
     use crate::render::gdm_renderer::prepare_prisms;
-    use crate::surface::base_mesh::BuiltinMesh;
-    use crate::surface::shell::{PrismPoint, Shell, ShellParams};
+    use mesobake_bake::surface::base_mesh::BuiltinMesh;
+    use mesobake_bake::surface::shell::{PrismPoint, Shell, ShellParams};
 
     /// A coarse torus with a thick shell (strong curvature across each prism), the shell's
     /// prisms and the same prisms prepared on a 64×64×32 grid.

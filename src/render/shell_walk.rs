@@ -11,8 +11,8 @@
 
 use super::accel::BoxBvh;
 use crate::grid::Dims;
-use crate::surface::shell::{Prism, PrismPoint, Shell, cubic_roots};
 use glam::DVec3;
+use mesobake_bake::surface::shell::{Prism, PrismPoint, Shell, cubic_roots};
 use std::ops::ControlFlow;
 
 /// Largest distance, in voxels, between a chord's midpoint and the texture-space curve it

@@ -23,11 +23,11 @@
 
 use super::lighting::{SHADOW_OFFSET, shade};
 use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
-use crate::bake::gdm::caster::{Caster, Trace};
-use crate::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
 use crate::scene::Scene;
-use crate::surface::shell::{PrismPoint, Shell};
 use glam::{DMat3, DVec3};
+use mesobake_bake::gdm::caster::{Caster, Trace};
+use mesobake_bake::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
+use mesobake_bake::surface::shell::{PrismPoint, Shell};
 use mesobake_core::effect::Effect;
 use std::ops::ControlFlow;
 

@@ -18,9 +18,9 @@
 //! 4N/[`REFINE_STEP`] + [`REFINE_BISECTIONS`] height samples). The WGSL (`vdm_preview.wgsl`,
 //! `refine_hit`, `refine_miss`) runs the same steps.
 
-use crate::bake::vdm::Relief;
-use crate::bake::vdm::bend::Bend;
 use glam::DVec2;
+use mesobake_bake::vdm::Relief;
+use mesobake_bake::vdm::bend::Bend;
 
 /// The search's step along the view ray, in texels (before bisection).
 pub const REFINE_STEP: f64 = 0.5;
@@ -175,7 +175,7 @@ pub fn ray_length_to_arc(sigma: f64, theta: f64, c: f64) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesostructure::height_field::HeightField;
+    use mesobake_bake::mesostructure::height_field::HeightField;
 
     /// A hemisphere-like dome on a floor: the refinement against a plain fine march of the
     /// same bent ray (1/200 texel steps), which needs no lookup at all.

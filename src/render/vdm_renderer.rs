@@ -4,7 +4,7 @@
 //! The reference surface is the top of the shell: one triangle per base triangle, rendered
 //! like a plain mesh. Each top triangle's frame M (object → texture: its edges to its UV
 //! edges in tile units, the prism's mean extrusion to z, the shell's height from 0 at the
-//! base to 1 at the top; [`crate::surface::shell::Prism::top_frame`]) followed by S = diag(1, 1, depth) maps object
+//! base to 1 at the top; [`mesobake_bake::surface::shell::Prism::top_frame`]) followed by S = diag(1, 1, depth) maps object
 //! space to the VDM's space, where the relief is `depth` tiles deep and the VDM was baked;
 //! A = S·M. (The prism's mean frame maps the base triangle's edges instead, shorter than the
 //! top's by 1 − k·thickness on a surface of curvature k: on torus-bumps that frame cost
@@ -52,11 +52,11 @@ use super::gdm_renderer::intersect;
 use super::lighting::shade;
 use super::truth::TruthRenderer;
 use super::vdm_refine::BentRay;
-use crate::bake::vdm::Relief;
 use crate::scene::Scene;
-use crate::surface::curvature::{VertexCurvature, vertex_curvatures};
-use crate::surface::shell::{FaceTriangle, Shell};
 use glam::{DMat3, DVec2, DVec3};
+use mesobake_bake::surface::curvature::{VertexCurvature, vertex_curvatures};
+use mesobake_bake::surface::shell::{FaceTriangle, Shell};
+use mesobake_bake::vdm::Relief;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::quality::ShadowMethod;

@@ -11,11 +11,6 @@
 //! primary query's distances capped at the scene's longest prism segment and compressed by
 //! SVD, the shadow query's escape bits at a reduced direction resolution).
 
-use crate::bake::gdm::{EscapeConvention, Gdm};
-use crate::compress::quantize::Quantization;
-use crate::compress::split::{CAP_MARGIN, SplitGdm, compress_split};
-use crate::compress::svd::RankChoice;
-use crate::compress::tiled::compress_tiled;
 use crate::grid::DirectionGrid;
 use crate::package::bake::check_codec_options;
 use crate::package::manifest::GdmCodec;
@@ -30,6 +25,11 @@ use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::split::{CAP_MARGIN, SplitGdm, compress_split};
+use mesobake_bake::compress::svd::RankChoice;
+use mesobake_bake::compress::tiled::compress_tiled;
+use mesobake_bake::gdm::{EscapeConvention, Gdm};
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
@@ -308,7 +308,7 @@ pub fn codec_report(
         let bases = std::iter::once(dims.x).chain(sweep.tiles.iter().copied());
         for &grid in &sweep.visibility {
             let shadow =
-                crate::bake::gdm::exact::bake(loaded.mesostructure.caster(), grid, limits, &())?;
+                mesobake_bake::gdm::exact::bake(loaded.mesostructure.caster(), grid, limits, &())?;
             for tile in bases.clone() {
                 let basis = if tile == dims.x {
                     "global basis".to_string()

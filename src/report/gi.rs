@@ -15,12 +15,6 @@
 //!   scene's own GI settings, each against the path tracer at the largest count (PSNR of the
 //!   sRGB images, as in `report render`), on the scene's camera reduced by `image_scale`.
 
-use crate::bake::gdm;
-use crate::bake::gi::compressed_rtv::CompressedRtv;
-use crate::bake::gi::environment::RgbSh;
-use crate::bake::gi::prt::{self, Visibility};
-use crate::bake::gi::rtv::{self, Rtv, RtvParams};
-use crate::bake::gi::sh;
 use crate::grid::DirectionGrid;
 use crate::render::gdm_lookup::RawLookup;
 use crate::render::gdm_renderer::GdmRenderer;
@@ -31,6 +25,12 @@ use crate::report::accuracy::table;
 use crate::scene::LoadedScene;
 use crate::scene::gi::{GiShading, rtv_params};
 use glam::{DMat3, DVec3};
+use mesobake_bake::gdm;
+use mesobake_bake::gi::compressed_rtv::CompressedRtv;
+use mesobake_bake::gi::environment::RgbSh;
+use mesobake_bake::gi::prt::{self, Visibility};
+use mesobake_bake::gi::rtv::{self, Rtv, RtvParams};
+use mesobake_bake::gi::sh;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;

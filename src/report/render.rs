@@ -6,11 +6,6 @@
 //! error budget then substitutes the algorithm's own approximations ([`Substitutions`]) one
 //! at a time and all together, to show what each one costs.
 
-use crate::bake::gdm::{self, EscapeConvention};
-use crate::compress::gdm::quantize;
-use crate::compress::layout::GdmRows;
-use crate::compress::quantize::Quantization;
-use crate::compress::svd::{GramEigen, RankChoice};
 use crate::grid::DirectionGrid;
 use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
 use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
@@ -19,6 +14,11 @@ use crate::render::render_image;
 use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
 use crate::scene::LoadedScene;
+use mesobake_bake::compress::gdm::quantize;
+use mesobake_bake::compress::layout::GdmRows;
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::svd::{GramEigen, RankChoice};
+use mesobake_bake::gdm::{self, EscapeConvention};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;

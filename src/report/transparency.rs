@@ -11,8 +11,6 @@
 //! sorted lists) on the CPU, and for each per-view sort the time to sort the cells once for
 //! the view and the pixels it misorders, are measured on their own.
 
-use crate::compress::quantize::Quantization;
-use crate::mesostructure::medium::Medium;
 use crate::package::manifest::InputInfo;
 use crate::package::medium::{self as medium_package, MediumPackage};
 use crate::realtime::gpu::Gpu;
@@ -27,6 +25,8 @@ use crate::report::plot::labelled_scatter;
 use crate::scene::LoadedScene;
 use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod, TransparencySettings};
 use glam::DVec3;
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::mesostructure::medium::Medium;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;

@@ -8,10 +8,6 @@
 //! package. With both bake methods in the sweep, the paper's bake is also measured against
 //! the exact one on the scene's grid.
 
-use crate::bake::vdm::compare::{VdmError, compare as compare_vdm};
-use crate::bake::vdm::{self, Vdm, VdmMethod};
-use crate::compress::quantize::Quantization;
-use crate::compress::vdm::compress;
 use crate::package::vdm as vdm_package;
 use crate::realtime::gpu::Gpu;
 use crate::realtime::vdm_pipeline::VdmPreview;
@@ -29,6 +25,10 @@ use crate::scene::package::{ScenePackageParams, gdm_scene_package, input_identit
 use crate::scene::preview::gdm_preview;
 use crate::scene::technique::Technique;
 use crate::scene::vdm::{VdmSettings, relief_depth};
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::vdm::compress;
+use mesobake_bake::vdm::compare::{VdmError, compare as compare_vdm};
+use mesobake_bake::vdm::{self, Vdm, VdmMethod};
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;

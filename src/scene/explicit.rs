@@ -1,9 +1,9 @@
 //! A scene's inputs for the explicit geometry export (`mesobake explicit --scene`).
 
 use super::{MesostructureSource, Scene, load_base_mesh};
-use crate::mesostructure::samples;
-use crate::mesostructure::trimesh::TriMesh;
-use crate::surface::explicit::ExplicitInput;
+use mesobake_bake::mesostructure::samples;
+use mesobake_bake::mesostructure::trimesh::TriMesh;
+use mesobake_bake::surface::explicit::ExplicitInput;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use std::path::Path;

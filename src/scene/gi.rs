@@ -8,15 +8,15 @@
 //! axes, which are orthonormal only where the mapping is conformal and voxels are cubic in
 //! object space; directions in the RTV are texture-space directions.
 
-use crate::bake::gdm::Gdm;
-use crate::bake::gi::compressed_rtv::CompressedRtv;
-use crate::bake::gi::environment::RgbSh;
-use crate::bake::gi::prt::{self, Visibility};
-use crate::bake::gi::rtv::{self, Glossy, Rtv, RtvParams, RtvStats};
-use crate::bake::gi::sh::{self, COEFFS, ShMatrix};
 use crate::package::Package;
 use crate::scene::{LoadedScene, Scene};
 use glam::{DVec2, DVec3};
+use mesobake_bake::gdm::Gdm;
+use mesobake_bake::gi::compressed_rtv::CompressedRtv;
+use mesobake_bake::gi::environment::RgbSh;
+use mesobake_bake::gi::prt::{self, Visibility};
+use mesobake_bake::gi::rtv::{self, Glossy, Rtv, RtvParams, RtvStats};
+use mesobake_bake::gi::sh::{self, COEFFS, ShMatrix};
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;

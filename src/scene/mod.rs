@@ -14,27 +14,27 @@ pub mod technique;
 pub mod transparency;
 pub mod vdm;
 
-use crate::bake::gdm::Gdm;
-use crate::bake::gdm::caster::Caster;
-use crate::bake::gdm::height_field_caster::HeightFieldCaster;
-use crate::bake::gdm::input::Mesostructure;
-use crate::bake::gdm::mesh_caster::MeshCaster;
-use crate::bake::gdm::volume_caster::VolumeCaster;
-use crate::bake::gi::environment::{Environment, Sky};
 use crate::grid::{Dims, DirectionGrid};
-use crate::mesostructure::height_field::HeightField;
-use crate::mesostructure::material::MaterialVolume;
-use crate::mesostructure::media::{self, MediumKind};
-use crate::mesostructure::medium::{self, Medium};
-use crate::mesostructure::mesh_tile::MeshTile;
-use crate::mesostructure::reliefs::{self, ReliefKind};
-use crate::mesostructure::samples::{self, SampleKind};
-use crate::mesostructure::trimesh::TriMesh;
-use crate::mesostructure::volume::Volume;
-use crate::mesostructure::volume_format;
-use crate::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
-use crate::surface::shell::{Shell, ShellParams};
 use glam::DVec3;
+use mesobake_bake::gdm::Gdm;
+use mesobake_bake::gdm::caster::Caster;
+use mesobake_bake::gdm::height_field_caster::HeightFieldCaster;
+use mesobake_bake::gdm::input::Mesostructure;
+use mesobake_bake::gdm::mesh_caster::MeshCaster;
+use mesobake_bake::gdm::volume_caster::VolumeCaster;
+use mesobake_bake::gi::environment::{Environment, Sky};
+use mesobake_bake::mesostructure::height_field::HeightField;
+use mesobake_bake::mesostructure::material::MaterialVolume;
+use mesobake_bake::mesostructure::media::{self, MediumKind};
+use mesobake_bake::mesostructure::medium::{self, Medium};
+use mesobake_bake::mesostructure::mesh_tile::MeshTile;
+use mesobake_bake::mesostructure::reliefs::{self, ReliefKind};
+use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::mesostructure::trimesh::TriMesh;
+use mesobake_bake::mesostructure::volume::Volume;
+use mesobake_bake::mesostructure::volume_format;
+use mesobake_bake::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
+use mesobake_bake::surface::shell::{Shell, ShellParams};
 use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
@@ -125,7 +125,7 @@ pub enum EnvironmentSource {
 #[serde(deny_unknown_fields, default)]
 pub struct GiParams {
     /// Interreflection bounces in the RTV (0 = direct light only; at most
-    /// [`crate::bake::gi::rtv::MAX_BOUNCES`]).
+    /// [`mesobake_bake::gi::rtv::MAX_BOUNCES`]).
     pub bounces: u32,
     /// Visibility directions per base-mesh vertex in the shadowed PRT (16 to 2²⁰).
     pub prt_samples: usize,
@@ -136,7 +136,7 @@ pub struct GiParams {
     /// Most bounces of a path (1–64).
     pub path_depth: u32,
     /// SVD components per RTV matrix in a package (1 to
-    /// [`crate::bake::gi::compressed_rtv::MAX_RTV_RANK`]).
+    /// [`mesobake_bake::gi::compressed_rtv::MAX_RTV_RANK`]).
     pub rtv_rank: usize,
 }
 
@@ -203,13 +203,13 @@ pub enum MesostructureSource {
     Volume(PathBuf),
     /// A closed OBJ tile, sampled on the scene's resolution.
     Tile(PathBuf),
-    /// A grayscale PNG height field ([`crate::mesostructure::height_field`]), the volume under it on the
+    /// A grayscale PNG height field ([`mesobake_bake::mesostructure::height_field`]), the volume under it on the
     /// scene's resolution.
     HeightField(PathBuf),
-    /// A built-in relief ([`crate::mesostructure::reliefs`]) of X × X pixels (the scene's
+    /// A built-in relief ([`mesobake_bake::mesostructure::reliefs`]) of X × X pixels (the scene's
     /// resolution must have X = Y), the volume under it on the scene's resolution.
     Relief(ReliefKind),
-    /// A built-in translucent medium ([`crate::mesostructure::media`]) on the scene's
+    /// A built-in translucent medium ([`mesobake_bake::mesostructure::media`]) on the scene's
     /// resolution (X = Y).
     Medium(MediumKind),
 }
@@ -290,30 +290,30 @@ impl Scene {
                 Some(EnvironmentSource::Exr(_)) => {}
             }
             let g = &self.gi;
-            if g.bounces > crate::bake::gi::rtv::MAX_BOUNCES
+            if g.bounces > mesobake_bake::gi::rtv::MAX_BOUNCES
                 || !(16..=1 << 20).contains(&g.prt_samples)
                 || !(4..=8192).contains(&g.sky_width)
                 || !(1..=4096).contains(&g.path_samples)
                 || !(1..=64).contains(&g.path_depth)
-                || !(1..=crate::bake::gi::compressed_rtv::MAX_RTV_RANK).contains(&g.rtv_rank)
+                || !(1..=mesobake_bake::gi::compressed_rtv::MAX_RTV_RANK).contains(&g.rtv_rank)
             {
                 return Err(Error::Scene(format!(
                     "gi: bounces must be at most {}, prt_samples 16–{}, sky_width 4–8192, \
                      path_samples 1–4096, path_depth 1–64, rtv_rank 1–{}; got {g:?}",
-                    crate::bake::gi::rtv::MAX_BOUNCES,
+                    mesobake_bake::gi::rtv::MAX_BOUNCES,
                     1 << 20,
-                    crate::bake::gi::compressed_rtv::MAX_RTV_RANK,
+                    mesobake_bake::gi::compressed_rtv::MAX_RTV_RANK,
                 )));
             }
             let m = &self.material;
             if self.wants(Effect::EnvironmentGloss)
                 && !(m.specular.iter().all(|k| *k <= 1.0)
-                    && m.shininess <= 4.0 * crate::bake::gi::rtv::MAX_EXPONENT)
+                    && m.shininess <= 4.0 * mesobake_bake::gi::rtv::MAX_EXPONENT)
             {
                 return Err(Error::Scene(format!(
                     "environment_gloss needs a specular colour of at most 1 and a shininess of \
                      at most {}; got {:?} and {}",
-                    4.0 * crate::bake::gi::rtv::MAX_EXPONENT,
+                    4.0 * mesobake_bake::gi::rtv::MAX_EXPONENT,
                     m.specular,
                     m.shininess
                 )));
@@ -515,7 +515,7 @@ impl LoadedScene {
     /// Bakes the exact GDM of the scene's mesostructure on its grids.
     pub fn bake_gdm(&self, limits: &Limits, observer: &dyn BakeObserver) -> Result<Gdm> {
         self.check_opaque("a GDM bake")?;
-        crate::bake::gdm::exact::bake(
+        mesobake_bake::gdm::exact::bake(
             self.mesostructure.caster(),
             self.scene.dirs()?,
             limits,

@@ -9,14 +9,6 @@
 //! (glossy with `environment_gloss`) and its compression. The
 //! environment itself is not baked in: packages hold transfer, which any environment lights.
 
-use crate::bake::gdm::fast::FastParams;
-use crate::bake::gdm::{EscapeConvention, Method};
-use crate::bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
-use crate::bake::gi::prt::geometry_hash;
-use crate::bake::gi::rtv::{self, RtvStats};
-use crate::compress::quantize::Quantization;
-use crate::compress::svd::RankChoice;
-use crate::mesostructure::reliefs;
 use crate::package::bake::{PackageParams, StageSeconds, compress_gdm};
 use crate::package::gi::GiPayload;
 use crate::package::manifest::{BakeInfo, GdmCodec};
@@ -28,6 +20,14 @@ use crate::scene::gi::{prt_matrices, rtv_params};
 use crate::scene::plan::{Plan, plan};
 use crate::scene::technique::{self, Technique, TechniqueChoice};
 use crate::scene::{LoadedScene, MesostructureSource, Scene};
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::svd::RankChoice;
+use mesobake_bake::gdm::fast::FastParams;
+use mesobake_bake::gdm::{EscapeConvention, Method};
+use mesobake_bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
+use mesobake_bake::gi::prt::geometry_hash;
+use mesobake_bake::gi::rtv::{self, RtvStats};
+use mesobake_bake::mesostructure::reliefs;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;

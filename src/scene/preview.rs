@@ -3,8 +3,6 @@
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
 //! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's.
 
-use crate::bake::vdm::Relief;
-use crate::mesostructure::medium::Medium;
 use crate::package::medium as medium_package;
 use crate::package::vdm::{VdmPackage, height_field};
 use crate::package::{AnyPackage, Package};
@@ -24,6 +22,8 @@ use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::LoadedScene;
 use crate::scene::gi::GiShading;
 use crate::scene::technique::Technique;
+use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::vdm::Relief;
 use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};

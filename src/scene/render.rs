@@ -1,8 +1,6 @@
 //! Scene → image: loads what the scene names, bakes or reads the GDM when the method needs
 //! one, picks the renderer and times each stage (`mesobake render`).
 
-use crate::bake::vdm::Relief;
-use crate::mesostructure::medium::Medium;
 use crate::package::Package;
 use crate::package::medium::{self as medium_package, MediumPackage};
 use crate::package::vdm::VdmPackage;
@@ -19,6 +17,8 @@ use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::gi::{GiReport, GiShading};
 use crate::scene::{LoadedScene, Scene};
 use glam::DVec3;
+use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::vdm::Relief;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;

@@ -16,8 +16,8 @@
 //! curvature range (|c|·depth < 1 in tiles). Everywhere else it picks GDM.
 
 use super::{MesostructureSource, Scene};
-use crate::surface::base_mesh::MeshReport;
-use crate::surface::shell::Shell;
+use mesobake_bake::surface::base_mesh::MeshReport;
+use mesobake_bake::surface::shell::Shell;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::quality::Quality;
@@ -136,7 +136,7 @@ pub fn check(scene: &Scene, choice: &TechniqueChoice, surface: &Surface) -> Resu
             _ => "a GDM",
         };
         return Err(Error::Scene(
-            crate::mesostructure::medium::translucent_refusal(what),
+            mesobake_bake::mesostructure::medium::translucent_refusal(what),
         ));
     }
     match surface.vdm_misfit(scene) {

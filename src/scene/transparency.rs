@@ -1,8 +1,8 @@
 //! How a scene's translucent medium is rendered by the real-time algorithm of semi-transparent
 //! 3D textures ([`crate::render::medium_cells`]).
 
-use crate::compress::quantize::Quantization;
 use crate::render::cell_order::ViewSort;
+use mesobake_bake::compress::quantize::Quantization;
 use mesobake_core::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -97,7 +97,7 @@ pub struct TransparencySettings {
     /// Samples per cell for [`CellIntegration::Samples`] (1 to [`MAX_CELL_SAMPLES`]).
     pub samples: u32,
     /// Whether each crossing reads the level of the opacity-aware mip-map that its pixel's
-    /// footprint calls for ([`crate::mesostructure::medium::Medium::coarser`]).
+    /// footprint calls for ([`mesobake_bake::mesostructure::medium::Medium::coarser`]).
     pub mipmap: bool,
     /// Added to the level the footprint calls for (negative: sharper; at most
     /// [`MAX_MIP_BIAS`] either way).

@@ -2,11 +2,11 @@
 //! ([`VdmSettings`]), the depth of its relief in tiles, and the bake itself.
 
 use super::LoadedScene;
-use crate::bake::vdm::{self, MAX_OVERSAMPLING, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
-use crate::compress::quantize::Quantization;
-use crate::compress::vdm::{CompressedVdm, MAX_VDM_RANK, compress};
-use crate::mesostructure::height_field::HeightField;
-use crate::surface::shell::Shell;
+use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::compress::vdm::{CompressedVdm, MAX_VDM_RANK, compress};
+use mesobake_bake::mesostructure::height_field::HeightField;
+use mesobake_bake::surface::shell::Shell;
+use mesobake_bake::vdm::{self, MAX_OVERSAMPLING, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;

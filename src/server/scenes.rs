@@ -113,7 +113,7 @@ mod tests {
     use super::*;
     use crate::scene::technique::{Surface, choose};
     use crate::scene::{Scene, load_base_mesh};
-    use crate::surface::shell::Shell;
+    use mesobake_bake::surface::shell::Shell;
     use mesobake_core::limits::Limits;
 
     #[test]
