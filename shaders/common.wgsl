@@ -73,7 +73,7 @@ fn clamped_taps(coord: f32, n: u32) -> Taps {
     return Taps(i, min(i + 1u, n - 1u), c - f);
 }
 
-// A point or directional light as seen from p (`incident` in src/render/lighting.rs): the
+// A point or directional light as seen from p (`incident` in crates/mesobake-render/src/lighting.rs): the
 // unit direction towards it, its distance (3e38 for directional lights) and the irradiance
 // on a surface facing it; `valid` is false for a point light at p itself.
 struct Incident {

@@ -1,4 +1,4 @@
-// The GDM real-time pipeline: the per-pixel algorithm of `src/render/gdm_renderer.rs`, step
+// The GDM real-time pipeline: the per-pixel algorithm of `crates/mesobake-render/src/gdm_renderer.rs`, step
 // for step (that file's module documentation is the specification; the tests hold the two
 // to PSNR ≥ 35 dB). This file is completed by one query file for the package's GDM codec
 // (`query_svd.wgsl` or `query_occupancy.wgsl`: group 1, `segment_hit` and `escapes`), one
@@ -10,7 +10,7 @@
 // targets, `vs_fullscreen`/`fs_shade` shade it once (step 6).
 
 // Where the shadow query starts, in voxels from the hit along the texture normal (every
-// renderer's convention: SHADOW_OFFSET in src/render/lighting.rs).
+// renderer's convention: SHADOW_OFFSET in crates/mesobake-render/src/lighting.rs).
 const SHADOW_OFFSET: f32 = 1.0;
 // How far past a hit, in voxels along the ray, the albedo is read.
 const ALBEDO_DEPTH: f32 = 0.25;
@@ -54,7 +54,7 @@ struct Prism {
 // rgb: linear albedo per voxel (1×1×1 for a uniform albedo).
 @group(2) @binding(1) var albedo: texture_3d<f32>;
 
-// ---- Material and lighting (src/render/material.rs, src/render/lighting.rs) ------------
+// ---- Material and lighting (crates/mesobake-render/src/lighting.rs) ------------
 
 // Trilinear texture-space normal (unnormalized; zero where the gradient vanishes).
 fn normal_at(t: vec3<f32>) -> vec3<f32> {
@@ -126,7 +126,7 @@ fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, start: 
     return out;
 }
 
-// ---- The prism mapping (src/render/prism_map.rs) ---------------------------------------
+// ---- The prism mapping (crates/mesobake-render/src/prism_map.rs) ---------------------------------------
 
 // The inverse of m (columns a, b, c: rows b×c, c×a, a×b over the determinant); the zero
 // matrix where m is singular.

@@ -1,5 +1,5 @@
 // The translucent-media real-time pipeline (semi-transparent 3D textures): the algorithm of
-// `src/render/medium_cells.rs`, step for step (that file's module documentation is the
+// `crates/mesobake-render/src/medium_cells.rs`, step for step (that file's module documentation is the
 // specification; the tests hold the two to PSNR ≥ 35 dB). The shell is cut into
 // tetrahedral cells, each with its affine map to texture space; each cell a ray crosses is
 // integrated on its own (exactly, voxel by voxel, or with a fixed number of samples) and
@@ -15,7 +15,7 @@
 //
 // Shadows (when the scene asks for them): per light a shadow map built by `cs_shadow_map`
 // before each frame (one invocation per light-space texel, its ray's optical depth through
-// the cells in order; `src/render/medium_shadow_map.rs` is the specification), an opacity
+// the cells in order; `crates/mesobake-render/src/medium_shadow_map.rs` is the specification), an opacity
 // map (the depths where the light's transmittance passes `shadow_levels` fixed levels) or
 // the paper's depth map (where it falls to ½); or, by the `rays` method and for lights without a map, the
 // transmittance of a ray through the cells towards the light, found through the same BVH.

@@ -1,4 +1,4 @@
-// GDM queries of the `occupancy` codec (src/render/gdm_lookup.rs, OccupancyLookup, which runs
+// GDM queries of the `occupancy` codec (crates/mesobake-render/src/gdm_lookup.rs, OccupancyLookup, which runs
 // the traversal of src/bake/gdm/volume_caster.rs): the voxels ray-marched exactly along the
 // query, crossing empty space in boxes whose size the stored distances give.
 

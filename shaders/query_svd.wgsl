@@ -1,4 +1,4 @@
-// GDM queries of the `paper-svd` codec (src/render/gdm_lookup.rs, PackageLookup, and the
+// GDM queries of the `paper-svd` codec (crates/mesobake-render/src/gdm_lookup.rs, PackageLookup, and the
 // default `GdmLookup::segment_hit`): d̃ = Σᵢ W̃ᵢ(x, y, φ)·Ẽᵢ(θ, z), each factor interpolated
 // on its own, with the package's escape rule.
 

@@ -1,4 +1,4 @@
-// The VDM real-time pipeline: the per-pixel algorithm of `src/render/vdm_renderer.rs`, step
+// The VDM real-time pipeline: the per-pixel algorithm of `crates/mesobake-render/src/vdm_renderer.rs`, step
 // for step (that file's module documentation is the specification; the tests hold the two
 // to PSNR ≥ 35 dB). The shell's top triangles are rasterized with back faces culled; a
 // silhouette discards its fragment, so the depth test keeps the nearest fragment that is

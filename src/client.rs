@@ -3,9 +3,9 @@
 //! its bytes hash to the digest the server names and that it parses as a package.
 
 use crate::grid::{Dims, DirectionGrid};
-use crate::package::Package;
-use crate::package::manifest::GdmCodec;
 use mesobake_bake::compress::quantize::Quantization;
+use mesobake_bake::package::Package;
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::error::{Error, Result};
 use serde_json::{Value, json};
 use std::path::Path;

@@ -1,6 +1,6 @@
 //! The CI commands end to end: bake → package → unpack (.npy, EXR, KTX2), and report accuracy.
 
-use mesobake::package::Package;
+use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
 use std::path::Path;
 

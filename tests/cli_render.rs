@@ -436,7 +436,7 @@ fn the_conformance_report_measures_every_technique_and_preset_of_a_scene() {
         }
     }
     // The contact sheet: truth | real-time | difference, for the default row.
-    let sheet = mesobake::render::image::Image::read(&out.join("conformance.png")).unwrap();
+    let sheet = mesobake_render::image::Image::read(&out.join("conformance.png")).unwrap();
     assert_eq!((sheet.width, sheet.height), (3 * 32, 26));
 }
 

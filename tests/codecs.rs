@@ -8,14 +8,15 @@
 
 use glam::DVec3;
 use mesobake::grid::Dims;
-use mesobake::render::gdm_lookup::{GdmLookup, Lookup, RawLookup};
-use mesobake::render::gdm_renderer::{GdmRenderer, longest_segment, prepare_prisms};
-use mesobake::render::render_image;
 use mesobake::report::codecs::{CodecSweep, codec_report};
 use mesobake::scene::render::load_scene;
 use mesobake_bake::gdm::EscapeConvention;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_render::gdm_lookup::{GdmLookup, Lookup, RawLookup};
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::prepared_prism::{longest_segment, prepare_prisms};
+use mesobake_render::render_image;
 use std::path::Path;
 
 mod common;
@@ -227,7 +228,8 @@ fn no_fragment_segment_is_longer_than_the_distance_cap() {
         };
         let scene = &loaded.scene;
         let r = GdmRenderer::new(&loaded.shell, &recorder, &loaded.material, 0);
-        render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+        let shot = scene.shot();
+        render_image(&shot.camera, |o, d| r.radiance(&shot, o, d));
         let longest = *recorder.longest.lock().unwrap();
         eprintln!("{name}: longest segment {longest:.3} of cap {cap:.3}");
         assert!(longest <= cap + 1e-9, "{name}: {longest} > {cap}");

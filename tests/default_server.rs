@@ -11,10 +11,10 @@ mod server;
 
 use binary_server::BinaryServer;
 use mesobake::grid::Dims;
-use mesobake::package::Package;
-use mesobake::package::manifest::GdmCodec;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
+use mesobake_bake::package::Package;
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::limits::Limits;
 use serde_json::{Value, json};
 use std::process::Command;

@@ -7,17 +7,18 @@
 
 mod common;
 
-use mesobake::package::AnyPackage;
-use mesobake::package::manifest::GdmCodec;
 use mesobake::realtime::gpu::Gpu;
-use mesobake::render::image::{Image, compare};
 use mesobake::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
 use mesobake::scene::preview::{preview, render_on_cpu};
+use mesobake::scene::technique::Technique;
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
+use mesobake_bake::package::AnyPackage;
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Preset;
+use mesobake_render::image::{Image, compare};
 use std::path::{Path, PathBuf};
 
 /// The image's longer side in these tests.
@@ -94,7 +95,7 @@ fn every_scene_s_default_package_renders_alike_in_wgsl_and_on_the_cpu() {
         let package =
             scene_package(&loaded, dir, Default::default(), &Limits::default(), &()).unwrap();
         let name = path.file_stem().unwrap().to_string_lossy();
-        let label = format!("{name} ({})", package.technique().name());
+        let label = format!("{name} ({})", Technique::of_package(&package).name());
         failures.extend(disagreement(&gpu, &loaded, &package, &label));
     }
     assert_none(&failures);

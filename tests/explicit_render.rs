@@ -9,12 +9,12 @@
 //! convention (the material volume's smooth normals and a voxel's shadow offset) must not.
 
 use mesobake::grid::Dims;
-use mesobake::render::image::compare;
-use mesobake::render::render_image;
-use mesobake::render::truth::{TruthRenderer, TruthShading};
 use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render};
 use mesobake_bake::mesostructure::samples::{SampleKind, mesh};
 use mesobake_core::limits::Limits;
+use mesobake_render::image::compare;
+use mesobake_render::render_image;
+use mesobake_render::truth::{TruthRenderer, TruthShading};
 use std::path::Path;
 
 mod common;
@@ -62,7 +62,8 @@ fn the_truth_and_the_explicit_geometry_agree_on_a_mesh_tile_scene() {
         &loaded.material,
     )
     .with_shading(TruthShading::Material);
-    let old = render_image(&scene.camera, |o, d| material.radiance(scene, o, d));
+    let shot = scene.shot();
+    let old = render_image(&shot.camera, |o, d| material.radiance(&shot, o, d));
     let o = compare(&explicit.image, &old).unwrap();
     eprintln!("material-normal truth against explicit: {o:?}");
     assert!(o.psnr_db < c.psnr_db - 10.0, "{o:?} against {c:?}");

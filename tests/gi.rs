@@ -623,7 +623,7 @@ fn exact_irradiance(loaded: &mesobake::scene::LoadedScene) -> f64 {
 }
 
 /// The green values of `image`'s hit pixels.
-fn hit_greens(image: &mesobake::render::image::Image) -> Vec<f64> {
+fn hit_greens(image: &mesobake_render::image::Image) -> Vec<f64> {
     (image.rgb.iter().zip(&image.mask))
         .filter(|(_, h)| **h)
         .map(|(p, _)| f64::from(p[1]))

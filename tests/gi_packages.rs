@@ -6,10 +6,10 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::package::Package;
-use mesobake::scene::gi::GiShading;
+use mesobake::scene::gi;
 use mesobake::scene::package::{ScenePackageParams, bake_scene_package};
 use mesobake::scene::render::load_scene;
+use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
 use std::path::{Path, PathBuf};
 
@@ -186,7 +186,7 @@ fn gi_packages_are_deterministic_and_shade_like_the_bake() {
 
     // Shading from the package against shading from the exact bake, at texture points all
     // over the tile and views above the surface.
-    let exact = GiShading::bake(
+    let exact = gi::bake_shading(
         &loaded,
         &loaded.bake_gdm(&limits, &()).unwrap(),
         &limits,
@@ -194,7 +194,7 @@ fn gi_packages_are_deterministic_and_shade_like_the_bake() {
     )
     .unwrap()
     .0;
-    let packaged = GiShading::from_package(&loaded, &package).unwrap();
+    let packaged = gi::shading_from_package(&loaded, &package).unwrap();
     let (mut diff2, mut norm2, mut hits) = (0.0, 0.0, 0);
     for i in 0..32 {
         for j in 0..32 {
@@ -220,7 +220,7 @@ fn gi_packages_are_deterministic_and_shade_like_the_bake() {
 
     // The PRT belongs to its base mesh.
     let other = load_scene(&write_scene(dir.path(), GI, 9), &limits).unwrap();
-    let err = GiShading::from_package(&other, &package).err().unwrap();
+    let err = gi::shading_from_package(&other, &package).err().unwrap();
     assert!(err.to_string().contains("another base mesh"), "{err}");
     // A package without radiance transfer says how to make one.
     let plain = write_scene(dir.path(), &["silhouettes"], 8);
@@ -228,7 +228,7 @@ fn gi_packages_are_deterministic_and_shade_like_the_bake() {
     let bytes = bake_scene_package(&plain, dir.path(), params, &limits, &())
         .unwrap()
         .bytes;
-    let err = GiShading::from_package(&loaded, &Package::parse(bytes).unwrap())
+    let err = gi::shading_from_package(&loaded, &Package::parse(bytes).unwrap())
         .err()
         .unwrap();
     assert!(err.to_string().contains("--scene"), "{err}");

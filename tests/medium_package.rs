@@ -2,18 +2,18 @@
 //! medium (each quantization's error measured), an animated surface that re-bakes nothing,
 //! an opaque mesostructure as a medium against the opaque truth, and bad input.
 
-use mesobake::package::AnyPackage;
-use mesobake::package::medium as medium_package;
-use mesobake::render::image::{Comparison, compare};
-use mesobake::render::medium_truth::MediumTruth;
-use mesobake::render::render_image;
-use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::package::{
     ScenePackageParams, bake_scene_package, check_any_package_input, scene_package,
 };
 use mesobake::scene::preview::{medium_render_on_cpu, render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
+use mesobake_bake::package::AnyPackage;
+use mesobake_bake::package::medium as medium_package;
 use mesobake_core::limits::Limits;
+use mesobake_render::image::{Comparison, compare};
+use mesobake_render::medium_truth::MediumTruth;
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
 use serde_json::{Value, json};
 use std::path::Path;
 
@@ -117,7 +117,7 @@ fn a_translucent_scene_plans_only_its_medium_and_renders_from_its_package() {
     let AnyPackage::Medium(p) = package(&loaded) else {
         panic!("not a medium package")
     };
-    let levels = medium_package::levels(&p, loaded.scene.transparency).unwrap();
+    let levels = medium_package::levels(&p, loaded.scene.transparency.mipmap).unwrap();
     let medium = loaded.medium.as_ref().unwrap();
     let expected = medium.coarser_levels();
     assert_eq!(levels.len(), 1 + expected.len());
@@ -220,16 +220,18 @@ fn an_opaque_mesostructure_as_a_medium_is_its_solid_voxels() {
         if mesostructure != json!({ "sample": "chain" }) {
             continue;
         }
-        let levels = medium_package::levels(&p, loaded.scene.transparency).unwrap();
+        let levels = medium_package::levels(&p, loaded.scene.transparency.mipmap).unwrap();
         let s = &loaded.scene;
         let media = MediumTruth::new(&loaded.shell, &levels[0]);
-        let media_image = render_image(&s.camera, |o, d| media.radiance(s, o, d));
+        let shot = s.shot();
+        let media_image = render_image(&shot.camera, |o, d| media.radiance(&shot, o, d));
         let opaque = TruthRenderer::new(
             &loaded.shell,
             loaded.mesostructure.caster(),
             levels[0].material(),
         );
-        let reference = render_image(&s.camera, |o, d| opaque.radiance(s, o, d));
+        let shot = s.shot();
+        let reference = render_image(&shot.camera, |o, d| opaque.radiance(&shot, o, d));
         let c = compare(&reference, &media_image).unwrap();
         eprintln!("the chain's medium package against the opaque truth: {c:?}");
         assert!(reference.hits() > 96 * 96 / 8);

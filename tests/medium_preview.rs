@@ -14,15 +14,15 @@ use common::{gpu, succeeds};
 use mesobake::Error;
 use mesobake::grid::Dims;
 use mesobake::realtime::gpu::Gpu;
-use mesobake::render::image::{Comparison, Image, compare};
 use mesobake::scene::preview::{medium_preview, medium_render_on_cpu};
-use mesobake::scene::transparency::{
-    CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
-};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
+use mesobake_render::image::{Comparison, Image, compare};
+use mesobake_render::medium_settings::{
+    CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
+};
 use std::path::Path;
 
 /// The shipped torus-fur scene at `side`² pixels with a `base` segment grid (its own

@@ -5,16 +5,6 @@ mod common;
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
 use mesobake::grid::Dims;
-use mesobake::render::cell_order::ViewSort;
-use mesobake::render::image::Image;
-use mesobake::render::image::{Comparison, compare};
-use mesobake::render::medium_cells::CellRenderer;
-use mesobake::render::medium_truth::MediumTruth;
-use mesobake::render::render_image;
-use mesobake::render::truth::TruthRenderer;
-use mesobake::scene::transparency::{
-    CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
-};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::mesostructure::media::ABSORBING_OPACITY;
@@ -24,6 +14,16 @@ use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::light::Light;
 use mesobake_core::limits::Limits;
+use mesobake_render::cell_order::ViewSort;
+use mesobake_render::image::Image;
+use mesobake_render::image::{Comparison, compare};
+use mesobake_render::medium_cells::CellRenderer;
+use mesobake_render::medium_settings::{
+    CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
+};
+use mesobake_render::medium_truth::MediumTruth;
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
 use std::path::Path;
 
 /// Exact integration of each cell.
@@ -179,15 +179,16 @@ fn opaque_chain_both_ways(effects: serde_json::Value) -> Comparison {
     let dims = Dims::new(32, 32, 16).unwrap();
     let volume = samples::volume(SampleKind::Chain, dims, &Limits::default()).unwrap();
     let s = &loaded.scene;
+    let shot = s.shot();
     let medium = Medium::from_volume(&volume, DVec3::from(s.material.albedo));
     let medium_truth = MediumTruth::new(&loaded.shell, &medium);
-    let medium_image = render_image(&s.camera, |o, d| medium_truth.radiance(s, o, d));
+    let medium_image = render_image(&shot.camera, |o, d| medium_truth.radiance(&shot, o, d));
     let opaque = TruthRenderer::new(
         &loaded.shell,
         loaded.mesostructure.caster(),
         medium.material(),
     );
-    let opaque_image = render_image(&s.camera, |o, d| opaque.radiance(s, o, d));
+    let opaque_image = render_image(&shot.camera, |o, d| opaque.radiance(&shot, o, d));
     assert!(opaque_image.hits() > 96 * 96 / 4);
     compare(&opaque_image, &medium_image).unwrap()
 }
@@ -302,9 +303,10 @@ fn the_light_step_converges_on_fur() {
     let loaded = LoadedScene::load(scene, Path::new("."), &Limits::default()).unwrap();
     let medium = loaded.medium.as_ref().unwrap();
     let s = &loaded.scene;
+    let shot = s.shot();
     let image = |step: f64| {
         let r = MediumTruth::new(&loaded.shell, medium).with_light_step(step);
-        render_image(&s.camera, |o, d| r.radiance(s, o, d))
+        render_image(&shot.camera, |o, d| r.radiance(&shot, o, d))
     };
     let fine = image(1.0 / 16.0);
     let coarse = compare(&fine, &image(1.0)).unwrap();
@@ -447,7 +449,7 @@ fn shadow_maps_meet_the_closed_form_in_a_uniform_slab() {
                 ..EXACT
             };
             let cells = CellRenderer::new(&loaded.shell, medium, settings);
-            let map = cells.shadow_maps(&scene)[0].as_ref().unwrap();
+            let map = cells.shadow_maps(&scene.shot())[0].as_ref().unwrap();
             for &x in &points {
                 // Unit direction towards the light.
                 let towards = match light {
@@ -508,8 +510,9 @@ fn empty_and_opaque_media_are_the_limits() {
         let loaded = flat_medium_file(dir.path(), name, 0.25, |_| alpha);
         let medium = loaded.medium.as_ref().unwrap();
         let s = &loaded.scene;
+        let shot = s.shot();
         let truth = MediumTruth::new(&loaded.shell, medium);
-        let truth_image = render_image(&s.camera, |o, d| truth.radiance(s, o, d));
+        let truth_image = render_image(&shot.camera, |o, d| truth.radiance(&shot, o, d));
         for settings in [samples(4), EXACT] {
             let cells = CellRenderer::new(&loaded.shell, medium, settings);
             for (origin, d) in flat_rays() {
@@ -520,7 +523,7 @@ fn empty_and_opaque_media_are_the_limits() {
                     "{name} {settings:?} {origin} {d}"
                 );
             }
-            let image = render_image(&s.camera, |o, d| cells.radiance(s, o, d));
+            let image = render_image(&shot.camera, |o, d| cells.radiance(&shot, o, d));
             assert_eq!(image.hits(), truth_image.hits(), "{name} {settings:?}");
             assert_eq!(image.hits() == 0, alpha == 0.0, "{name}");
         }
@@ -539,6 +542,7 @@ fn small_fur(segments: [u32; 2]) -> LoadedScene {
 fn cells_against_truth(loaded: &LoadedScene, settings: &[TransparencySettings]) -> Vec<Comparison> {
     let medium = loaded.medium.as_ref().unwrap();
     let s = &loaded.scene;
+    let shot = s.shot();
     let timed = |f: &dyn Fn() -> Image| {
         let start = std::time::Instant::now();
         let image = f();
@@ -546,14 +550,14 @@ fn cells_against_truth(loaded: &LoadedScene, settings: &[TransparencySettings]) 
     };
     let (truth, truth_s) = timed(&|| {
         let r = MediumTruth::new(&loaded.shell, medium);
-        render_image(&s.camera, |o, d| r.radiance(s, o, d))
+        render_image(&shot.camera, |o, d| r.radiance(&shot, o, d))
     });
     settings
         .iter()
         .map(|&settings| {
             let (image, seconds) = timed(&|| {
                 let r = CellRenderer::new(&loaded.shell, medium, settings);
-                render_image(&s.camera, |o, d| r.radiance(s, o, d))
+                render_image(&shot.camera, |o, d| r.radiance(&shot, o, d))
             });
             let c = compare(&truth, &image).unwrap();
             eprintln!(
@@ -622,11 +626,12 @@ fn deep_shadow_maps_approach_the_shadow_rays_as_they_grow() {
     let medium = loaded.medium.as_ref().unwrap();
     let truth = MediumTruth::new(&loaded.shell, medium);
     let s = &loaded.scene;
-    let truth = render_image(&s.camera, |o, d| truth.radiance(s, o, d));
+    let shot = s.shot();
+    let truth = render_image(&shot.camera, |o, d| truth.radiance(&shot, o, d));
     let cells = CellRenderer::new(&loaded.shell, medium, EXACT);
-    let mut unshadowed = s.clone();
+    let mut unshadowed = s.shot();
     unshadowed.effects.clear();
-    let image = render_image(&s.camera, |o, d| cells.radiance(&unshadowed, o, d));
+    let image = render_image(&shot.camera, |o, d| cells.radiance(&unshadowed, o, d));
     let none = compare(&truth, &image).unwrap();
     eprintln!("no shadows against the shadowed truth: {none:?}");
     let psnr: Vec<f64> = c.iter().map(|c| c.psnr_db).collect();
@@ -785,11 +790,12 @@ fn translucent_scenes_render_the_same_at_any_scale() {
         let loaded = LoadedScene::load(scene, Path::new("."), &Limits::default()).unwrap();
         let medium = loaded.medium.as_ref().unwrap();
         let s = &loaded.scene;
+        let shot = s.shot();
         let truth = MediumTruth::new(&loaded.shell, medium);
         let cells = CellRenderer::new(&loaded.shell, medium, EXACT);
         [
-            render_image(&s.camera, |o, d| truth.radiance(s, o, d)),
-            render_image(&s.camera, |o, d| cells.radiance(s, o, d)),
+            render_image(&shot.camera, |o, d| truth.radiance(&shot, o, d)),
+            render_image(&shot.camera, |o, d| cells.radiance(&shot, o, d)),
         ]
     };
     let reference = images(scene.clone());
@@ -852,13 +858,15 @@ fn the_mip_map_reduces_aliasing_where_pixels_cover_voxels() {
         LoadedScene::load(s, Path::new("."), &Limits::default()).unwrap()
     };
     let big = sized(128);
+    let big_shot = big.scene.shot();
     let truth = MediumTruth::new(&big.shell, big.medium.as_ref().unwrap());
     let reference = downsample(
-        &render_image(&big.scene.camera, |o, d| truth.radiance(&big.scene, o, d)),
+        &render_image(&big_shot.camera, |o, d| truth.radiance(&big_shot, o, d)),
         4,
     );
     let small = sized(32);
     let s = &small.scene;
+    let shot = s.shot();
     let cells = |mipmap: bool, mip_bias: f64| {
         let settings = TransparencySettings {
             mipmap,
@@ -868,7 +876,7 @@ fn the_mip_map_reduces_aliasing_where_pixels_cover_voxels() {
         let r = CellRenderer::new(&small.shell, small.medium.as_ref().unwrap(), settings);
         compare(
             &reference,
-            &render_image(&s.camera, |o, d| r.radiance(s, o, d)),
+            &render_image(&shot.camera, |o, d| r.radiance(&shot, o, d)),
         )
         .unwrap()
     };

@@ -1,9 +1,6 @@
 //! GDM packages: round trips, determinism, and rejection of every kind of corrupt file.
 
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::package::bake::{PackageParams, bake_info, bake_package};
-use mesobake::package::manifest::{GdmCodec, InputInfo, Manifest};
-use mesobake::package::{GdmPayload, OCCUPANCY_SECTION, Package, container};
 use mesobake_bake::compress::gdm::{CompressedGdm, compress};
 use mesobake_bake::compress::layout::GdmRows;
 use mesobake_bake::compress::quantize::Quantization;
@@ -12,6 +9,9 @@ use mesobake_bake::gdm::volume_caster::VolumeCaster;
 use mesobake_bake::gdm::{self, EscapeConvention, Gdm, Method};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume::Occupancy;
+use mesobake_bake::package::bake::{PackageParams, bake_info, bake_package};
+use mesobake_bake::package::manifest::{GdmCodec, InputInfo, Manifest};
+use mesobake_bake::package::{GdmPayload, OCCUPANCY_SECTION, Package, container};
 use mesobake_core::limits::Limits;
 use proptest::prelude::*;
 

@@ -4,17 +4,17 @@
 //! Vulkan driver. Without any adapter these tests fail, unless MESOBAKE_SKIP_GPU_TESTS=1 says
 //! to skip them (loudly).
 
-use mesobake::package::Package;
-use mesobake::package::manifest::GdmCodec;
 use mesobake::realtime::gpu::Gpu;
-use mesobake::render::image::{Image, compare};
 use mesobake::scene::package::{ScenePackageParams, gdm_scene_package};
 use mesobake::scene::preview::{gdm_preview, gdm_render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
+use mesobake_bake::package::Package;
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_render::image::{Image, compare};
 use std::path::Path;
 
 /// Whether GPU tests run here; panics with the reason when no adapter exists and skipping

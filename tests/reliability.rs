@@ -7,11 +7,11 @@ mod server;
 
 use futures_util::future::join_all;
 use mesobake::grid::Dims;
-use mesobake::package::Package;
 use mesobake::server::jobs::JobSpec;
 use mesobake::server::spawn_workers;
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
+use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
 use serde_json::json;
 use server::{TestServer, database_urls};

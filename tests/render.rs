@@ -5,11 +5,6 @@
 
 use glam::{DVec2, DVec3};
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::render::gdm_lookup::RawLookup;
-use mesobake::render::gdm_renderer::{GdmRenderer, Substitutions};
-use mesobake::render::image::compare;
-use mesobake::render::render_image;
-use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::render::{MapSource, RenderMethod, render};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::gdm::caster::{Caster, Trace};
@@ -23,6 +18,11 @@ use mesobake_bake::surface::base_mesh::BaseMesh;
 use mesobake_bake::surface::shell::{Shell, ShellParams};
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::{Quality, ShadingFrame, ShadowMethod};
+use mesobake_render::gdm_lookup::RawLookup;
+use mesobake_render::gdm_renderer::{GdmRenderer, Substitutions};
+use mesobake_render::image::compare;
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
 
 const SLAB_SCENE: &str = r#"{
   "base_mesh": { "builtin": { "plane": {} } },
@@ -327,14 +327,15 @@ fn with_every_part_exact_the_gdm_renderer_renders_the_truth_on_a_flat_plane() {
     let lookup = RawLookup::new(&g);
     let truth = TruthRenderer::new(&scene.shell, caster, &scene.material);
     let s = &scene.scene;
-    let truth_image = render_image(&s.camera, |o, d| truth.radiance(s, o, d));
+    let shot = s.shot();
+    let truth_image = render_image(&shot.camera, |o, d| truth.radiance(&shot, o, d));
     let render = |subs: Substitutions, quality: Quality| {
         let r = GdmRenderer::new(&scene.shell, &lookup, &scene.material, 0)
             .with_quality(quality)
             .with_substitutions(subs, &truth);
         compare(
             &truth_image,
-            &render_image(&s.camera, |o, d| r.radiance(s, o, d)),
+            &render_image(&shot.camera, |o, d| r.radiance(&shot, o, d)),
         )
         .unwrap()
     };
@@ -399,8 +400,12 @@ fn shell_shadows_see_the_base_mesh_above_where_local_shadows_cannot() {
             .with_substitutions(subs, &truth);
         // From between the planes down onto the lower slab's top (y = 0.25).
         let eye = DVec3::new(0.5, 0.55, -0.5);
-        r.radiance(&scene.scene, eye, DVec3::new(0.1, -1.0, 0.05).normalize())
-            .expect("the lower slab is hit")
+        r.radiance(
+            &scene.scene.shot(),
+            eye,
+            DVec3::new(0.1, -1.0, 0.05).normalize(),
+        )
+        .expect("the lower slab is hit")
     };
     let (local, shell, exact) = (
         radiance(ShadowMethod::Local, false),
@@ -440,7 +445,7 @@ fn torus_scene(minor: f64, thickness: f64, smoothing: u32, scale: f64) -> String
     )
 }
 
-fn render_json(json: &str, method: RenderMethod) -> mesobake::render::image::Image {
+fn render_json(json: &str, method: RenderMethod) -> mesobake_render::image::Image {
     let scene = Scene::from_json(json).unwrap();
     let limits = Limits::default();
     let loaded = LoadedScene::load(scene, std::path::Path::new("."), &limits).unwrap();
@@ -626,14 +631,14 @@ fn gdm_refinement_moves_hits_onto_the_surface() {
 }
 
 /// A package of `volume`'s exact GDM at `rank` (f32) and the raw GDM.
-fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
-    use mesobake::package::Package;
-    use mesobake::package::manifest::InputInfo;
+fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake_bake::package::Package) {
     use mesobake_bake::compress::gdm::compress;
     use mesobake_bake::compress::layout::GdmRows;
     use mesobake_bake::compress::quantize::Quantization;
     use mesobake_bake::compress::svd::{GramEigen, RankChoice};
     use mesobake_bake::gdm::EscapeConvention;
+    use mesobake_bake::package::Package;
+    use mesobake_bake::package::manifest::InputInfo;
     let limits = Limits::default();
     let raw = bake(&VolumeCaster::new(volume));
     let mut boundary = raw.clone();
@@ -651,9 +656,13 @@ fn packaged(volume: &Volume, rank: usize) -> (Gdm, mesobake::package::Package) {
         bytes: 0,
         blake3: "0".repeat(64),
     };
-    let info =
-        mesobake::package::bake::bake_info(&raw, gdm::Method::Exact, Default::default(), false);
-    let payload = mesobake::package::GdmPayload::PaperSvd(Box::new(c.unwrap()));
+    let info = mesobake_bake::package::bake::bake_info(
+        &raw,
+        gdm::Method::Exact,
+        Default::default(),
+        false,
+    );
+    let payload = mesobake_bake::package::GdmPayload::PaperSvd(Box::new(c.unwrap()));
     let package = Package::parse(Package::encode(input, info, &payload)).unwrap();
     (raw, package)
 }
@@ -685,7 +694,7 @@ fn package_lookups_decide_escapes_like_raw_lookups() {
     // from the layers where looking up mixes hit and escape samples (there the raw vote and
     // the margin rule legitimately differ: a hit at 0 against a blend with the boundary
     // distance).
-    use mesobake::render::gdm_lookup::{GdmLookup, Lookup, PackageLookup};
+    use mesobake_render::gdm_lookup::{GdmLookup, Lookup, PackageLookup};
     let (raw, package) = packaged(&slab(3), 1);
     let (from_package, from_raw) = (PackageLookup::new(&package).unwrap(), RawLookup::new(&raw));
     let (mut hits, mut escapes) = (0, 0);
@@ -717,7 +726,7 @@ fn package_lookups_interpolate_like_raw_lookups_at_full_rank() {
     // columns) a package lookup must equal the raw one up to the reconstruction's rounding
     // (measured 2e-6 voxel at most; tolerance 1e-4). A wrong weight-map or eigenmap layout
     // would be off by voxels.
-    use mesobake::render::gdm_lookup::{GdmLookup, Lookup, PackageLookup};
+    use mesobake_render::gdm_lookup::{GdmLookup, Lookup, PackageLookup};
     let dims = Dims::new(16, 16, 8).unwrap();
     let steps = Volume::from_fn(dims, &Limits::default(), |i, j, k| {
         k < 1 + (i / 4 + 2 * (j / 4)) % 5
@@ -750,7 +759,7 @@ fn occupancy_lookups_are_exact_on_a_slab_against_the_closed_form() {
     // after (t.z − 3)/(−v.z) and an upward one escapes; inside it the distance is 0. The
     // closed form knows nothing of voxels, DDA or empty-space distances; the march must
     // agree to round-off (1e-9 voxel), and a segment shorter than the distance misses.
-    use mesobake::render::gdm_lookup::{GdmLookup, Lookup, OccupancyLookup};
+    use mesobake_render::gdm_lookup::{GdmLookup, Lookup, OccupancyLookup};
     let lookup = OccupancyLookup::new(&slab(3).occupancy().field());
     let (mut hits, mut escapes) = (0, 0);
     for (t, v) in random_queries(20_000) {

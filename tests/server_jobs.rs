@@ -5,10 +5,10 @@
 mod server;
 
 use mesobake::grid::Dims;
-use mesobake::package::Package;
 use mesobake::server::spawn_workers;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
+use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
 use object_store::ObjectStoreExt;
 use serde_json::{Value, json};
@@ -101,7 +101,7 @@ async fn wait_for(s: &TestServer, id: &str, until: impl Fn(&Value) -> bool) -> V
 }
 
 /// The manifest and the package (of any kind) of succeeded job `done`, downloaded.
-async fn fetch_any(s: &TestServer, done: &Value) -> (Value, mesobake::package::AnyPackage) {
+async fn fetch_any(s: &TestServer, done: &Value) -> (Value, mesobake_bake::package::AnyPackage) {
     let digest = done["package_digest"].as_str().unwrap();
     let manifest: Value = reqwest::get(s.url(&format!("/api/v1/packages/{digest}/manifest")))
         .await
@@ -115,7 +115,7 @@ async fn fetch_any(s: &TestServer, done: &Value) -> (Value, mesobake::package::A
         .bytes()
         .await
         .unwrap();
-    let package = mesobake::package::AnyPackage::parse(bytes.to_vec()).unwrap();
+    let package = mesobake_bake::package::AnyPackage::parse(bytes.to_vec()).unwrap();
     (manifest, package)
 }
 
@@ -139,12 +139,12 @@ async fn preview_png(s: &TestServer, scene: &Value) -> (String, Vec<u8>) {
 fn assert_previews_as_its_cpu_twin(
     png: &[u8],
     scene: &Value,
-    package: &mesobake::package::AnyPackage,
+    package: &mesobake_bake::package::AnyPackage,
     dir: &std::path::Path,
 ) {
-    use mesobake::render::image::{Image, compare};
     use mesobake::scene::preview::render_on_cpu;
     use mesobake::scene::{LoadedScene, Scene};
+    use mesobake_render::image::{Image, compare};
     let shown = dir.join("preview.png");
     std::fs::write(&shown, png).unwrap();
     let shown = Image::read(&shown).unwrap();
@@ -938,7 +938,7 @@ async fn an_s3_blob_store_is_shared_by_servers_on_other_machines() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeline() {
-    use mesobake::package::AnyPackage;
+    use mesobake_bake::package::AnyPackage;
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
         eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
         return;
@@ -1029,7 +1029,7 @@ async fn a_height_field_scene_bakes_a_vdm_package_and_previews_by_the_vdm_pipeli
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_translucent_scene_bakes_a_medium_package_once_for_every_base_mesh() {
-    use mesobake::package::AnyPackage;
+    use mesobake_bake::package::AnyPackage;
     if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
         eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
         return;
@@ -1209,7 +1209,7 @@ async fn a_server_job_bakes_and_previews_what_the_cli_does_by_default() {
         eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
         return;
     }
-    use mesobake::render::image::{Image, compare};
+    use mesobake_render::image::{Image, compare};
     let dir = tempfile::tempdir().unwrap();
     let url = database_urls(dir.path(), "defaults").await.remove(0);
     let data = tempfile::tempdir().unwrap();

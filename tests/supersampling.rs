@@ -4,15 +4,15 @@
 
 mod common;
 
-use mesobake::package::AnyPackage;
-use mesobake::render::image::{Image, compare};
-use mesobake::render::render_image;
-use mesobake::render::truth::TruthRenderer;
 use mesobake::scene::package::scene_package;
 use mesobake::scene::preview::{preview, render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
+use mesobake_bake::package::AnyPackage;
 use mesobake_core::limits::Limits;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
+use mesobake_render::image::{Image, compare};
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
 use std::path::Path;
 
 fn load(name: &str, width: u32, height: u32) -> LoadedScene {
@@ -41,7 +41,8 @@ fn the_supersampled_truth_converges() {
             .camera
             .set_samples_per_pixel(SamplesPerPixel::new(n).unwrap())
             .unwrap();
-        render_image(&scene.camera, |o, d| truth.radiance(scene, o, d))
+        let shot = scene.shot();
+        render_image(&shot.camera, |o, d| truth.radiance(&shot, o, d))
     };
     let reference = render(64);
     let errors: Vec<(f64, f64)> = [1, 4, 16]

@@ -3,7 +3,6 @@
 
 use glam::DVec3;
 use mesobake::grid::Dims;
-use mesobake::package::vdm::VdmPackage;
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::vdm::{VdmMatrix, compress};
 use mesobake_bake::gdm::caster::{Caster, Trace};
@@ -11,6 +10,7 @@ use mesobake_bake::gdm::height_field_caster::HeightFieldCaster;
 use mesobake_bake::mesostructure::height_field::HeightField;
 use mesobake_bake::mesostructure::reliefs::{self, ReliefKind};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::package::vdm::VdmPackage;
 use mesobake_bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, bend::Bend, exact};
 use mesobake_core::limits::Limits;
 

@@ -6,15 +6,15 @@ mod common;
 
 use common::{each_fails_with, gpu, succeeds};
 use mesobake::realtime::vdm_pipeline::VdmPreview;
-use mesobake::render::image::{Comparison, Image, compare};
-use mesobake::render::render_image;
-use mesobake::render::vdm_renderer::{VdmRenderer, exit_arc};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::Scene;
 use mesobake::scene::render::{MapSource, RenderMethod, render, render_substituted};
 use mesobake_bake::vdm::bend::Bend;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_render::image::{Comparison, Image, compare};
+use mesobake_render::render_image;
+use mesobake_render::vdm_renderer::{VdmRenderer, exit_arc};
 
 /// VDM settings that leave out compression's error: every component, in f32.
 const UNCOMPRESSED: &str = r#"{ "rank": 64, "mvm_rank": 16, "quantization": "f32" }"#;
@@ -347,12 +347,15 @@ fn a_closed_height_field_scene_bakes_and_renders_by_vdm_and_an_open_one_by_gdm()
     );
     assert!(torus_bake["vdm"]["accuracy"]["samples"].as_u64().unwrap() > 0);
     assert!(torus_bake["seconds"].get("bake_gdm").is_none());
-    let package = mesobake::package::AnyPackage::read(
+    let package = mesobake_bake::package::AnyPackage::read(
         std::path::Path::new(&path("torus.mbpkg")),
         &Limits::default(),
     )
     .unwrap();
-    assert!(matches!(package, mesobake::package::AnyPackage::Vdm(_)));
+    assert!(matches!(
+        package,
+        mesobake_bake::package::AnyPackage::Vdm(_)
+    ));
     // Open: auto keeps GDM, and says why.
     let plane_bake = bake("plane.json", "plane.mbpkg");
     assert_eq!(plane_bake["technique"], "gdm", "{plane_bake}");
@@ -471,9 +474,8 @@ fn the_wgsl_pipeline_renders_what_its_cpu_specification_renders() {
         let baked = loaded.bake_vdm(&limits, &()).unwrap();
         let query = baked.compressed.decode();
         let cpu = VdmRenderer::new(&loaded.shell, &query, baked.relief()).unwrap();
-        let cpu = render_image(&loaded.scene.camera, |o, d| {
-            cpu.radiance(&loaded.scene, o, d)
-        });
+        let shot = loaded.scene.shot();
+        let cpu = render_image(&shot.camera, |o, d| cpu.radiance(&shot, o, d));
         let gpu = VdmPreview::new(&gpu, &loaded, &query, baked.relief())
             .unwrap()
             .render()
@@ -605,7 +607,7 @@ fn torus_bumps(
     side: u32,
     spp: u32,
     edit: impl FnOnce(&mut Scene),
-) -> (LoadedScene, mesobake::package::AnyPackage) {
+) -> (LoadedScene, mesobake_bake::package::AnyPackage) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/torus-bumps.json");
     let mut scene = Scene::read(&path).unwrap();
     scene.camera.width = side;

@@ -2,8 +2,6 @@
 //! with their baselines, error against the exact bake and peak memory.
 
 use crate::grid::{Dims, DirectionGrid};
-use crate::package::manifest::InputInfo;
-use crate::package::{GdmPayload, Package};
 use mesobake_bake::compress::accuracy::Accuracy;
 use mesobake_bake::compress::layout::GdmRows;
 use mesobake_bake::compress::quantize::Quantization;
@@ -18,6 +16,8 @@ use mesobake_bake::gdm::volume_caster::VolumeCaster;
 use mesobake_bake::gdm::{EscapeConvention, Gdm, exact, fast};
 use mesobake_bake::mesostructure::mesh_tile::MeshTile;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
+use mesobake_bake::package::manifest::InputInfo;
+use mesobake_bake::package::{GdmPayload, Package};
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use std::time::Instant;
@@ -379,7 +379,7 @@ pub fn run_package(limits: &Limits) -> Result<Vec<PackageRow>> {
         let choice = RankChoice::Rank(svd.rank);
         let c = mesobake_bake::compress::gdm::quantize(&gdm, svd, choice, q)?;
         let method = mesobake_bake::gdm::Method::Exact;
-        let info = crate::package::bake::bake_info(&gdm, method, Default::default(), false);
+        let info = mesobake_bake::package::bake::bake_info(&gdm, method, Default::default(), false);
         Ok(PackageRow {
             setting,
             rank: c.svd.rank,

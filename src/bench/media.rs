@@ -5,13 +5,13 @@
 
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::medium_pipeline::MediumPreview;
-use crate::render::image::{Comparison, compare};
-use crate::render::medium_cells::CellRenderer;
-use crate::render::render_image;
-use crate::scene::transparency::{CellIntegration, CellOrder, TransparencySettings};
 use crate::scene::{LoadedScene, Scene};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
+use mesobake_render::image::{Comparison, compare};
+use mesobake_render::medium_cells::CellRenderer;
+use mesobake_render::medium_settings::{CellIntegration, CellOrder, TransparencySettings};
+use mesobake_render::render_image;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -128,7 +128,8 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
         loaded.scene.camera.height = size;
         let start = Instant::now();
         let scene = &loaded.scene;
-        let cpu_image = render_image(&scene.camera, |o, d| cpu.radiance(scene, o, d));
+        let shot = scene.shot();
+        let cpu_image = render_image(&shot.camera, |o, d| cpu.radiance(&shot, o, d));
         let cpu_seconds = start.elapsed().as_secs_f64();
         for order in CellOrder::ALL {
             let mut scene = loaded.scene.clone();

@@ -2,18 +2,18 @@
 //! renderer on the same scene and package, in the same run, over every GDM codec, quality
 //! preset, image size and volume depth, with and without the early depth test.
 
-use crate::package::manifest::GdmCodec;
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
-use crate::render::gdm_lookup::package_lookup;
-use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::render_image;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::scene::{LoadedScene, Scene};
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::Preset;
+use mesobake_render::gdm_lookup::package_lookup;
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::render_image;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -80,7 +80,8 @@ pub fn run(
                     scene.gdm_refinements,
                 )
                 .with_quality(scene.quality);
-                render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+                let shot = scene.shot();
+                render_image(&shot.camera, |o, d| r.radiance(&shot, o, d));
                 let cpu_seconds = start.elapsed().as_secs_f64();
                 let time = |early_z: bool| -> Result<(bool, f64)> {
                     let preview = Preview::new(&gpu, &loaded, &package, early_z)?;

@@ -5,17 +5,17 @@
 use crate::realtime::gpu::{AdapterDescription, Gpu};
 use crate::realtime::pipeline::Preview;
 use crate::realtime::vdm_pipeline::VdmPreview;
-use crate::render::gdm_lookup::package_lookup;
-use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::image::{Comparison, compare};
-use crate::render::render_image;
-use crate::render::truth::TruthRenderer;
-use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
 use crate::scene::render::load_scene;
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
+use mesobake_render::gdm_lookup::package_lookup;
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::image::{Comparison, compare};
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
+use mesobake_render::vdm_renderer::VdmRenderer;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -68,18 +68,19 @@ pub fn run(
         loaded.scene.camera.width = size;
         loaded.scene.camera.height = size;
         let scene = &loaded.scene;
-        let camera = &scene.camera;
+        let shot = scene.shot();
+        let camera = &shot.camera;
         let truth = TruthRenderer::new(
             &loaded.shell,
             loaded.mesostructure.caster(),
             &loaded.material,
         );
         let (truth_image, truth_seconds) =
-            timed(|| Ok(render_image(camera, |o, d| truth.radiance(scene, o, d))))?;
+            timed(|| Ok(render_image(camera, |o, d| truth.radiance(&shot, o, d))))?;
         let gdm = GdmRenderer::new(&loaded.shell, &*lookup, &loaded.material, 0)
             .with_quality(scene.quality);
         let (image, cpu_seconds) =
-            timed(|| Ok(render_image(camera, |o, d| gdm.radiance(scene, o, d))))?;
+            timed(|| Ok(render_image(camera, |o, d| gdm.radiance(&shot, o, d))))?;
         let gpu_seconds = Preview::new(&gpu, &loaded, &package, true)?.time_frames(frames, &())?;
         rows.push(VdmBenchRow {
             technique: "gdm",
@@ -92,7 +93,7 @@ pub fn run(
         });
         let vdm = VdmRenderer::new(&loaded.shell, &query, relief)?;
         let (image, cpu_seconds) =
-            timed(|| Ok(render_image(camera, |o, d| vdm.radiance(scene, o, d))))?;
+            timed(|| Ok(render_image(camera, |o, d| vdm.radiance(&shot, o, d))))?;
         let gpu_seconds =
             VdmPreview::new(&gpu, &loaded, &query, relief)?.time_frames(frames, &())?;
         rows.push(VdmBenchRow {

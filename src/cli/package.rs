@@ -7,17 +7,17 @@ use super::gdm::BakeOptions;
 use super::output::{Progress, print_json};
 use mesobake::client::Client;
 use mesobake::grid::Dims;
-use mesobake::package::bake::{PackageParams, bake_package};
-use mesobake::package::container;
-use mesobake::package::manifest::{Section, TextureDimension};
-use mesobake::package::vdm::VdmPackage;
-use mesobake::package::{GdmPayload, Package};
 use mesobake::scene::package::{ScenePayload, bake_scene_package};
 use mesobake::scene::render::load_scene;
 use mesobake::{Error, Result};
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::gdm::Method;
 use mesobake_bake::gdm::npy::write_gdm;
+use mesobake_bake::package::bake::{PackageParams, bake_package};
+use mesobake_bake::package::container;
+use mesobake_bake::package::manifest::{Section, TextureDimension};
+use mesobake_bake::package::vdm::VdmPackage;
+use mesobake_bake::package::{GdmPayload, Package};
 use mesobake_bake::vdm::{NO_HIT, VdmGrid};
 use mesobake_core::fs::{read_bounded, write_atomic};
 use mesobake_core::limits::Limits;
@@ -353,7 +353,7 @@ pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
         write_gdm(&pkg.reconstruct(limits)?, out)?;
     }
     if let Some(path) = args.exr {
-        mesobake::package::exr_export::write_factors(&pkg, &path)?;
+        mesobake_bake::package::exr_export::write_factors(&pkg, &path)?;
     }
     write_ktx2(args.ktx2.as_deref(), &pkg.manifest().sections, |name| {
         pkg.section(name)
@@ -392,7 +392,7 @@ fn write_ktx2<'a>(
             continue;
         }
         let data = bytes_of(&section.name).expect("listed");
-        let file = mesobake::package::ktx2::write(&section.texture, data)?;
+        let file = mesobake_bake::package::ktx2::write(&section.texture, data)?;
         write_atomic(&dir.join(format!("{}.ktx2", section.name)), &file)?;
         written += 1;
     }

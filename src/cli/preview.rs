@@ -3,10 +3,11 @@
 use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
 use mesobake::Result;
-use mesobake::package::AnyPackage;
 use mesobake::scene::package::{check_any_package_input, scene_package};
 use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake::scene::render::load_scene;
+use mesobake::scene::technique::Technique;
+use mesobake_bake::package::AnyPackage;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Quality;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
@@ -112,7 +113,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     let progress = Progress::new("rendering");
     let rendered = device.render(&loaded, &package, frames, &progress);
     progress.finish();
-    let technique = package.technique().name();
+    let technique = Technique::of_package(&package).name();
     let (image, outcome) = rendered?;
     image.write(&out)?;
     let on = match (&outcome.gpu, &outcome.fallback_reason) {

@@ -5,7 +5,6 @@
 use super::output::Progress;
 use clap::ValueEnum;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::render::flat_preview;
 use mesobake::{Error, Result};
 use mesobake_bake::gdm;
 use mesobake_bake::gdm::npy;
@@ -14,6 +13,7 @@ use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
+use mesobake_render::flat_preview;
 use std::path::PathBuf;
 use std::time::Instant;
 

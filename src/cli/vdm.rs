@@ -3,12 +3,12 @@
 //! relief as a 16-bit PNG.
 
 use super::output::{Progress, print_json};
-use mesobake::package;
 use mesobake::{Error, Result};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::vdm::compress;
 use mesobake_bake::mesostructure::height_field::HeightField;
 use mesobake_bake::mesostructure::reliefs::{self, ReliefKind};
+use mesobake_bake::package;
 use mesobake_bake::vdm::{self, NO_HIT, Relief, Vdm, VdmGrid, VdmMethod, VdmParams};
 use mesobake_core::fs::{read_bounded, write_atomic};
 use mesobake_core::limits::Limits;

@@ -1,11 +1,11 @@
 //! The translucent-media real-time pipeline (`shaders/medium_preview.wgsl`): the shell's
 //! tetrahedral cells, each integrated on its own and composited front to back, in one of the
-//! [`CellOrder`](crate::scene::transparency::CellOrder)s: a per-pixel sorted list gathered
+//! [`CellOrder`](mesobake_render::medium_settings::CellOrder)s: a per-pixel sorted list gathered
 //! from a BVH over the cells in a compute pass (one invocation per pixel, writing the
 //! target), or the cells drawn back to front in an order sorted per view on the CPU (SXMPVO
 //! or MPVONC) and blended. Shadows come from shadow maps
-//! built by a compute pass before each frame ([`crate::render::medium_shadow_map`]) or from
-//! shadow rays. Its specification is [`crate::render::medium_cells`], which it is tested
+//! built by a compute pass before each frame ([`mesobake_render::medium_shadow_map`]) or from
+//! shadow rays. Its specification is [`mesobake_render::medium_cells`], which it is tested
 //! against.
 
 use super::gpu::Gpu;
@@ -16,13 +16,7 @@ use super::pipeline::{
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
 use super::variant::COMMON;
-use crate::render::cell_order::ViewSort;
-use crate::render::image::Image;
-use crate::render::medium_cells::{Cell, CellRenderer};
-use crate::render::medium_shadow_map::{LightFrame, Projection, map_frames};
-use crate::render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
 use crate::scene::Scene;
-use crate::scene::transparency::{CellIntegration, ShadowMethod};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 use mesobake_core::camera::Camera;
@@ -30,6 +24,12 @@ use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::light::Light;
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::cell_order::ViewSort;
+use mesobake_render::image::Image;
+use mesobake_render::medium_cells::{Cell, CellRenderer};
+use mesobake_render::medium_settings::{CellIntegration, ShadowMethod};
+use mesobake_render::medium_shadow_map::{LightFrame, Projection, map_frames};
+use mesobake_render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 
@@ -234,7 +234,7 @@ impl<'g> MediumPreview<'g> {
         let shadows = scene.wants(Effect::Shadows);
         let mesh = cells.cells();
         let frames = if shadows {
-            map_frames(&cells, scene)
+            map_frames(&cells, &scene.shot())
         } else {
             vec![None; scene.lights.len()]
         };

@@ -1,6 +1,6 @@
 //! The real-time preview: the GDM pipeline of the paper in WGSL (`shaders/`), run headless
 //! on wgpu (any adapter, including Mesa's software Vulkan driver). It renders the same image
-//! as [`crate::render::gdm_renderer`], its executable specification, from a package's
+//! as [`mesobake_render::gdm_renderer`], its executable specification, from a package's
 //! textures uploaded as they are laid out.
 //!
 //! - [`gpu`]: adapter choice and device;
@@ -9,9 +9,9 @@
 //! - [`pipeline`]: the render pipeline, frames, read-back and timing;
 //! - [`target`]: the colour and depth target every pipeline draws into, and its read-back;
 //! - [`vdm_pipeline`]: the VDM pipeline (height fields), whose specification is
-//!   [`crate::render::vdm_renderer`];
+//!   [`mesobake_render::vdm_renderer`];
 //! - [`medium_pipeline`]: the translucent-media pipeline (semi-transparent 3D textures),
-//!   whose specification is [`crate::render::medium_cells`].
+//!   whose specification is [`mesobake_render::medium_cells`].
 
 pub mod gpu;
 pub mod medium_pipeline;

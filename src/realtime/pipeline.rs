@@ -12,19 +12,19 @@ use super::resources::{
 };
 use super::target::{DrawState, HitTargets, Target, target_pipeline, time_frames};
 use super::variant::ShaderVariant;
-use crate::package::Package;
-use crate::package::manifest::GdmCodec;
-use crate::render::gdm_renderer::prepare_prisms;
-use crate::render::image::Image;
 use crate::scene::{LoadedScene, Scene};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
 use glam::{DMat4, DVec3};
+use mesobake_bake::package::Package;
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::camera::Camera;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::light::Light;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::ShadowMethod;
+use mesobake_render::image::Image;
+use mesobake_render::prepared_prism::prepare_prisms;
 use wgpu::util::DeviceExt;
 
 /// The shader's `View`.

@@ -7,13 +7,13 @@
 //! has its own, narrower texture. Each section is copied byte for byte into its slab.
 
 use super::gpu::Gpu;
-use crate::package::Package;
-use crate::package::manifest::TexelFormat;
-use crate::render::gdm_renderer::PreparedPrism;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 use mesobake_bake::mesostructure::material::MaterialVolume;
+use mesobake_bake::package::Package;
+use mesobake_bake::package::manifest::TexelFormat;
 use mesobake_core::error::{Error, Result};
+use mesobake_render::prepared_prism::PreparedPrism;
 use serde::Serialize;
 use wgpu::util::DeviceExt;
 
@@ -101,9 +101,9 @@ pub fn upload_environment(
     loaded: &crate::scene::LoadedScene,
     package: &Package,
 ) -> Result<GpuEnvironment> {
-    use crate::package::gi::{RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
+    use mesobake_bake::package::gi::{RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
     // The CPU twin's own tables: the same incident light and triangles on both sides.
-    let shading = crate::scene::gi::GiShading::from_package(loaded, package)?;
+    let shading = crate::scene::gi::shading_from_package(loaded, package)?;
     let incident: Vec<f32> = shading
         .incident()
         .iter()
@@ -815,7 +815,7 @@ pub fn upload_prism_bvh(gpu: &Gpu, prisms: &[PreparedPrism]) -> Result<GpuBvh> {
 pub fn upload_box_bvh(gpu: &Gpu, bounds: &[(DVec3, DVec3)]) -> Result<GpuBvh> {
     let boxes: Vec<obvhs::aabb::Aabb> = bounds
         .iter()
-        .map(|&b| crate::render::accel::padded_f32_box(b))
+        .map(|&b| mesobake_render::accel::padded_f32_box(b))
         .collect();
     let bvh = obvhs::bvh2::builder::build_bvh2(
         &boxes,

@@ -3,9 +3,9 @@
 //! back through as an [`Image`].
 
 use super::gpu::Gpu;
-use crate::render::image::Image;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::image::Image;
 use std::time::Instant;
 
 /// The colour target's format.

@@ -2,8 +2,8 @@
 //! scene calls for, so that an effect it does not call for is absent from the pipeline (not
 //! switched off at run time). The variant matrix is documented in ARCHITECTURE.md.
 
-use crate::package::manifest::GdmCodec;
 use crate::scene::{MAX_GDM_REFINEMENTS, Scene};
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::effect::Effect;
 use mesobake_core::quality::{MAX_CHORDS, ShadingFrame, ShadowMethod};
 use serde::Serialize;

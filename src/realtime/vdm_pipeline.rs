@@ -1,7 +1,7 @@
 //! The VDM real-time pipeline (`shaders/vdm_preview.wgsl`): the shell's top triangles
 //! rasterized with back faces culled, the VDM algorithm per fragment, silhouettes discarded so
 //! that the depth test keeps the nearest fragment that is not one. Its specification is
-//! [`crate::render::vdm_renderer`], which it is tested against.
+//! [`mesobake_render::vdm_renderer`], which it is tested against.
 
 use super::gpu::Gpu;
 use super::pipeline::{
@@ -11,8 +11,6 @@ use super::pipeline::{
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::COMMON;
-use crate::render::image::Image;
-use crate::render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 use crate::scene::LoadedScene;
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
@@ -23,6 +21,8 @@ use mesobake_core::error::Result;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::ShadowMethod;
 use mesobake_package::vdm::VdmQuery;
+use mesobake_render::image::Image;
+use mesobake_render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("../../shaders/vdm_preview.wgsl");

@@ -3,14 +3,14 @@
 //! the exact uncompressed GDM. Rendered as Markdown, CSV and an SVG plot.
 
 use crate::grid::{Dims, DirectionGrid};
-use crate::package::bake::{bake_info, load_input};
-use crate::package::{GdmPayload, Package};
 use crate::report::plot::plot_error;
 use mesobake_bake::compress::gdm::quantize;
 use mesobake_bake::compress::layout::GdmRows;
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::{GramEigen, RankChoice};
 use mesobake_bake::gdm::{self, EscapeConvention, Method};
+use mesobake_bake::package::bake::{bake_info, load_input};
+use mesobake_bake::package::{GdmPayload, Package};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;

@@ -12,14 +12,7 @@
 //! SVD, the shadow query's escape bits at a reduced direction resolution).
 
 use crate::grid::DirectionGrid;
-use crate::package::bake::check_codec_options;
-use crate::package::manifest::GdmCodec;
 use crate::realtime::gpu::Gpu;
-use crate::render::gdm_lookup::{GdmLookup, RawLookup, SplitLookup, package_lookup};
-use crate::render::gdm_renderer::{GdmRenderer, longest_segment, prepare_prisms};
-use crate::render::image::compare;
-use crate::render::render_image;
-use crate::render::truth::TruthRenderer;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
@@ -30,9 +23,17 @@ use mesobake_bake::compress::split::{CAP_MARGIN, SplitGdm, compress_split};
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::compress::tiled::compress_tiled;
 use mesobake_bake::gdm::{EscapeConvention, Gdm};
+use mesobake_bake::package::bake::check_codec_options;
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::gdm_lookup::{GdmLookup, RawLookup, SplitLookup, package_lookup};
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::image::compare;
+use mesobake_render::prepared_prism::{longest_segment, prepare_prisms};
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
 use std::path::Path;
 use std::time::Instant;
 
@@ -181,7 +182,8 @@ pub fn codec_report(
         let start = Instant::now();
         let caster = loaded.mesostructure.caster();
         let truth_renderer = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
-        let truth = render_image(&scene.camera, |o, d| truth_renderer.radiance(scene, o, d));
+        let shot = scene.shot();
+        let truth = render_image(&shot.camera, |o, d| truth_renderer.radiance(&shot, o, d));
         report
             .truth_s
             .push((name.clone(), start.elapsed().as_secs_f64()));
@@ -202,7 +204,8 @@ pub fn codec_report(
                 scene.gdm_refinements,
             )
             .with_quality(scene.quality);
-            let image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+            let shot = scene.shot();
+            let image = render_image(&shot.camera, |o, d| r.radiance(&shot, o, d));
             let render_s = start.elapsed().as_secs_f64();
             let c = compare(&truth, &image)?;
             Ok(CodecRow {

@@ -11,23 +11,23 @@
 //! shadows them with maps, with shadows traced through the cells (the maps' reference).
 //! Packages are the scene's defaults (the `occupancy` codec for the GDM).
 
-use crate::package::AnyPackage;
 use crate::realtime::gpu::Gpu;
-use crate::render::image::{Comparison, Image, compare, difference};
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
 use crate::scene::preview::{preview, render_on_cpu};
 use crate::scene::render::{MapSource, RenderMethod, render};
 use crate::scene::technique::Technique;
-use crate::scene::transparency::ShadowMethod as MediumShadows;
 use crate::scene::{LoadedScene, Scene};
+use mesobake_bake::package::AnyPackage;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::{Preset, ShadowMethod};
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
+use mesobake_render::image::{Comparison, Image, compare, difference};
+use mesobake_render::medium_settings::ShadowMethod as MediumShadows;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -260,7 +260,7 @@ fn candidates(loaded: &LoadedScene, dir: &Path, limits: &Limits) -> Result<Vec<C
     let scene = &loaded.scene;
     let start = Instant::now();
     let package = scene_package(loaded, dir, ScenePackageParams::default(), limits, &())?;
-    let technique = package.technique();
+    let technique = Technique::of_package(&package);
     let mut out = vec![Candidate {
         technique,
         package,

@@ -16,14 +16,9 @@
 //!   sRGB images, as in `report render`), on the scene's camera reduced by `image_scale`.
 
 use crate::grid::DirectionGrid;
-use crate::render::gdm_lookup::RawLookup;
-use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::image::{Image, compare};
-use crate::render::path_tracer::PathTracer;
-use crate::render::render_image;
 use crate::report::accuracy::table;
 use crate::scene::LoadedScene;
-use crate::scene::gi::{GiShading, rtv_params};
+use crate::scene::gi::{self, rtv_params};
 use glam::{DMat3, DVec3};
 use mesobake_bake::gdm;
 use mesobake_bake::gi::compressed_rtv::CompressedRtv;
@@ -34,6 +29,10 @@ use mesobake_bake::gi::sh;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::gdm_lookup::RawLookup;
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::image::{Image, compare};
+use mesobake_render::render_image;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -355,8 +354,9 @@ fn image_rows(
     let mut traced = Vec::new();
     for &n in &counts {
         let start = Instant::now();
-        let tracer = PathTracer::new(loaded, n, scene.gi.path_depth)?;
-        let image = render_image(&scene.camera, |o, d| tracer.radiance(&scene, o, d));
+        let shot = scene.shot();
+        let tracer = loaded.path_tracer(&shot, n)?;
+        let image = render_image(&shot.camera, |o, d| tracer.radiance(&shot, o, d));
         traced.push((n, start.elapsed().as_secs_f64(), image));
     }
     let Some((_, _, reference)) = traced.last() else {
@@ -371,7 +371,7 @@ fn image_rows(
         limits,
         observer,
     )?;
-    let (gi, _) = GiShading::bake(loaded, &g, limits, observer)?;
+    let (gi, _) = gi::bake_shading(loaded, &g, limits, observer)?;
     let lookup = RawLookup::new(&g);
     let renderer = GdmRenderer::new(
         &loaded.shell,
@@ -381,7 +381,8 @@ fn image_rows(
     )
     .with_quality(scene.quality)
     .with_gi(&gi);
-    let gdm_image = render_image(&scene.camera, |o, d| renderer.radiance(&scene, o, d));
+    let shot = scene.shot();
+    let gdm_image = render_image(&shot.camera, |o, d| renderer.radiance(&shot, o, d));
     let gdm_seconds = start.elapsed().as_secs_f64();
     let mut rows = Vec::new();
     for (n, seconds, image) in &traced {

@@ -4,23 +4,23 @@
 //! an adapter exists, by the real-time pipeline) from the scene's default package, against
 //! the truth rendered once per scene. PSNR against time is the curve the user chooses on.
 
-use crate::package::Package;
 use crate::realtime::gpu::Gpu;
-use crate::render::gdm_lookup::package_lookup;
-use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::image::compare;
-use crate::render::render_image;
-use crate::render::truth::TruthRenderer;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
+use mesobake_bake::package::Package;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
+use mesobake_render::gdm_lookup::package_lookup;
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::image::compare;
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -118,7 +118,8 @@ pub fn quality_report(
             let scene = &loaded.scene;
             let caster = loaded.mesostructure.caster();
             let truth_renderer = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
-            render_image(&scene.camera, |o, d| truth_renderer.radiance(scene, o, d))
+            let shot = scene.shot();
+            render_image(&shot.camera, |o, d| truth_renderer.radiance(&shot, o, d))
         };
         report
             .truths
@@ -141,7 +142,8 @@ pub fn quality_report(
                     scene.gdm_refinements,
                 )
                 .with_quality(quality);
-                render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
+                let shot = scene.shot();
+                render_image(&shot.camera, |o, d| r.radiance(&shot, o, d))
             };
             let cpu_s = start.elapsed().as_secs_f64();
             let c = compare(&truth, &image)?;

@@ -7,11 +7,6 @@
 //! at a time and all together, to show what each one costs.
 
 use crate::grid::DirectionGrid;
-use crate::render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
-use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
-use crate::render::image::{Image, compare};
-use crate::render::render_image;
-use crate::render::truth::TruthRenderer;
 use crate::report::accuracy::table;
 use crate::scene::LoadedScene;
 use mesobake_bake::compress::gdm::quantize;
@@ -22,6 +17,11 @@ use mesobake_bake::gdm::{self, EscapeConvention};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::gdm_lookup::{GdmLookup, PackageLookup, RawLookup};
+use mesobake_render::gdm_renderer::{GdmRenderer, Substitutions};
+use mesobake_render::image::{Image, compare};
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
 use std::time::Instant;
 
 /// The settings the report covers.
@@ -86,7 +86,8 @@ pub fn render_accuracy(
     let start = Instant::now();
     let caster = loaded.mesostructure.caster();
     let truth_renderer = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
-    let truth = render_image(&scene.camera, |o, d| truth_renderer.radiance(scene, o, d));
+    let shot = scene.shot();
+    let truth = render_image(&shot.camera, |o, d| truth_renderer.radiance(&shot, o, d));
     let truth_s = start.elapsed().as_secs_f64();
     let mut rows = Vec::new();
     let mut done = 1;
@@ -103,7 +104,8 @@ pub fn render_accuracy(
         let start = Instant::now();
         let r = GdmRenderer::new(&loaded.shell, lookup, &loaded.material, refinements)
             .with_substitutions(subs, &truth_renderer);
-        let image: Image = render_image(&scene.camera, |o, d| r.radiance(scene, o, d));
+        let shot = scene.shot();
+        let image: Image = render_image(&shot.camera, |o, d| r.radiance(&shot, o, d));
         let render_s = start.elapsed().as_secs_f64();
         let c = compare(&truth, &image)?;
         done += 1;

@@ -11,25 +11,27 @@
 //! sorted lists) on the CPU, and for each per-view sort the time to sort the cells once for
 //! the view and the pixels it misorders, are measured on their own.
 
-use crate::package::manifest::InputInfo;
-use crate::package::medium::{self as medium_package, MediumPackage};
 use crate::realtime::gpu::Gpu;
 use crate::realtime::medium_pipeline::MediumPreview;
-use crate::render::image::{Comparison, Image, compare};
-use crate::render::medium_cells::CellRenderer;
-use crate::render::medium_truth::MediumTruth;
-use crate::render::render_image;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
 use crate::scene::LoadedScene;
-use crate::scene::transparency::{CellIntegration, CellOrder, ShadowMethod, TransparencySettings};
 use glam::DVec3;
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::package::manifest::InputInfo;
+use mesobake_bake::package::medium::{self as medium_package, MediumPackage};
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::image::{Comparison, Image, compare};
+use mesobake_render::medium_cells::CellRenderer;
+use mesobake_render::medium_settings::{
+    CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
+};
+use mesobake_render::medium_truth::MediumTruth;
+use mesobake_render::render_image;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -68,7 +70,7 @@ pub struct ViewOrderMeasure {
     /// Cycles the sort broke.
     pub cycles_broken: usize,
     /// Pixels whose ray crosses two cells in the wrong order
-    /// ([`CellMesh::misordered_pixels`](crate::render::medium_cells::CellMesh::misordered_pixels)).
+    /// ([`CellMesh::misordered_pixels`](mesobake_render::medium_cells::CellMesh::misordered_pixels)).
     pub misordered_pixels: usize,
 }
 
@@ -190,7 +192,8 @@ pub fn transparency_report(
     };
     let (truth, truth_s) = timed(&|| {
         let r = MediumTruth::new(&loaded.shell, medium);
-        render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
+        let shot = scene.shot();
+        render_image(&shot.camera, |o, d| r.radiance(&shot, o, d))
     });
     steps.step()?;
     let cells = CellRenderer::new(&loaded.shell, medium, base);
@@ -214,14 +217,15 @@ pub fn transparency_report(
         }
         let map_s = std::cell::Cell::new(None);
         let (levels, package_bytes) = packaged(medium, transparency)?;
+        let shot = shaded.shot();
         let (image, cpu_s) = timed(&|| {
             let r = CellRenderer::with_levels(&loaded.shell, &levels, transparency);
             if shaded.wants(Effect::Shadows) && transparency.shadows != ShadowMethod::Rays {
                 let start = Instant::now();
-                r.shadow_maps(&shaded);
+                r.shadow_maps(&shot);
                 map_s.set(Some(start.elapsed().as_secs_f64()));
             }
-            render_image(&shaded.camera, |o, d| r.radiance(&shaded, o, d))
+            render_image(&shot.camera, |o, d| r.radiance(&shot, o, d))
         });
         let (mut frame_s, mut realtime_error, mut realtime_vs_cpu) = (None, None, None);
         if let Some(gpu) = &gpu {
@@ -303,7 +307,7 @@ fn packaged(medium: &Medium, settings: TransparencySettings) -> Result<(Vec<Medi
         settings.quantization,
     ))?;
     Ok((
-        medium_package::levels(&package, settings)?,
+        medium_package::levels(&package, settings.mipmap)?,
         package.bytes().len(),
     ))
 }

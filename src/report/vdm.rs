@@ -8,15 +8,8 @@
 //! package. With both bake methods in the sweep, the paper's bake is also measured against
 //! the exact one on the scene's grid.
 
-use crate::package::vdm as vdm_package;
 use crate::realtime::gpu::Gpu;
 use crate::realtime::vdm_pipeline::VdmPreview;
-use crate::render::gdm_lookup::package_lookup;
-use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::image::{Comparison, Image, compare};
-use crate::render::render_image;
-use crate::render::truth::TruthRenderer;
-use crate::render::vdm_renderer::VdmRenderer;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
@@ -27,11 +20,18 @@ use crate::scene::technique::Technique;
 use crate::scene::vdm::{VdmSettings, relief_depth};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::vdm::compress;
+use mesobake_bake::package::vdm as vdm_package;
 use mesobake_bake::vdm::compare::{VdmError, compare as compare_vdm};
 use mesobake_bake::vdm::{self, Vdm, VdmMethod};
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::gdm_lookup::package_lookup;
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::image::{Comparison, Image, compare};
+use mesobake_render::render_image;
+use mesobake_render::truth::TruthRenderer;
+use mesobake_render::vdm_renderer::VdmRenderer;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -177,7 +177,8 @@ pub fn vdm_report(
             loaded.mesostructure.caster(),
             &loaded.material,
         );
-        render_image(&scene.camera, |o, d| r.radiance(scene, o, d))
+        let shot = scene.shot();
+        render_image(&shot.camera, |o, d| r.radiance(&shot, o, d))
     };
     let truth_s = start.elapsed().as_secs_f64();
     steps.step()?;
@@ -220,7 +221,8 @@ pub fn vdm_report(
         let query = compressed.decode();
         let renderer = VdmRenderer::new(&loaded.shell, &query, relief)?;
         let start = Instant::now();
-        let image = render_image(&scene.camera, |o, d| renderer.radiance(scene, o, d));
+        let shot = scene.shot();
+        let image = render_image(&shot.camera, |o, d| renderer.radiance(&shot, o, d));
         let cpu_s = start.elapsed().as_secs_f64();
         let realtime = match &gpu {
             Some(gpu) => {
@@ -269,7 +271,8 @@ fn gdm_row(
     let renderer =
         GdmRenderer::new(&loaded.shell, &*lookup, &loaded.material, 0).with_quality(scene.quality);
     let start = Instant::now();
-    let image = render_image(&scene.camera, |o, d| renderer.radiance(scene, o, d));
+    let shot = scene.shot();
+    let image = render_image(&shot.camera, |o, d| renderer.radiance(&shot, o, d));
     let cpu_s = start.elapsed().as_secs_f64();
     let realtime = match gpu {
         Some(gpu) => {

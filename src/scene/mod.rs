@@ -11,7 +11,6 @@ pub mod plan;
 pub mod preview;
 pub mod render;
 pub mod technique;
-pub mod transparency;
 pub mod vdm;
 
 use crate::grid::{Dims, DirectionGrid};
@@ -43,10 +42,13 @@ use mesobake_core::light::{Light, MaterialParams};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::Quality;
+use mesobake_render::medium_settings::TransparencySettings;
+use mesobake_render::path_tracer::PathTracer;
+use mesobake_render::shot::Shot;
+use mesobake_render::truth::TruthRenderer;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use technique::{Technique, TechniqueChoice};
-use transparency::TransparencySettings;
 use vdm::VdmSettings;
 
 /// Largest accepted scene file.
@@ -240,6 +242,19 @@ impl Scene {
     /// Whether the scene calls for `effect`.
     pub fn wants(&self, effect: Effect) -> bool {
         self.effects.contains(&effect)
+    }
+
+    /// What the renderers read of the scene: its camera, lights, material, effects and the
+    /// VDM lookup's knobs.
+    pub fn shot(&self) -> Shot {
+        Shot {
+            camera: self.camera,
+            lights: self.lights.clone(),
+            material: self.material,
+            effects: self.effects.clone(),
+            vdm_refine_texels: self.vdm.refine_texels,
+            vdm_shadows: self.vdm.shadows,
+        }
     }
 
     /// The voxel grid.
@@ -510,6 +525,20 @@ impl LoadedScene {
             None => Ok(()),
             Some(_) => Err(Error::Scene(medium::translucent_refusal(what))),
         }
+    }
+
+    /// The path tracer over this scene's mesostructure and base mesh, lit as `shot` says,
+    /// with `samples` paths per pixel of at most the scene's `gi.path_depth` bounces.
+    pub fn path_tracer(&self, shot: &Shot, samples: u32) -> Result<PathTracer<'_>> {
+        let truth = TruthRenderer::new(&self.shell, self.mesostructure.caster(), &self.material);
+        PathTracer::new(
+            truth,
+            &self.base,
+            self.environment.as_ref(),
+            shot,
+            samples,
+            self.scene.gi.path_depth,
+        )
     }
 
     /// Bakes the exact GDM of the scene's mesostructure on its grids.

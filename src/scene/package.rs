@@ -9,13 +9,6 @@
 //! (glossy with `environment_gloss`) and its compression. The
 //! environment itself is not baked in: packages hold transfer, which any environment lights.
 
-use crate::package::bake::{PackageParams, StageSeconds, compress_gdm};
-use crate::package::gi::GiPayload;
-use crate::package::manifest::{BakeInfo, GdmCodec};
-use crate::package::manifest::{GiInfo, InputInfo};
-use crate::package::medium as medium_package;
-use crate::package::vdm as vdm_package;
-use crate::package::{AnyPackage, GdmPayload, Package};
 use crate::scene::gi::{prt_matrices, rtv_params};
 use crate::scene::plan::{Plan, plan};
 use crate::scene::technique::{self, Technique, TechniqueChoice};
@@ -28,6 +21,13 @@ use mesobake_bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
 use mesobake_bake::gi::prt::geometry_hash;
 use mesobake_bake::gi::rtv::{self, RtvStats};
 use mesobake_bake::mesostructure::reliefs;
+use mesobake_bake::package::bake::{PackageParams, StageSeconds, compress_gdm};
+use mesobake_bake::package::gi::GiPayload;
+use mesobake_bake::package::manifest::{BakeInfo, GdmCodec};
+use mesobake_bake::package::manifest::{GiInfo, InputInfo};
+use mesobake_bake::package::medium as medium_package;
+use mesobake_bake::package::vdm as vdm_package;
+use mesobake_bake::package::{AnyPackage, GdmPayload, Package};
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
@@ -326,7 +326,7 @@ fn bake_medium_package(
     let bytes = medium_package::encode(input, medium, &coarser, q);
     seconds.push(("encode".to_owned(), start.elapsed().as_secs_f64()));
     // The manifest alone (the container checked, the textures not decoded again).
-    let manifest: MediumManifest = crate::package::container::parse(&bytes)?;
+    let manifest: MediumManifest = mesobake_bake::package::container::parse(&bytes)?;
     let info = &manifest.medium;
     Ok(ScenePackage {
         bytes,

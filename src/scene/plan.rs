@@ -2,9 +2,9 @@
 //! ([`super::technique`]) and the effects the scene calls for, and the stages it skips with
 //! the reason. Nothing else is baked.
 
-use crate::package::manifest::GdmCodec;
 use crate::scene::Scene;
 use crate::scene::technique::{Technique, TechniqueChoice, is_height_field};
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::effect::Effect;
 use serde::{Deserialize, Serialize};
 

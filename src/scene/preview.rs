@@ -3,31 +3,31 @@
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
 //! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's.
 
-use crate::package::medium as medium_package;
-use crate::package::vdm::{VdmPackage, height_field};
-use crate::package::{AnyPackage, Package};
 use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
 use crate::realtime::medium_pipeline::MediumPreview;
 use crate::realtime::pipeline::Preview;
 use crate::realtime::resources::GpuMemory;
 use crate::realtime::variant::ShaderVariant;
 use crate::realtime::vdm_pipeline::VdmPreview;
-use crate::render::gdm_lookup::package_lookup;
-use crate::render::gdm_renderer::GdmRenderer;
-use crate::render::image::Image;
-use crate::render::medium_cells::CellRenderer;
-use crate::render::render_image;
-use crate::render::sampling::supersample;
-use crate::render::vdm_renderer::VdmRenderer;
 use crate::scene::LoadedScene;
-use crate::scene::gi::GiShading;
+use crate::scene::gi;
 use crate::scene::technique::Technique;
 use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::package::medium as medium_package;
+use mesobake_bake::package::vdm::{VdmPackage, height_field};
+use mesobake_bake::package::{AnyPackage, Package};
 use mesobake_bake::vdm::Relief;
 use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::gdm_lookup::package_lookup;
+use mesobake_render::gdm_renderer::GdmRenderer;
+use mesobake_render::image::Image;
+use mesobake_render::medium_cells::CellRenderer;
+use mesobake_render::render_image;
+use mesobake_render::sampling::supersample;
+use mesobake_render::vdm_renderer::VdmRenderer;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -172,7 +172,7 @@ pub fn render_on_cpu(loaded: &LoadedScene, package: &AnyPackage) -> Result<Image
     match package {
         AnyPackage::Medium(p) => {
             let settings = loaded.scene.transparency;
-            let levels = medium_package::levels(p, settings)?;
+            let levels = medium_package::levels(p, settings.mipmap)?;
             let cells = CellRenderer::with_levels(&loaded.shell, &levels, settings);
             Ok(cells_image(loaded, &cells))
         }
@@ -185,8 +185,8 @@ pub fn render_on_cpu(loaded: &LoadedScene, package: &AnyPackage) -> Result<Image
             };
             let query = p.query();
             let r = VdmRenderer::new(&loaded.shell, &query, relief)?;
-            let scene = &loaded.scene;
-            Ok(render_image(&scene.camera, |o, d| r.radiance(scene, o, d)))
+            let shot = loaded.scene.shot();
+            Ok(render_image(&shot.camera, |o, d| r.radiance(&shot, o, d)))
         }
     }
 }
@@ -198,7 +198,7 @@ pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Imag
     let scene = &loaded.scene;
     let lookup = package_lookup(package)?;
     let gi = if scene.wants(Effect::EnvironmentLighting) {
-        Some(GiShading::from_package(loaded, package)?)
+        Some(gi::shading_from_package(loaded, package)?)
     } else {
         None
     };
@@ -212,7 +212,8 @@ pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Imag
     if let Some(gi) = &gi {
         r = r.with_gi(gi);
     }
-    Ok(render_image(&scene.camera, |o, d| r.radiance(scene, o, d)))
+    let shot = scene.shot();
+    Ok(render_image(&shot.camera, |o, d| r.radiance(&shot, o, d)))
 }
 
 /// What a preview ran on, chose and measured.
@@ -251,7 +252,7 @@ pub fn preview(
         AnyPackage::Vdm(package) => vdm_preview(gpu, loaded, package, frames, observer),
         AnyPackage::Medium(package) => {
             let settings = loaded.scene.transparency;
-            let levels = medium_package::levels(package, settings)?;
+            let levels = medium_package::levels(package, settings.mipmap)?;
             let cells = CellRenderer::with_levels(&loaded.shell, &levels, settings);
             cells_preview(gpu, loaded, cells, frames, observer)
         }
@@ -331,8 +332,8 @@ fn scene_cells(loaded: &LoadedScene) -> Result<CellRenderer<'_>> {
 
 /// The image `cells` renders of `loaded`'s scene.
 fn cells_image(loaded: &LoadedScene, cells: &CellRenderer) -> Image {
-    let scene = &loaded.scene;
-    render_image(&scene.camera, |o, d| cells.radiance(scene, o, d))
+    let shot = loaded.scene.shot();
+    render_image(&shot.camera, |o, d| cells.radiance(&shot, o, d))
 }
 
 /// The translucent-media pipeline's CPU twin on `loaded`'s own medium (no package):

@@ -1,28 +1,27 @@
 //! Scene → image: loads what the scene names, bakes or reads the GDM when the method needs
 //! one, picks the renderer and times each stage (`mesobake render`).
 
-use crate::package::Package;
-use crate::package::medium::{self as medium_package, MediumPackage};
-use crate::package::vdm::VdmPackage;
-use crate::render::explicit::ExplicitRenderer;
-use crate::render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
-use crate::render::gdm_renderer::{GdmRenderer, Substitutions};
-use crate::render::image::Image;
-use crate::render::medium_cells::CellRenderer;
-use crate::render::medium_truth::MediumTruth;
-use crate::render::path_tracer::PathTracer;
-use crate::render::render_image_observed;
-use crate::render::truth::TruthRenderer;
-use crate::render::vdm_renderer::VdmRenderer;
-use crate::scene::gi::{GiReport, GiShading};
+use crate::scene::gi::{self, GiReport};
 use crate::scene::{LoadedScene, Scene};
 use glam::DVec3;
 use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::package::Package;
+use mesobake_bake::package::medium::{self as medium_package, MediumPackage};
+use mesobake_bake::package::vdm::VdmPackage;
 use mesobake_bake::vdm::Relief;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_render::explicit::ExplicitRenderer;
+use mesobake_render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
+use mesobake_render::gdm_renderer::{GdmRenderer, Substitutions};
+use mesobake_render::image::Image;
+use mesobake_render::medium_cells::CellRenderer;
+use mesobake_render::medium_truth::MediumTruth;
+use mesobake_render::render_image_observed;
+use mesobake_render::truth::TruthRenderer;
+use mesobake_render::vdm_renderer::VdmRenderer;
 use serde::Serialize;
 use std::path::Path;
 use std::str::FromStr;
@@ -168,6 +167,7 @@ pub fn render_substituted(
     let scene = &loaded.scene;
     let mut seconds = RenderSeconds::default();
     let environment = scene.wants(Effect::EnvironmentLighting);
+    let shot = scene.shot();
     let mut gi_report = None;
     if let Some(medium) = &loaded.medium {
         return render_medium(loaded, medium, method, source, observer);
@@ -182,11 +182,10 @@ pub fn render_substituted(
     let image = match method {
         RenderMethod::Truth if environment => {
             let start = Instant::now();
-            let tracer = PathTracer::new(loaded, scene.gi.path_samples, scene.gi.path_depth)?;
+            let tracer = loaded.path_tracer(&shot, scene.gi.path_samples)?;
             observer.stage("rendering");
-            let image = render_image_observed(&scene.camera, observer, |o, d| {
-                tracer.radiance(scene, o, d)
-            })?;
+            let image =
+                render_image_observed(&shot.camera, observer, |o, d| tracer.radiance(&shot, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -200,10 +199,16 @@ pub fn render_substituted(
         }
         RenderMethod::Explicit => {
             let start = Instant::now();
-            let r = ExplicitRenderer::new(loaded, limits)?;
+            let r = ExplicitRenderer::new(
+                &loaded.shell,
+                &loaded.mesostructure,
+                &loaded.material,
+                scene.dims()?,
+                limits,
+            )?;
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
+                render_image_observed(&shot.camera, observer, |o, d| r.radiance(&shot, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -216,7 +221,7 @@ pub fn render_substituted(
                     (baked.compressed.decode(), baked.relief())
                 }
                 MapSource::VdmPackage(pkg) => {
-                    field = crate::package::vdm::height_field(pkg)?;
+                    field = mesobake_bake::package::vdm::height_field(pkg)?;
                     let depth = pkg.manifest().relief.depth;
                     (
                         pkg.query(),
@@ -246,7 +251,7 @@ pub fn render_substituted(
             }
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
+                render_image_observed(&shot.camera, observer, |o, d| r.radiance(&shot, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -263,7 +268,7 @@ pub fn render_substituted(
             let r = TruthRenderer::new(&loaded.shell, caster, &loaded.material);
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
+                render_image_observed(&shot.camera, observer, |o, d| r.radiance(&shot, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -276,7 +281,7 @@ pub fn render_substituted(
                     raw = loaded.bake_gdm(limits, observer)?;
                     raw_lookup = RawLookup::new(&raw);
                     if environment {
-                        let (shading, report) = GiShading::bake(loaded, &raw, limits, observer)?;
+                        let (shading, report) = gi::bake_shading(loaded, &raw, limits, observer)?;
                         gi = Some(shading);
                         gi_report = Some(report);
                     }
@@ -292,7 +297,7 @@ pub fn render_substituted(
                 MapSource::Package(pkg) => {
                     pkg.check_grid(scene.dims()?)?;
                     if environment {
-                        gi = Some(GiShading::from_package(loaded, pkg)?);
+                        gi = Some(gi::shading_from_package(loaded, pkg)?);
                     }
                     from_package = package_lookup(pkg)?;
                     &*from_package
@@ -320,7 +325,7 @@ pub fn render_substituted(
             }
             observer.stage("rendering");
             let image =
-                render_image_observed(&scene.camera, observer, |o, d| r.radiance(scene, o, d))?;
+                render_image_observed(&shot.camera, observer, |o, d| r.radiance(&shot, o, d))?;
             seconds.render = start.elapsed().as_secs_f64();
             image
         }
@@ -347,7 +352,7 @@ fn render_medium(
     }
     let levels = match source {
         MapSource::MediumPackage(p) if method == RenderMethod::Cells => {
-            Some(medium_package::levels(p, scene.transparency)?)
+            Some(medium_package::levels(p, scene.transparency.mipmap)?)
         }
         MapSource::Bake => None,
         _ => {
@@ -366,20 +371,21 @@ fn render_medium(
         ));
     }
     let start = Instant::now();
+    let shot = scene.shot();
     let truth;
     let cells;
     let r: &(dyn Fn(DVec3, DVec3) -> Option<DVec3> + Sync) = if method == RenderMethod::Truth {
         truth = MediumTruth::new(&loaded.shell, medium);
-        &|o, d| truth.radiance(scene, o, d)
+        &|o, d| truth.radiance(&shot, o, d)
     } else {
         cells = match &levels {
             Some(levels) => CellRenderer::with_levels(&loaded.shell, levels, scene.transparency),
             None => CellRenderer::new(&loaded.shell, medium, scene.transparency),
         };
-        &|o, d| cells.radiance(scene, o, d)
+        &|o, d| cells.radiance(&shot, o, d)
     };
     observer.stage("rendering");
-    let image = render_image_observed(&scene.camera, observer, r)?;
+    let image = render_image_observed(&shot.camera, observer, r)?;
     Ok(Rendered {
         image,
         seconds: RenderSeconds {

@@ -16,6 +16,7 @@
 //! curvature range (|c|·depth < 1 in tiles). Everywhere else it picks GDM.
 
 use super::{MesostructureSource, Scene};
+use mesobake_bake::package::AnyPackage;
 use mesobake_bake::surface::base_mesh::MeshReport;
 use mesobake_bake::surface::shell::Shell;
 use mesobake_core::effect::Effect;
@@ -40,6 +41,15 @@ pub enum Technique {
 }
 
 impl Technique {
+    /// The technique whose renderers read `package`: `gdm`, `vdm` or `transparency`.
+    pub fn of_package(package: &AnyPackage) -> Technique {
+        match package {
+            AnyPackage::Gdm(_) => Technique::Gdm,
+            AnyPackage::Vdm(_) => Technique::Vdm,
+            AnyPackage::Medium(_) => Technique::Transparency,
+        }
+    }
+
     /// Whether this is `auto` (left out when a scene is written).
     pub fn is_auto(&self) -> bool {
         *self == Technique::Auto
@@ -272,8 +282,8 @@ pub fn choose(scene: &Scene, surface: &Surface) -> TechniqueChoice {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::package::manifest::GdmCodec;
     use crate::scene::plan::plan;
+    use mesobake_bake::package::manifest::GdmCodec;
 
     fn scene(mesostructure: &str, mesh: &str, extra: &str) -> Result<Scene> {
         Scene::from_json(&format!(

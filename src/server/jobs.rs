@@ -13,7 +13,6 @@ use super::api_error::ApiError;
 use super::blobs::BlobStore;
 use super::db::{Db, db_error, now_ms};
 use super::worker::resolve_assets;
-use crate::package::manifest::GdmCodec;
 use crate::scene::package::{ScenePackageParams, check_params};
 use crate::scene::plan::Plan;
 use crate::scene::technique::{Surface, Technique, check, choose};
@@ -21,6 +20,7 @@ use crate::scene::{MesostructureSource, Scene, load_base_mesh};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::mesostructure::volume_format;
+use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_bake::surface::shell::Shell;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
@@ -100,7 +100,7 @@ impl JobSpec {
                 .to_hex()
                 .to_string()
         };
-        let version = crate::package::container::VERSION;
+        let version = mesobake_bake::package::container::VERSION;
         match technique {
             // Nothing in a medium package depends on the base mesh or the shell: an animated
             // surface reuses it.

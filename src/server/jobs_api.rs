@@ -5,7 +5,6 @@ use super::api_error::{ApiError, ApiResult};
 use super::jobs::{JobSpec, JobView, check_job_id};
 use super::json_body::JsonBody;
 use super::request_limits::check_scene_cost;
-use crate::package::bake::check_codec_options;
 use crate::scene::plan::Plan;
 use crate::scene::{BaseMeshSource, MesostructureSource, Scene};
 use axum::Json;
@@ -13,6 +12,7 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures_util::stream::{self, Stream};
+use mesobake_bake::package::bake::check_codec_options;
 use std::convert::Infallible;
 use std::time::Duration;
 

@@ -2,7 +2,9 @@
 //! volumes, OBJ tiles, height fields, translucent media), the surfaces they are mapped onto
 //! ([`surface`]: base meshes, the shell of prisms, explicit geometry), the bakes themselves
 //! (the generalized displacement map [`gdm`], the view-dependent displacement map [`vdm`],
-//! global illumination's radiance transfer [`gi`]) and their compression ([`compress`]).
+//! global illumination's radiance transfer [`gi`]), their compression ([`compress`]) and
+//! their packages ([`package`]: encoding them in the format of crate `mesobake-package`,
+//! and decoding them for the renderers).
 //! It knows nothing of scene files, cameras, renderers, GPUs, HTTP or SQL; only the core and
 //! the package format lie below it.
 //!
@@ -29,5 +31,6 @@ pub mod compress;
 pub mod gdm;
 pub mod gi;
 pub mod mesostructure;
+pub mod package;
 pub mod surface;
 pub mod vdm;

@@ -1,7 +1,7 @@
 //! The split GDM: one representation per question the renderer asks (the packages issue's
 //! third candidate). The primary query only asks whether the fragment's texture-space segment
 //! hits solid, and that segment is never longer than the longest segment a prism of the
-//! scene can hold (`render::gdm_renderer::longest_segment`): its distances are capped there
+//! scene can hold (`mesobake_render::prepared_prism::longest_segment`): its distances are capped there
 //! (escapes and farther hits alike become the cap) and compressed by SVD in the paper's layout
 //! or in tiles ([`compress_tiled`]). The shadow query only asks hit-or-escape: one bit per
 //! sample of an exact GDM baked at a reduced direction resolution, interpolated by the raw

@@ -2,8 +2,7 @@
 //! renderers read them, in the format of the crate's [`mesobake_package::medium`] (see
 //! `docs/package-format.md`).
 
-use crate::scene::transparency::TransparencySettings;
-use mesobake_bake::mesostructure::medium::Medium;
+use crate::mesostructure::medium::Medium;
 use mesobake_core::error::{Error, Result};
 use mesobake_package::manifest::InputInfo;
 pub use mesobake_package::medium::MediumPackage;
@@ -35,21 +34,21 @@ pub fn encode(input: InputInfo, medium: &Medium, coarser: &[Medium], q: Quantiza
     MediumPackage::encode(input, q, &levels)
 }
 
-/// The levels a renderer with `settings` reads from `package`: level 0, and the coarser ones
-/// where the settings ask for the mip-map. A package baked without its mip-map (for a scene
+/// The levels a renderer reads from `package`: level 0, and the coarser ones where it filters
+/// with the mip-map (`mipmap`). A package baked without its mip-map (for a scene
 /// that does not filter) cannot serve a scene that does: an error says so.
-pub fn levels(package: &MediumPackage, settings: TransparencySettings) -> Result<Vec<Medium>> {
+pub fn levels(package: &MediumPackage, mipmap: bool) -> Result<Vec<Medium>> {
     let stored = package.levels();
     let first = &stored[0];
     let d = first.dims;
-    if settings.mipmap && stored.len() == 1 && coarser_res([d.x, d.y, d.z]).is_some() {
+    if mipmap && stored.len() == 1 && coarser_res([d.x, d.y, d.z]).is_some() {
         return Err(Error::Scene(
             "the scene's transparency.mipmap asks for the medium's mip-map, but the package \
              holds level 0 only (baked for a scene without it); bake the package for this scene"
                 .into(),
         ));
     }
-    let wanted = if settings.mipmap { stored.len() } else { 1 };
+    let wanted = if mipmap { stored.len() } else { 1 };
     Ok(stored[..wanted]
         .iter()
         .map(|l| Medium::from_parts(l.dims, &l.voxels, &l.normals))

@@ -22,7 +22,7 @@
 
 use super::lighting::shade_transmitted;
 use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
-use crate::scene::Scene;
+use crate::shot::Shot;
 use glam::{DMat3, DVec3};
 use mesobake_bake::mesostructure::medium::Medium;
 use mesobake_bake::surface::shell::Shell;
@@ -160,8 +160,8 @@ impl<'a> MediumTruth<'a> {
 
     /// What the camera ray `origin + t·dir` (unit `dir`), t ≥ 0, gathers under the scene's
     /// lights (shadows when the scene asks for them).
-    pub fn gather(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Gathered {
-        let shadows = scene.wants(Effect::Shadows);
+    pub fn gather(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Gathered {
+        let shadows = shot.wants(Effect::Shadows);
         let scale = self.walk.scale();
         let mut out = Gathered::EMPTY;
         self.chords(origin, dir, (0.0, f64::INFINITY), |chord, i| {
@@ -184,8 +184,8 @@ impl<'a> MediumTruth<'a> {
                         inverse.and_then(|inv| (inv.transpose() * n).try_normalize())
                     });
                     shade_transmitted(
-                        &scene.lights,
-                        &scene.material,
+                        &shot.lights,
+                        &shot.material,
                         point,
                         normal,
                         self.medium.colour(v),
@@ -210,8 +210,8 @@ impl<'a> MediumTruth<'a> {
     }
 
     /// The camera ray's composited radiance, or `None` where it met no medium.
-    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
-        let g = self.gather(scene, origin, dir);
+    pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+        let g = self.gather(shot, origin, dir);
         (g.transmittance < 1.0).then_some(g.radiance)
     }
 }

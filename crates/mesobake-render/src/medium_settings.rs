@@ -1,7 +1,7 @@
 //! How a scene's translucent medium is rendered by the real-time algorithm of semi-transparent
-//! 3D textures ([`crate::render::medium_cells`]).
+//! 3D textures ([`crate::medium_cells`]).
 
-use crate::render::cell_order::ViewSort;
+use crate::cell_order::ViewSort;
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_core::error::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -31,7 +31,7 @@ pub enum CellOrder {
     /// always the exact order, no cycles to break.
     #[default]
     PerPixel,
-    /// The cells sorted once per view on the CPU by SXMPVO ([`crate::render::cell_order`]),
+    /// The cells sorted once per view on the CPU by SXMPVO ([`crate::cell_order`]),
     /// drawn back to front and blended: the paper's algorithm; exact at pixel centres
     /// unless the cells' constraints form a cycle.
     PerView,
@@ -69,7 +69,7 @@ impl CellOrder {
 }
 
 /// How the real-time algorithm finds what of each light reaches a point in the medium
-/// ([`crate::render::medium_shadow_map`]), where the scene calls for shadows.
+/// ([`crate::medium_shadow_map`]), where the scene calls for shadows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ShadowMethod {

@@ -48,11 +48,11 @@
 //!    test sees only the relief above the hit).
 
 use super::accel::BoxBvh;
-use super::gdm_renderer::intersect;
 use super::lighting::shade;
+use super::prepared_prism::intersect;
 use super::truth::TruthRenderer;
-use super::vdm_refine::BentRay;
-use crate::scene::Scene;
+use super::vdm_refine::{BentRay, FLAT_CURVATURE};
+use crate::shot::Shot;
 use glam::{DMat3, DVec2, DVec3};
 use mesobake_bake::surface::curvature::{VertexCurvature, vertex_curvatures};
 use mesobake_bake::surface::shell::{FaceTriangle, Shell};
@@ -62,10 +62,6 @@ use mesobake_core::error::{Error, Result};
 use mesobake_core::quality::ShadowMethod;
 use mesobake_package::vdm::VdmQuery;
 use std::f64::consts::FRAC_PI_2;
-
-/// Curvatures (1/tile) below this are flat for the shadow geometry (the bent formulas would
-/// divide by them).
-pub const FLAT_CURVATURE: f64 = 1e-6;
 
 /// How far short of the light's entry point the VDM may answer, in texels, and still let the
 /// light through: the interpolated VDM's error near the surface it reaches.
@@ -200,8 +196,8 @@ impl<'a> VdmRenderer<'a> {
     }
 
     /// The shaded radiance along the camera ray, or `None` where it shows the background.
-    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
-        let eye = DVec3::from(scene.camera.eye);
+    pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+        let eye = DVec3::from(shot.camera.eye);
         let mut fragments = Vec::new();
         self.bvh
             .candidates(origin, dir, 0.0, f64::INFINITY, |f, _| {
@@ -214,14 +210,14 @@ impl<'a> VdmRenderer<'a> {
             });
         fragments.sort_by(|a, b| a.0.total_cmp(&b.0));
         fragments.into_iter().find_map(|(t, f, bary)| {
-            self.fragment(scene, eye, origin + dir * t, dir, &self.faces[f], bary)
+            self.fragment(shot, eye, origin + dir * t, dir, &self.faces[f], bary)
         })
     }
 
     /// Steps 1–6 for one fragment; `None` for a silhouette.
     fn fragment(
         &self,
-        scene: &Scene,
+        shot: &Shot,
         eye: DVec3,
         p: DVec3,
         dir: DVec3,
@@ -235,7 +231,7 @@ impl<'a> VdmRenderer<'a> {
         };
         let t = face.triangle.texture_at(bary).truncate();
         let c_v = corner_curvature(&|corner| eye - corner);
-        let (view, sigma) = self.lookup(face, t, dir, c_v, scene.vdm.refine_texels)?;
+        let (view, sigma) = self.lookup(face, t, dir, c_v, shot.vdm_refine_texels)?;
         let offset = view.azimuth * sigma;
         let t_hit = t + offset;
         let depth = self.relief.surface_depth(t_hit.x, t_hit.y);
@@ -244,15 +240,15 @@ impl<'a> VdmRenderer<'a> {
         let normal = (face.to_vdm.transpose() * n_vdm)
             .try_normalize()
             .unwrap_or(-dir);
-        let shadows = scene.wants(Effect::Shadows);
+        let shadows = shot.wants(Effect::Shadows);
         let texel = 1.0 / f64::from(self.relief.field.size().0);
         let exact_start = || hit + face.from_vdm * (n_vdm.normalize() * texel);
         Some(shade(
-            &scene.lights,
-            &scene.material,
+            &shot.lights,
+            &shot.material,
             hit,
             normal,
-            DVec3::from(scene.material.albedo),
+            DVec3::from(shot.material.albedo),
             -dir,
             |inc| {
                 if let Some(truth) = self.exact_shadows.filter(|_| shadows) {
@@ -261,8 +257,8 @@ impl<'a> VdmRenderer<'a> {
                 !shadows || {
                     let c_l = corner_curvature(&|_| inc.direction);
                     self.lit(face, t_hit, depth, inc.direction, c_l)
-                        && (scene.vdm.shadows == ShadowMethod::Local
-                            || !self.blocked_elsewhere(scene, hit, inc.direction, inc.distance))
+                        && (shot.vdm_shadows == ShadowMethod::Local
+                            || !self.blocked_elsewhere(shot, hit, inc.direction, inc.distance))
                 }
             },
         ))
@@ -303,7 +299,7 @@ impl<'a> VdmRenderer<'a> {
 
     /// Step 7: whether the straight ray from `hit` along the light's direction `l` enters the
     /// top surface within `distance` at a fragment that is not a silhouette.
-    fn blocked_elsewhere(&self, scene: &Scene, hit: DVec3, l: DVec3, distance: f64) -> bool {
+    fn blocked_elsewhere(&self, shot: &Shot, hit: DVec3, l: DVec3, distance: f64) -> bool {
         let mut blocked = false;
         self.bvh.candidates(hit, l, 0.0, distance, |f, _| {
             let face = &self.faces[f];
@@ -317,7 +313,7 @@ impl<'a> VdmRenderer<'a> {
                 let c = (0..3).map(|i| bary[i] * face.curvature[i].along(l)).sum();
                 let entry = tri.texture_at(bary).truncate();
                 blocked = self
-                    .lookup(face, entry, l, c, scene.vdm.refine_texels)
+                    .lookup(face, entry, l, c, shot.vdm_refine_texels)
                     .is_some();
             }
         });

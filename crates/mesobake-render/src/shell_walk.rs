@@ -10,9 +10,9 @@
 //!    chord is longer than [`MAX_CHORD`] voxels).
 
 use super::accel::BoxBvh;
-use crate::grid::Dims;
 use glam::DVec3;
 use mesobake_bake::surface::shell::{Prism, PrismPoint, Shell, cubic_roots};
+use mesobake_package::grid::Dims;
 use std::ops::ControlFlow;
 
 /// Largest distance, in voxels, between a chord's midpoint and the texture-space curve it

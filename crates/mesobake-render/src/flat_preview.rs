@@ -7,11 +7,11 @@
 //! the GDM towards the light (a grid direction) reports a hit; an escape shows the base surface.
 //! The full renderer on curved base meshes comes with the scene format.
 
-use crate::grid::Wrap;
 use mesobake_bake::gdm::Gdm;
 use mesobake_bake::gdm::interpolate::sample_layer;
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_core::error::{Error, Result};
+use mesobake_package::grid::Wrap;
 
 /// What to render.
 #[derive(Clone, Copy, Debug)]

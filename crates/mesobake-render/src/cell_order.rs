@@ -1,5 +1,5 @@
 //! A visibility order of the shell's cells for one view, back to front: what the real-time
-//! pipeline's per-view orders draw by ([`crate::scene::transparency::CellOrder`]).
+//! pipeline's per-view orders draw by ([`crate::medium_settings::CellOrder`]).
 //!
 //! Both orders start from MPVO's constraints: across every face two cells share, the cell on
 //! the far side from the eye must be drawn before the near one (the eye lies outside the far

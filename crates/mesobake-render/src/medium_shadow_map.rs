@@ -9,7 +9,7 @@
 //!    shadows are traced as rays. Texel (i, j) of an n × n map has its centre at
 //!    u = 2(i + ½)/n − 1, v = 2(j + ½)/n − 1 and casts one ray, whose parameter t (object
 //!    distance from the map's origin) runs over the sphere: [t₀, t₀ + 2r].
-//! 2. **Build**, one texel ray at a time through the cells ([`CellRenderer::optical_depths`]),
+//! 2. **Build**, one texel ray at a time through the cells ([`MapMedium::optical_depths`]),
 //!    order-independent and from nothing but the cells and the medium (rebuilt each frame,
 //!    so animated meshes and media need nothing precomputed): the optical depth τ(t), exact
 //!    and piecewise linear along the ray (each voxel piece adds σ·ℓ, σ = −ln(1 − α) per voxel
@@ -36,13 +36,34 @@
 //!
 //! [`SHADOW_START`]: super::medium_truth::SHADOW_START
 
-use super::medium_cells::CellRenderer;
-use crate::scene::Scene;
-use crate::scene::transparency::ShadowMethod;
+use crate::medium_settings::{ShadowMethod, TransparencySettings};
+use crate::shot::Shot;
 use glam::DVec3;
 use mesobake_core::light::Light;
 use rayon::prelude::*;
 use std::ops::ControlFlow;
+
+/// What shadow maps are built through: the medium's optical depth along rays (the cells of
+/// `medium_cells::CellRenderer`, in mip level 0), the boxes that hold it, and the settings
+/// that size the maps.
+pub trait MapMedium: Sync {
+    /// The settings the maps are built with (method, size, levels).
+    fn settings(&self) -> TransparencySettings;
+
+    /// Boxes (min, max) that together hold the medium (none when it is empty).
+    fn bounds(&self) -> Vec<(DVec3, DVec3)>;
+
+    /// Visits the optical depth along `origin + t·dir` (unit `dir`), t ∈ [`t_min`, `t_max`],
+    /// in order: `f(t_a, t_b, τ)` per piece of constant medium; stops when `f` breaks.
+    fn optical_depths(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_min: f64,
+        t_max: f64,
+        f: impl FnMut(f64, f64, f64) -> ControlFlow<()>,
+    ) -> ControlFlow<()>;
+}
 
 /// Optical depth from which a map counts the light as blocked: −ln of
 /// [`super::medium_truth::MIN_TRANSMITTANCE`].
@@ -178,7 +199,7 @@ pub struct ShadowMap {
 impl ShadowMap {
     /// Builds the map of `method` (not [`ShadowMethod::Rays`]) of the light seen through
     /// `frame`, with the settings' size and levels, through `cells`.
-    pub fn build(cells: &CellRenderer, frame: LightFrame, method: ShadowMethod) -> ShadowMap {
+    pub fn build(cells: &impl MapMedium, frame: LightFrame, method: ShadowMethod) -> ShadowMap {
         let settings = cells.settings();
         let size = settings.shadow_map_size;
         let stride = match method {
@@ -309,7 +330,7 @@ fn deep_optical_depth(texel: &[f64], t: f64) -> f64 {
 
 /// Fills a deep-map texel from the ray `o + t·d`, t ∈ `range`: t_a, t_e, τ_e and the
 /// levels' depths.
-fn deep_texel(cells: &CellRenderer, o: DVec3, d: DVec3, range: (f64, f64), out: &mut [f64]) {
+fn deep_texel(cells: &impl MapMedium, o: DVec3, d: DVec3, range: (f64, f64), out: &mut [f64]) {
     let levels = out.len() - 3;
     out.fill(f64::INFINITY);
     let (mut first, mut end, mut tau, mut k) = (f64::INFINITY, f64::INFINITY, 0.0, 0);
@@ -338,7 +359,7 @@ fn deep_texel(cells: &CellRenderer, o: DVec3, d: DVec3, range: (f64, f64), out: 
 
 /// A depth-map texel: where the optical depth along `o + t·d`, t ∈ [`t0`, `t1`], reaches
 /// [`DEPTH_THRESHOLD`], or +∞.
-fn depth_texel(cells: &CellRenderer, o: DVec3, d: DVec3, t0: f64, t1: f64) -> f64 {
+fn depth_texel(cells: &impl MapMedium, o: DVec3, d: DVec3, t0: f64, t1: f64) -> f64 {
     let mut tau = 0.0;
     let mut depth = f64::INFINITY;
     let _ = cells.optical_depths(o, d, t0, t1, |ta, tb, piece| {
@@ -352,11 +373,11 @@ fn depth_texel(cells: &CellRenderer, o: DVec3, d: DVec3, t0: f64, t1: f64) -> f6
     depth
 }
 
-/// Every light's map for `cells` under `scene` (`None` where a light has none: ambient,
+/// Every light's map for `cells` under `shot` (`None` where a light has none: ambient,
 /// a point light inside the bounding sphere, or shadows by [`ShadowMethod::Rays`]).
-pub fn build_maps(cells: &CellRenderer, scene: &Scene) -> Vec<Option<ShadowMap>> {
+pub fn build_maps(cells: &impl MapMedium, shot: &Shot) -> Vec<Option<ShadowMap>> {
     let method = cells.settings().shadows;
-    map_frames(cells, scene)
+    map_frames(cells, shot)
         .into_iter()
         .map(|frame| frame.map(|f| ShadowMap::build(cells, f, method)))
         .collect()
@@ -364,19 +385,18 @@ pub fn build_maps(cells: &CellRenderer, scene: &Scene) -> Vec<Option<ShadowMap>>
 
 /// Every light's map frame over the cells' bounding sphere (`None` where it has no map:
 /// ambient, a point light inside the sphere, or shadows by [`ShadowMethod::Rays`]).
-pub fn map_frames(cells: &CellRenderer, scene: &Scene) -> Vec<Option<LightFrame>> {
-    let bounds = cells.cells().bounds();
+pub fn map_frames(cells: &impl MapMedium, shot: &Shot) -> Vec<Option<LightFrame>> {
+    let bounds = cells.bounds();
     let Some((lo, hi)) = bounds
         .into_iter()
         .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
         .filter(|_| cells.settings().shadows != ShadowMethod::Rays)
     else {
-        return vec![None; scene.lights.len()];
+        return vec![None; shot.lights.len()];
     };
     let centre = (lo + hi) * 0.5;
     let radius = (hi - lo).length() * 0.5 * SPHERE_MARGIN;
-    scene
-        .lights
+    shot.lights
         .iter()
         .map(|l| LightFrame::new(l, centre, radius))
         .collect()

@@ -12,8 +12,9 @@
 
 use super::lighting::shade;
 use super::truth::EXACT_SHADOW_OFFSET;
-use crate::scene::{LoadedScene, Scene};
+use crate::shot::Shot;
 use glam::DVec3;
+use mesobake_bake::gdm::input::Mesostructure;
 use mesobake_bake::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
 use mesobake_bake::mesostructure::trimesh::TriMesh;
 use mesobake_bake::surface::explicit::{ExplicitParams, TriangleSource, export};
@@ -21,6 +22,7 @@ use mesobake_bake::surface::shell::{Prism, Shell};
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 use obvhs::{
     BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris, ray::Ray, ray::RayHit,
     triangle::Triangle,
@@ -58,25 +60,30 @@ struct Hit {
 }
 
 impl<'a> ExplicitRenderer<'a> {
-    /// Exports `loaded`'s mesh tile through its shell and builds the BVH. Scenes whose
-    /// mesostructure is voxels are refused: their explicit geometry is the voxel boxes the
-    /// truth already casts exactly.
-    pub fn new(loaded: &'a LoadedScene, limits: &Limits) -> Result<Self> {
-        let tile: &TriMesh = loaded.mesostructure.tile_mesh().ok_or_else(|| {
+    /// Exports `mesostructure`'s mesh tile (on a `dims` grid) through `shell` and builds the
+    /// BVH; hits are coloured by `material`. A mesostructure of voxels is refused: its
+    /// explicit geometry is the voxel boxes the truth already casts exactly.
+    pub fn new(
+        shell: &'a Shell,
+        mesostructure: &Mesostructure,
+        material: &'a MaterialVolume,
+        dims: Dims,
+        limits: &Limits,
+    ) -> Result<Self> {
+        let tile: &TriMesh = mesostructure.tile_mesh().ok_or_else(|| {
             Error::InvalidParameter(
                 "the explicit renderer needs a mesh tile (mesostructure {\"tile\": \"x.obj\"}); \
                  this scene's mesostructure is voxels"
                     .into(),
             )
         })?;
-        let dims = loaded.scene.dims()?;
-        let thickness = loaded.shell.params.thickness;
+        let thickness = shell.params.thickness;
         let params = ExplicitParams {
             tile_height: f64::from(dims.z) / f64::from(dims.x),
             tolerance: EXPLICIT_TOLERANCE * thickness,
             record_texture: true,
         };
-        let explicit = export(&loaded.shell, tile, &params, limits, &())?;
+        let explicit = export(shell, tile, &params, limits, &())?;
         let mesh = &explicit.mesh;
         // Per triangle: f64 corners, its source, an f32 copy and the BVH's share.
         limits.check("explicit triangles", mesh.triangles.len() as u64, 256)?;
@@ -110,8 +117,8 @@ impl<'a> ExplicitRenderer<'a> {
                 .map(|i| sources[order(i)])
                 .collect(),
             bvh,
-            shell: &loaded.shell,
-            material: &loaded.material,
+            shell,
+            material,
             scale: DVec3::new(dims.x as f64, dims.y as f64, dims.z as f64),
             offset: EXACT_SHADOW_OFFSET * thickness / f64::from(dims.z),
         })
@@ -157,7 +164,7 @@ impl<'a> ExplicitRenderer<'a> {
     }
 
     /// The shaded radiance along the camera ray, or `None` for a miss.
-    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+    pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.trace(origin, dir, f64::INFINITY)?;
         let c = &self.corners[hit.triangle];
         let flat = (c[1] - c[0]).cross(c[2] - c[0]).normalize_or_zero();
@@ -176,11 +183,11 @@ impl<'a> ExplicitRenderer<'a> {
         let albedo = self
             .material
             .albedo_at(texture + self.texture_view(source.prism, texture, dir) * ALBEDO_DEPTH);
-        let shadows = scene.wants(Effect::Shadows);
+        let shadows = shot.wants(Effect::Shadows);
         let start = p + n * self.offset;
         Some(shade(
-            &scene.lights,
-            &scene.material,
+            &shot.lights,
+            &shot.material,
             p,
             n,
             albedo,

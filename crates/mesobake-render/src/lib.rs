@@ -1,7 +1,10 @@
-//! The CPU renderers: the ground truth ([`truth`]) and the GDM per-pixel algorithm
-//! ([`gdm_renderer`]), with what they share (lighting, images); the explicit geometry's ray
-//! cast, the truth's independent check on mesh tiles ([`explicit`]); the path tracer, the
-//! truth for environment light ([`path_tracer`]); the demo's flat preview ([`flat_preview`]).
+//! mesobake's CPU renderers, each the reference or the specification of one algorithm: the
+//! ground truths ([`truth`] for opaque mesostructure, [`medium_truth`] for translucent media,
+//! [`path_tracer`] for environment light, [`explicit`] the third, plainer check on mesh
+//! tiles), and the CPU specifications of the real-time algorithms that the WGSL shaders
+//! implement ([`gdm_renderer`], [`vdm_renderer`], [`medium_cells`]), with what they share
+//! (lighting, images, sampling). A renderer reads a [`shot::Shot`] (camera, lights,
+//! material, effects), never a scene file; it knows nothing of GPUs, HTTP or SQL.
 
 pub mod accel;
 pub mod cell_order;
@@ -10,15 +13,19 @@ pub mod explicit;
 pub mod flat_preview;
 pub mod gdm_lookup;
 pub mod gdm_renderer;
+pub mod gi_shading;
 pub mod image;
 pub mod lighting;
 pub mod medium_cells;
+pub mod medium_settings;
 pub mod medium_shadow_map;
 pub mod medium_truth;
 pub mod path_tracer;
+pub mod prepared_prism;
 pub mod prism_map;
 pub mod sampling;
 pub mod shell_walk;
+pub mod shot;
 pub mod truth;
 pub mod vdm_refine;
 pub mod vdm_renderer;

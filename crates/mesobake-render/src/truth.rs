@@ -23,7 +23,7 @@
 
 use super::lighting::{SHADOW_OFFSET, shade};
 use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
-use crate::scene::Scene;
+use crate::shot::Shot;
 use glam::{DMat3, DVec3};
 use mesobake_bake::gdm::caster::{Caster, Trace};
 use mesobake_bake::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
@@ -160,17 +160,17 @@ impl<'a> TruthRenderer<'a> {
     }
 
     /// The shaded radiance along the camera ray, or `None` for a miss.
-    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+    pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.trace(origin, dir, 0.0, f64::INFINITY)?;
-        Some(self.shade_lights(scene, &self.surface(&hit, origin, dir), dir))
+        Some(self.shade_lights(shot, &self.surface(&hit, origin, dir), dir))
     }
 
     /// The scene's lights shaded at surface `s`, seen along `dir`.
-    pub fn shade_lights(&self, scene: &Scene, s: &Surface, dir: DVec3) -> DVec3 {
-        let shadows = scene.wants(Effect::Shadows);
+    pub fn shade_lights(&self, shot: &Shot, s: &Surface, dir: DVec3) -> DVec3 {
+        let shadows = shot.wants(Effect::Shadows);
         shade(
-            &scene.lights,
-            &scene.material,
+            &shot.lights,
+            &shot.material,
             s.point,
             s.normal,
             s.albedo,

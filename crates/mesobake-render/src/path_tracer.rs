@@ -20,10 +20,11 @@
 
 use super::environment_sampler::EnvironmentSampler;
 use super::truth::{Surface, TruthRenderer};
-use crate::scene::{LoadedScene, Scene};
+use crate::shot::Shot;
 use glam::DVec3;
 use mesobake_bake::gi::environment::Environment;
 use mesobake_bake::gi::prt::Occluder;
+use mesobake_bake::surface::base_mesh::BaseMesh;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use std::f64::consts::{PI, TAU};
@@ -35,7 +36,7 @@ struct Gloss {
     exponent: f64,
 }
 
-/// The path tracer over one loaded scene.
+/// The path tracer over one shell and its mesostructure.
 pub struct PathTracer<'a> {
     truth: TruthRenderer<'a>,
     base: Occluder,
@@ -47,10 +48,18 @@ pub struct PathTracer<'a> {
 }
 
 impl<'a> PathTracer<'a> {
-    /// Prepares `loaded` (which must have an environment) with `samples` paths per pixel of
-    /// at most `depth` bounces.
-    pub fn new(loaded: &'a LoadedScene, samples: u32, depth: u32) -> Result<PathTracer<'a>> {
-        let environment = loaded.environment.as_ref().ok_or_else(|| {
+    /// Traces `truth`'s mesostructure over the base mesh `base` (which shadows the
+    /// `environment`), lit as `shot` says, with `samples` paths per pixel of at most `depth`
+    /// bounces.
+    pub fn new(
+        truth: TruthRenderer<'a>,
+        base: &BaseMesh,
+        environment: Option<&'a Environment>,
+        shot: &Shot,
+        samples: u32,
+        depth: u32,
+    ) -> Result<PathTracer<'a>> {
+        let environment = environment.ok_or_else(|| {
             Error::Scene("the path tracer needs a scene with environment lighting".into())
         })?;
         if samples == 0 || depth == 0 {
@@ -59,31 +68,25 @@ impl<'a> PathTracer<'a> {
             )));
         }
         Ok(PathTracer {
-            truth: TruthRenderer::new(
-                &loaded.shell,
-                loaded.mesostructure.caster(),
-                &loaded.material,
-            ),
-            base: Occluder::new(&loaded.base),
+            truth,
+            base: Occluder::new(base),
             environment,
             sampler: EnvironmentSampler::new(environment),
             samples,
             depth,
-            gloss: crate::scene::gi::rtv_params(&loaded.scene)
-                .glossy
-                .map(|g| Gloss {
-                    specular: DVec3::from(g.specular),
-                    exponent: g.exponent,
-                }),
+            gloss: shot.environment_gloss().map(|g| Gloss {
+                specular: DVec3::from(g.specular),
+                exponent: g.exponent,
+            }),
         })
     }
 
     /// The radiance along the camera ray, or `None` for a miss.
-    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+    pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.truth.trace(origin, dir, 0.0, f64::INFINITY)?;
         let surface = self.truth.surface(&hit, origin, dir);
-        let local = self.truth.shade_lights(scene, &surface, dir);
-        if !scene.wants(Effect::EnvironmentLighting) {
+        let local = self.truth.shade_lights(shot, &surface, dir);
+        if !shot.wants(Effect::EnvironmentLighting) {
             return Some(local);
         }
         let mut rng = Rng::from_ray(origin, dir);

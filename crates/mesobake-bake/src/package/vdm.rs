@@ -1,9 +1,9 @@
 //! VDM packages: a compressed VDM with its provenance, in the format of the crate's
 //! [`mesobake_package::vdm`] (see `docs/package-format.md`).
 
-use mesobake_bake::compress::vdm::CompressedVdm;
-use mesobake_bake::mesostructure::height_field::HeightField;
-use mesobake_bake::vdm::{Vdm, VdmParams};
+use crate::compress::vdm::CompressedVdm;
+use crate::mesostructure::height_field::HeightField;
+use crate::vdm::{Vdm, VdmParams};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::fs::read_bounded;
 use mesobake_core::limits::Limits;

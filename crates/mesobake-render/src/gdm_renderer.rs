@@ -17,7 +17,7 @@
 //!    into the volume, the query is made on the ray at that layer's centre plane and the
 //!    advance is added to d ([`advance_to_samples`]);
 //! 4. refinement (a knob beyond the paper, 0 = the paper's single query): while the answer is
-//!    a hit inside the segment, query again from [`REFINEMENT_BACKOFF`] voxel short of it, up
+//!    a hit inside the segment, query again from [`REFINEMENT_BACKOFF`](crate::gdm_lookup::REFINEMENT_BACKOFF) voxel short of it, up
 //!    to N times, keeping the last answer that hits (a refinement moves a hit, it never turns
 //!    it into a miss); near the surface the interpolated neighbours agree, so blends of near
 //!    and far hits (which land in empty space beside silhouettes) move onto a surface;
@@ -54,23 +54,17 @@
 use super::accel::BoxBvh;
 use super::gdm_lookup::GdmLookup;
 use super::lighting::{SHADOW_OFFSET, shade};
+use super::prepared_prism::{PreparedFace, PreparedPrism, intersect, prepare_prisms};
 use super::prism_map::PrismMap;
 use super::truth::{TruthRenderer, light_start};
-use crate::grid::Dims;
-use crate::scene::Scene;
-use crate::scene::gi::GiShading;
+use crate::gi_shading::GiShading;
+use crate::shot::Shot;
 use glam::{DMat3, DVec3};
 use mesobake_bake::mesostructure::material::{ALBEDO_DEPTH, MaterialVolume};
-use mesobake_bake::surface::shell::{FaceTriangle, Shell};
+use mesobake_bake::surface::shell::Shell;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::quality::{Quality, ShadingFrame, ShadowMethod};
-
-/// How far short of the previous estimate, in voxels, a refinement query is made: close enough
-/// that the neighbouring samples agree on the remaining distance, far enough to stay in front
-/// of the surface (measured on the torus + chain and flat chain scenes: 0.5 and 2 are 0.1 dB
-/// worse).
-pub const REFINEMENT_BACKOFF: f64 = 1.0;
 
 /// Parts of the per-pixel algorithm that a reference run replaces by their exact
 /// counterparts, computed by the ground truth, to measure what each approximation that no
@@ -134,84 +128,6 @@ impl std::str::FromStr for Substitutions {
         }
         Ok(subs)
     }
-}
-
-/// A face triangle with its texture coordinates in voxel units and its plane.
-#[derive(Clone, Copy, Debug)]
-pub struct PreparedFace {
-    /// Object-space corners and texture coordinates (voxel units).
-    pub triangle: FaceTriangle,
-    /// Unit outward normal.
-    pub normal: DVec3,
-    /// n·x on the plane.
-    pub offset: f64,
-}
-
-/// A prism prepared for the per-pixel algorithm (what the shaders receive per prism).
-#[derive(Clone, Debug)]
-pub struct PreparedPrism {
-    /// Top, bottom, then the two triangles of fins 0, 1, 2.
-    pub faces: [PreparedFace; 8],
-    /// Whether each fin is convex.
-    pub convex: [bool; 3],
-    /// Object → texture (voxel units).
-    pub frame: DMat3,
-}
-
-impl PreparedPrism {
-    /// The bounding box (min, max) of the prism's six corners, which holds the prism.
-    pub fn bounds(&self) -> (DVec3, DVec3) {
-        let corners = self.faces[0]
-            .triangle
-            .corners
-            .iter()
-            .chain(&self.faces[1].triangle.corners);
-        let lo = corners.clone().fold(DVec3::INFINITY, |a, &c| a.min(c));
-        let hi = corners.fold(DVec3::NEG_INFINITY, |a, &c| a.max(c));
-        (lo, hi)
-    }
-}
-
-/// The prisms of `shell` prepared for a GDM on the voxel grid `dims`.
-pub fn prepare_prisms(shell: &Shell, dims: Dims) -> Vec<PreparedPrism> {
-    let scale = DVec3::new(dims.x as f64, dims.y as f64, dims.z as f64);
-    shell
-        .prisms
-        .iter()
-        .map(|p| PreparedPrism {
-            faces: p.faces().map(|f| {
-                let triangle = FaceTriangle {
-                    corners: f.corners,
-                    texture: f.texture.map(|t| t * scale),
-                };
-                let normal = triangle.normal().normalize_or_zero();
-                PreparedFace {
-                    triangle,
-                    normal,
-                    offset: normal.dot(f.corners[0]),
-                }
-            }),
-            convex: p.fins.map(|f| f.convex),
-            frame: DMat3::from_diagonal(scale) * p.to_texture,
-        })
-        .collect()
-}
-
-/// The longest texture-space segment (voxel units) a fragment of any of `prisms` can have.
-/// In texture space a prism is the convex hull of its six corners (its base triangle's texture
-/// coordinates at w = 0 and w = Z), a fragment's segment joins two points of its boundary,
-/// so no segment is longer than the largest distance between two corners.
-pub fn longest_segment(prisms: &[PreparedPrism]) -> f64 {
-    let mut longest = 0.0f64;
-    for p in prisms {
-        let corners = p.faces.iter().flat_map(|f| f.triangle.texture);
-        for a in corners.clone() {
-            for b in corners.clone() {
-                longest = longest.max(a.distance(b));
-            }
-        }
-    }
-    longest
 }
 
 /// A ray's nearest mesostructure hit by the GDM algorithm.
@@ -490,7 +406,7 @@ impl<'a> GdmRenderer<'a> {
     }
 
     /// Step 6: the shaded radiance along the camera ray, or `None` for a miss.
-    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+    pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
         let hit = self.trace(origin, dir)?;
         let frame = self.frame(&hit);
         let n_tex = self.material.normal_at(hit.texture).unwrap_or(-hit.view);
@@ -498,7 +414,7 @@ impl<'a> GdmRenderer<'a> {
         let albedo = self
             .material
             .albedo_at(hit.texture + hit.view * ALBEDO_DEPTH);
-        let shadows = scene.wants(Effect::Shadows);
+        let shadows = shot.wants(Effect::Shadows);
         let shadow_origin = hit.texture + n_tex * SHADOW_OFFSET;
         let p = origin + dir * hit.t;
         let start = || light_start(frame.inverse(), p, n_tex);
@@ -507,7 +423,7 @@ impl<'a> GdmRenderer<'a> {
         });
         Some(
             environment
-                + shade(&scene.lights, &scene.material, p, n, albedo, -dir, |inc| {
+                + shade(&shot.lights, &shot.material, p, n, albedo, -dir, |inc| {
                     if !shadows {
                         return true;
                     }
@@ -530,44 +446,4 @@ impl<'a> GdmRenderer<'a> {
                 }),
         )
     }
-}
-
-/// How far along `view` the query point moves from `t` (voxel units) to reach the centre
-/// plane of the top layer (z = Z − ½) when it enters from the half voxel above it, or of the
-/// bottom layer (z = ½) from below; 0 otherwise, or when that plane lies beyond the segment's
-/// length `d_t`. Samples sit at voxel centres, so this keeps the query on the ray instead of
-/// clamping it half a voxel away.
-pub fn advance_to_samples(t: DVec3, view: DVec3, z: f64, d_t: f64) -> f64 {
-    let s = if view.z < 0.0 && t.z > z - 0.5 {
-        (t.z - (z - 0.5)) / -view.z
-    } else if view.z > 0.0 && t.z < 0.5 {
-        (0.5 - t.z) / view.z
-    } else {
-        0.0
-    };
-    if s < d_t { s } else { 0.0 }
-}
-
-/// Ray–triangle intersection (Möller–Trumbore in f64, edges inclusive so that rays through
-/// shared edges and vertices hit at least one neighbour): ray parameter t > 0 and the
-/// barycentric coordinates of the hit.
-pub fn intersect(tri: &FaceTriangle, o: DVec3, d: DVec3) -> Option<(f64, [f64; 3])> {
-    let [a, b, c] = tri.corners;
-    let (e1, e2) = (b - a, c - a);
-    let pv = d.cross(e2);
-    let det = e1.dot(pv);
-    if det == 0.0 || !det.is_finite() {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - a;
-    let u = s.dot(pv) * inv;
-    let qv = s.cross(e1);
-    let v = d.dot(qv) * inv;
-    const EDGE: f64 = 1e-12;
-    if u < -EDGE || v < -EDGE || u + v > 1.0 + EDGE {
-        return None;
-    }
-    let t = e2.dot(qv) * inv;
-    (t > 0.0).then_some((t, [1.0 - u - v, u, v]))
 }

@@ -28,8 +28,9 @@ pub const REFINE_STEP: f64 = 0.5;
 /// Bisections of the crossing found (to 1/64 of a step).
 pub const REFINE_BISECTIONS: u32 = 6;
 
-/// Curvatures (1/tile) below this are flat (the lookup's own threshold).
-const FLAT: f64 = super::vdm_renderer::FLAT_CURVATURE;
+/// Curvatures (1/tile) below this are flat: for the refinement's bent ray as for the
+/// renderer's shadow geometry (the bent formulas would divide by them).
+pub const FLAT_CURVATURE: f64 = 1e-6;
 
 /// One fragment's view ray on the relief bent to its curvature.
 pub struct BentRay<'a> {
@@ -56,7 +57,7 @@ impl BentRay<'_> {
         // t = R − sign(R)·|q − centre| = −k / (1 + √(1 + c·k)), k = 2w + c·|q|².
         let k = 2.0 * w + c * (u * u + w * w);
         let t = -k / (1.0 + (1.0 + c * k).max(0.0).sqrt());
-        let sigma = if c.abs() < FLAT {
+        let sigma = if c.abs() < FLAT_CURVATURE {
             u
         } else {
             (c * u).atan2(1.0 + c * w) / c
@@ -116,7 +117,7 @@ impl BentRay<'_> {
         let root = e.sqrt();
         let deep = (2.0 * t - self.c * t * t) / (cos + root);
         let mut end = deep + 2.0 * f64::from(texels) * self.texel();
-        if self.c > FLAT {
+        if self.c > FLAT_CURVATURE {
             end = end.min((cos + root) / self.c);
         }
         if !deep.is_finite() || deep < 0.0 {
@@ -162,7 +163,7 @@ impl BentRay<'_> {
 /// inverse of the lookup's σ = d·sin θ (for c = 0, τ = σ / sin θ); `None` where no point of
 /// the ray does.
 pub fn ray_length_to_arc(sigma: f64, theta: f64, c: f64) -> Option<f64> {
-    if c.abs() < FLAT {
+    if c.abs() < FLAT_CURVATURE {
         return (theta.sin() > 0.0).then(|| sigma / theta.sin());
     }
     // The ray (τ sin θ, −τ cos θ) meets the radius at angle α = c·σ about the centre

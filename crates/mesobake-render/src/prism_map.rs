@@ -10,7 +10,7 @@
 //!   in w, the independent reference of the tests).
 //! - [`PrismMap::jacobian`]: ∂P/∂T at a texture coordinate (the frame knob).
 
-use super::gdm_renderer::PreparedPrism;
+use super::prepared_prism::PreparedPrism;
 use glam::{DMat3, DVec2, DVec3};
 
 /// Newton steps of the inverse mapping. The guess lies on the straight texture-space segment,
@@ -129,10 +129,10 @@ impl PrismMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Dims;
-    use crate::render::gdm_renderer::prepare_prisms;
+    use crate::prepared_prism::prepare_prisms;
     use mesobake_bake::surface::base_mesh::BuiltinMesh;
     use mesobake_bake::surface::shell::{PrismPoint, Shell, ShellParams};
+    use mesobake_package::grid::Dims;
 
     /// A coarse torus with a thick shell (strong curvature across each prism), the shell's
     /// prisms and the same prisms prepared on a 64×64×32 grid.

@@ -4,11 +4,11 @@
 
 use super::Package;
 use super::manifest::GiInfo;
+use crate::gi::compressed_rtv::CompressedRtv;
+use crate::gi::prt::geometry_hash;
+use crate::gi::sh::{COEFFS, ShMatrix};
+use crate::surface::base_mesh::BaseMesh;
 use half::f16;
-use mesobake_bake::gi::compressed_rtv::CompressedRtv;
-use mesobake_bake::gi::prt::geometry_hash;
-use mesobake_bake::gi::sh::{COEFFS, ShMatrix};
-use mesobake_bake::surface::base_mesh::BaseMesh;
 use mesobake_core::error::{Error, Result};
 use mesobake_package::GiContent;
 

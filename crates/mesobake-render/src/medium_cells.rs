@@ -25,10 +25,10 @@
 //!    opacity-aware mip-map ([`Medium::coarser`]) nearest to log₂ of its pixel's footprint
 //!    in voxels, plus a bias.
 //! 5. **Light.** Each sample is shaded with the scene's lights; with shadows, each light's
-//!    visibility is looked up in its shadow map ([`ShadowMethod::DeepMap`](crate::scene::transparency::ShadowMethod),
-//!    [`ShadowMethod::DepthMap`](crate::scene::transparency::ShadowMethod): [`super::medium_shadow_map`], built once per renderer) or
+//!    visibility is looked up in its shadow map ([`ShadowMethod::DeepMap`](crate::medium_settings::ShadowMethod),
+//!    [`ShadowMethod::DepthMap`](crate::medium_settings::ShadowMethod): [`super::medium_shadow_map`], built once per renderer) or
 //!    is the transmittance of a ray through the cells towards it, integrated the same way
-//!    ([`ShadowMethod::Rays`](crate::scene::transparency::ShadowMethod), and lights without a map).
+//!    ([`ShadowMethod::Rays`](crate::medium_settings::ShadowMethod), and lights without a map).
 
 use super::accel::BoxBvh;
 use super::cell_order::{
@@ -36,10 +36,10 @@ use super::cell_order::{
 };
 use super::explicit::intersect;
 use super::lighting::shade_transmitted;
-use super::medium_shadow_map::{OPAQUE_EXTINCTION, ShadowMap, build_maps};
+use super::medium_shadow_map::{MapMedium, OPAQUE_EXTINCTION, ShadowMap, build_maps};
 use super::medium_truth::{DEFAULT_LIGHT_STEP, Gathered, SHADOW_START, integrate_voxel};
-use crate::scene::Scene;
-use crate::scene::transparency::{CellIntegration, TransparencySettings};
+use crate::medium_settings::{CellIntegration, TransparencySettings};
+use crate::shot::Shot;
 use glam::{DAffine3, DMat3, DVec3};
 use mesobake_bake::mesostructure::medium::Medium;
 use mesobake_bake::surface::shell::{PrismPoint, Shell};
@@ -385,20 +385,15 @@ impl<'a> CellRenderer<'a> {
         }
     }
 
-    /// The shadow maps of `scene`'s lights, per light (`None` where a light has none), built
-    /// on the first call: a renderer serves one scene's lights.
-    pub fn shadow_maps(&self, scene: &Scene) -> &[Option<ShadowMap>] {
-        self.shadow_maps.get_or_init(|| build_maps(self, scene))
+    /// The shadow maps of `shot`'s lights, per light (`None` where a light has none), built
+    /// on the first call: a renderer serves one shot's lights.
+    pub fn shadow_maps(&self, shot: &Shot) -> &[Option<ShadowMap>] {
+        self.shadow_maps.get_or_init(|| build_maps(self, shot))
     }
 
     /// The cells.
     pub fn cells(&self) -> &CellMesh {
         &self.cells
-    }
-
-    /// The settings it integrates by.
-    pub fn settings(&self) -> TransparencySettings {
-        self.settings
     }
 
     /// The medium and, where the settings ask for the mip-map, its coarser levels.
@@ -507,12 +502,101 @@ impl<'a> CellRenderer<'a> {
         }
     }
 
+    /// Transmittance through the cells along `origin + t·dir` (unit `dir`), t ∈ [`t_min`,
+    /// `t_max`], integrated like the camera rays.
+    pub fn transmittance(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> f64 {
+        self.transmittance_in(0, origin, dir, t_min, t_max)
+    }
+
+    /// [`CellRenderer::transmittance`] in mip level `level`.
+    fn transmittance_in(&self, level: usize, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> f64 {
+        let mut out = Gathered::EMPTY;
+        for c in self.cells.crossings(o, d, t_min, t_max) {
+            if self
+                .integrate(o, d, &c, level, &mut out, |_, _, _| DVec3::ZERO)
+                .is_break()
+            {
+                break;
+            }
+        }
+        out.transmittance
+    }
+
+    /// What the camera ray `origin + t·dir` (unit `dir`), t ≥ 0, gathers under the scene's
+    /// lights (shadows when the scene asks for them). With the mip-map, each crossing and its
+    /// shadow rays read the level its pixel's footprint calls for.
+    pub fn gather(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Gathered {
+        let shadows = shot.wants(Effect::Shadows);
+        let maps = if shadows { self.shadow_maps(shot) } else { &[] };
+        let camera = &shot.camera;
+        let pixel_angle =
+            2.0 * (camera.fov_y_degrees.to_radians() / 2.0).tan() / f64::from(camera.height);
+        let mut out = Gathered::EMPTY;
+        for c in self.cells.crossings(origin, dir, 0.0, f64::INFINITY) {
+            let cell = &self.cells.cells[c.cell];
+            let to_object = cell.normal_to_object;
+            let level = self.level_for(&c, pixel_angle);
+            let medium = self.level(level);
+            let flow = self.integrate(origin, dir, &c, level, &mut out, |t, texture, v| {
+                let point = origin + dir * t;
+                let normal = medium
+                    .material()
+                    .normal_at(texture)
+                    .and_then(|n| (to_object * n).try_normalize());
+                shade_transmitted(
+                    &shot.lights,
+                    &shot.material,
+                    point,
+                    normal,
+                    medium.colour(v),
+                    -dir,
+                    |light, inc| {
+                        if !shadows {
+                            return 1.0;
+                        }
+                        // The object distance that is SHADOW_START voxels towards the light.
+                        let along = cell.to_texture.matrix3 * inc.direction;
+                        let start = SHADOW_START / along.length();
+                        if start >= inc.distance {
+                            return 1.0;
+                        }
+                        if let Some(Some(map)) = maps.get(light) {
+                            return map.visibility(point, start);
+                        }
+                        self.transmittance_in(level, point, inc.direction, start, inc.distance)
+                    },
+                )
+            });
+            if flow.is_break() {
+                break;
+            }
+        }
+        out
+    }
+
+    /// The camera ray's composited radiance, or `None` where it met no medium.
+    pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+        let g = self.gather(shot, origin, dir);
+        (g.transmittance < 1.0).then_some(g.radiance)
+    }
+}
+
+impl MapMedium for CellRenderer<'_> {
+    /// The settings it integrates by.
+    fn settings(&self) -> TransparencySettings {
+        self.settings
+    }
+
+    fn bounds(&self) -> Vec<(DVec3, DVec3)> {
+        self.cells.bounds()
+    }
+
     /// Visits the optical depth along `origin + t·dir` (unit `dir`), t ∈ [`t_min`, `t_max`],
     /// through the cells in mip level 0, in order: `f(t_a, t_b, τ)` per piece of constant
     /// medium (a voxel's stretch, or a sample's share of its crossing), τ = σ·ℓ with
     /// σ = −ln(1 − α) per voxel length ([`OPAQUE_EXTINCTION`] for α = 1). Stops when `f`
     /// breaks.
-    pub fn optical_depths(
+    fn optical_depths(
         &self,
         origin: DVec3,
         dir: DVec3,
@@ -554,88 +638,6 @@ impl<'a> CellRenderer<'a> {
             }
         }
         ControlFlow::Continue(())
-    }
-
-    /// Transmittance through the cells along `origin + t·dir` (unit `dir`), t ∈ [`t_min`,
-    /// `t_max`], integrated like the camera rays.
-    pub fn transmittance(&self, origin: DVec3, dir: DVec3, t_min: f64, t_max: f64) -> f64 {
-        self.transmittance_in(0, origin, dir, t_min, t_max)
-    }
-
-    /// [`CellRenderer::transmittance`] in mip level `level`.
-    fn transmittance_in(&self, level: usize, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> f64 {
-        let mut out = Gathered::EMPTY;
-        for c in self.cells.crossings(o, d, t_min, t_max) {
-            if self
-                .integrate(o, d, &c, level, &mut out, |_, _, _| DVec3::ZERO)
-                .is_break()
-            {
-                break;
-            }
-        }
-        out.transmittance
-    }
-
-    /// What the camera ray `origin + t·dir` (unit `dir`), t ≥ 0, gathers under the scene's
-    /// lights (shadows when the scene asks for them). With the mip-map, each crossing and its
-    /// shadow rays read the level its pixel's footprint calls for.
-    pub fn gather(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Gathered {
-        let shadows = scene.wants(Effect::Shadows);
-        let maps = if shadows {
-            self.shadow_maps(scene)
-        } else {
-            &[]
-        };
-        let camera = &scene.camera;
-        let pixel_angle =
-            2.0 * (camera.fov_y_degrees.to_radians() / 2.0).tan() / f64::from(camera.height);
-        let mut out = Gathered::EMPTY;
-        for c in self.cells.crossings(origin, dir, 0.0, f64::INFINITY) {
-            let cell = &self.cells.cells[c.cell];
-            let to_object = cell.normal_to_object;
-            let level = self.level_for(&c, pixel_angle);
-            let medium = self.level(level);
-            let flow = self.integrate(origin, dir, &c, level, &mut out, |t, texture, v| {
-                let point = origin + dir * t;
-                let normal = medium
-                    .material()
-                    .normal_at(texture)
-                    .and_then(|n| (to_object * n).try_normalize());
-                shade_transmitted(
-                    &scene.lights,
-                    &scene.material,
-                    point,
-                    normal,
-                    medium.colour(v),
-                    -dir,
-                    |light, inc| {
-                        if !shadows {
-                            return 1.0;
-                        }
-                        // The object distance that is SHADOW_START voxels towards the light.
-                        let along = cell.to_texture.matrix3 * inc.direction;
-                        let start = SHADOW_START / along.length();
-                        if start >= inc.distance {
-                            return 1.0;
-                        }
-                        if let Some(Some(map)) = maps.get(light) {
-                            return map.visibility(point, start);
-                        }
-                        self.transmittance_in(level, point, inc.direction, start, inc.distance)
-                    },
-                )
-            });
-            if flow.is_break() {
-                break;
-            }
-        }
-        out
-    }
-
-    /// The camera ray's composited radiance, or `None` where it met no medium.
-    pub fn radiance(&self, scene: &Scene, origin: DVec3, dir: DVec3) -> Option<DVec3> {
-        let g = self.gather(scene, origin, dir);
-        (g.transmittance < 1.0).then_some(g.radiance)
     }
 }
 

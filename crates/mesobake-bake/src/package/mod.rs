@@ -13,18 +13,18 @@ pub mod vdm;
 
 pub use mesobake_package::{OCCUPANCY_SECTION, container, ktx2, manifest};
 
-use crate::grid::Dims;
+use crate::compress::accuracy::resolve_escapes;
+use crate::compress::gdm::CompressedGdm;
+use crate::compress::occupancy::OccupancyField;
+use crate::gdm::volume_caster::VolumeCaster;
+use crate::gdm::{EscapeConvention, Gdm, exact};
+use crate::mesostructure::volume::Occupancy;
 use manifest::{BakeInfo, GdmCodec, InputInfo};
-use mesobake_bake::compress::accuracy::resolve_escapes;
-use mesobake_bake::compress::gdm::CompressedGdm;
-use mesobake_bake::compress::occupancy::OccupancyField;
-use mesobake_bake::gdm::volume_caster::VolumeCaster;
-use mesobake_bake::gdm::{EscapeConvention, Gdm, exact};
-use mesobake_bake::mesostructure::volume::Occupancy;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::fs::read_bounded;
 use mesobake_core::limits::Limits;
 use mesobake_package::GdmContent;
+use mesobake_package::grid::Dims;
 use mesobake_package::svd::SvdFactors;
 use std::path::Path;
 
@@ -87,16 +87,6 @@ impl AnyPackage {
             AnyPackage::Gdm(p) => &p.manifest().input,
             AnyPackage::Vdm(p) => &p.manifest().input,
             AnyPackage::Medium(p) => &p.manifest().input,
-        }
-    }
-
-    /// The technique whose renderers read the package: `gdm`, `vdm` or `transparency`.
-    pub fn technique(&self) -> crate::scene::technique::Technique {
-        use crate::scene::technique::Technique;
-        match self {
-            AnyPackage::Gdm(_) => Technique::Gdm,
-            AnyPackage::Vdm(_) => Technique::Vdm,
-            AnyPackage::Medium(_) => Technique::Transparency,
         }
     }
 }

@@ -2,20 +2,20 @@
 //! codec, load, encode the occupancy field, encode). The stages `mesobake bake`
 //! runs (and that the server will queue), with the time each takes.
 
-use crate::grid::{Dims, DirectionGrid};
-use crate::package::manifest::{BakeInfo, GdmCodec, InputInfo};
+use crate::compress::gdm::{CompressedGdm, compress};
+use crate::compress::layout::GdmRows;
+use crate::compress::quantize::Quantization;
+use crate::compress::svd::{GramEigen, RankChoice};
+use crate::gdm::fast::FastParams;
+use crate::gdm::input::{self, Mesostructure};
+use crate::gdm::{self, EscapeConvention, Gdm, Method};
 use crate::package::{GdmPayload, Package};
-use mesobake_bake::compress::gdm::{CompressedGdm, compress};
-use mesobake_bake::compress::layout::GdmRows;
-use mesobake_bake::compress::quantize::Quantization;
-use mesobake_bake::compress::svd::{GramEigen, RankChoice};
-use mesobake_bake::gdm::fast::FastParams;
-use mesobake_bake::gdm::input::{self, Mesostructure};
-use mesobake_bake::gdm::{self, EscapeConvention, Gdm, Method};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::fs::read_bounded;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_package::grid::{Dims, DirectionGrid};
+use mesobake_package::manifest::{BakeInfo, GdmCodec, InputInfo};
 use std::path::Path;
 use std::time::Instant;
 
