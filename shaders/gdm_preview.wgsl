@@ -5,7 +5,7 @@
 // shadow file (`shadows_off.wgsl`, `shadows_local.wgsl` or `shadows_shell.wgsl`:
 // `light_visible`), one environment file (`gi_on.wgsl` or `gi_off.wgsl`) and by the
 // constants REFINEMENTS, CHORDS and JACOBIAN_FRAME, chosen from the package and the scene's
-// effects and quality (`src/realtime/variant.rs`); `common.wgsl` precedes it. Two passes:
+// effects and quality (`crates/mesobake-gpu/src/variant.rs`); `common.wgsl` precedes it. Two passes:
 // `vs_main`/`fs_main` find each pixel's nearest hit (steps 2–5) and write it to the hit
 // targets, `vs_fullscreen`/`fs_shade` shade it once (step 6).
 

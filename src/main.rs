@@ -94,6 +94,9 @@ enum Command {
         #[command(subcommand)]
         which: bench::BenchCommand,
     },
+    /// Print this command line's reference as Markdown (docs/cli.md is its output).
+    #[command(hide = true)]
+    HelpMarkdown,
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -123,6 +126,10 @@ fn run(cli: Cli) -> Result<()> {
         Command::Explicit(args) => explicit::explicit(args, &limits),
         Command::Report { which } => report::report(which, &limits),
         Command::Bench { which } => bench::bench(which, &ALLOCATOR, &limits),
+        Command::HelpMarkdown => {
+            print!("{}", clap_markdown::help_markdown::<Cli>());
+            Ok(())
+        }
     }
 }
 

@@ -350,3 +350,23 @@ fn long_work_shows_progress_on_a_terminal_only() {
         );
     }
 }
+
+/// `docs/cli.md` is the command line's reference as clap describes it (`mesobake
+/// help-markdown`): it fails when an option or its help changed without the document.
+/// `MESOBAKE_WRITE_DOCS=1` rewrites it instead.
+#[test]
+fn the_cli_reference_is_generated_from_the_parser() {
+    let out = succeeds(&["help-markdown"]);
+    let generated = String::from_utf8(out.stdout).unwrap();
+    assert!(generated.contains("## `mesobake render`"), "{generated}");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/cli.md");
+    if std::env::var_os("MESOBAKE_WRITE_DOCS").is_some() {
+        std::fs::write(&path, &generated).unwrap();
+    }
+    let committed = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        committed == generated,
+        "docs/cli.md is stale: regenerate it with `mesobake help-markdown > docs/cli.md` \
+         (or MESOBAKE_WRITE_DOCS=1 cargo test --release --test cli)"
+    );
+}

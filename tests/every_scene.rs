@@ -7,7 +7,6 @@
 
 mod common;
 
-use mesobake::realtime::gpu::Gpu;
 use mesobake::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
 use mesobake::scene::preview::{preview, render_on_cpu};
 use mesobake::scene::technique::Technique;
@@ -18,6 +17,7 @@ use mesobake_bake::package::AnyPackage;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Preset;
+use mesobake_gpu::gpu::Gpu;
 use mesobake_render::image::{Image, compare};
 use std::path::{Path, PathBuf};
 

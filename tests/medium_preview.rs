@@ -13,12 +13,12 @@ mod common;
 use common::{gpu, succeeds};
 use mesobake::Error;
 use mesobake::grid::Dims;
-use mesobake::realtime::gpu::Gpu;
 use mesobake::scene::preview::{medium_preview, medium_render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
+use mesobake_gpu::gpu::Gpu;
 use mesobake_render::image::{Comparison, Image, compare};
 use mesobake_render::medium_settings::{
     CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
@@ -81,7 +81,7 @@ fn assert_agrees(c: &Comparison, label: &str) {
 #[test]
 fn the_media_shader_passes_nagas_validation() {
     // Without an adapter too: the WGSL the pipeline compiles is valid.
-    let source = mesobake::realtime::medium_pipeline::source();
+    let source = mesobake_gpu::medium_pipeline::source();
     assert_eq!(
         common::naga_entry_points(&source),
         ["cs_pixels", "vs_cell", "fs_cell", "cs_shadow_map"]

@@ -4,9 +4,8 @@
 //! Vulkan driver. Without any adapter these tests fail, unless MESOBAKE_SKIP_GPU_TESTS=1 says
 //! to skip them (loudly).
 
-use mesobake::realtime::gpu::Gpu;
 use mesobake::scene::package::{ScenePackageParams, gdm_scene_package};
-use mesobake::scene::preview::{gdm_preview, gdm_render_on_cpu};
+use mesobake::scene::preview::{gdm_pipeline, gdm_preview, gdm_render_on_cpu};
 use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
@@ -14,6 +13,7 @@ use mesobake_bake::package::Package;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_gpu::gpu::Gpu;
 use mesobake_render::image::{Image, compare};
 use std::path::Path;
 
@@ -234,8 +234,8 @@ fn plane_weave_matches_with_refinements_and_partial_groups() {
 /// the environment variants the RTV.
 #[test]
 fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for() {
-    use mesobake::realtime::variant::{BVH_BINDING, GI_BINDING, SHADOW_QUERY_FN, ShaderVariant};
     use mesobake_core::quality::ShadowMethod;
+    use mesobake_gpu::variant::{BVH_BINDING, GI_BINDING, SHADOW_QUERY_FN, ShaderVariant};
     let mut count = 0;
     for variant in ShaderVariant::all() {
         let module = naga::front::wgsl::parse_str(&variant.source()).unwrap_or_else(|e| {
@@ -311,7 +311,6 @@ fn the_pipeline_runs_the_variant_the_scene_calls_for() {
     if !gpu_or_skip() {
         return;
     }
-    use mesobake::realtime::pipeline::Preview;
     let mut loaded = load("scenes/plane-weave.json", |s| {
         s.camera.width = 64;
         s.camera.height = 48;
@@ -326,7 +325,7 @@ fn the_pipeline_runs_the_variant_the_scene_calls_for() {
             vec![Effect::Silhouettes]
         };
         let gpu = Gpu::open(None).unwrap();
-        let preview = Preview::new(&gpu, &loaded, &p, true).unwrap();
+        let preview = gdm_pipeline(&gpu, &loaded, &p, true).unwrap();
         assert_eq!(preview.variant().shadows.is_some(), shadows);
         let source = preview.variant().source();
         assert_eq!(
@@ -348,8 +347,8 @@ fn the_shaders_periodic_wrap_is_the_integer_remainder() {
     if !gpu_or_skip() {
         return;
     }
-    use mesobake::realtime::target::read_mapped;
-    use mesobake::realtime::variant::COMMON;
+    use mesobake_gpu::target::read_mapped;
+    use mesobake_gpu::variant::COMMON;
     use wgpu::util::DeviceExt;
     let gpu = Gpu::open(None).unwrap();
     let periods: [u32; 9] = [1, 2, 3, 7, 32, 64, 100, 127, 128];

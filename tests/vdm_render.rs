@@ -5,13 +5,13 @@
 mod common;
 
 use common::{each_fails_with, gpu, succeeds};
-use mesobake::realtime::vdm_pipeline::VdmPreview;
 use mesobake::scene::LoadedScene;
 use mesobake::scene::Scene;
 use mesobake::scene::render::{MapSource, RenderMethod, render, render_substituted};
 use mesobake_bake::vdm::bend::Bend;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::image::{Comparison, Image, compare};
 use mesobake_render::render_image;
 use mesobake_render::vdm_renderer::{VdmRenderer, exit_arc};
@@ -442,7 +442,7 @@ fn a_closed_height_field_scene_bakes_and_renders_by_vdm_and_an_open_one_by_gdm()
 #[test]
 fn the_vdm_shader_passes_nagas_validation() {
     // Without an adapter too: the WGSL the pipeline compiles is valid.
-    let source = mesobake::realtime::vdm_pipeline::source();
+    let source = mesobake_gpu::vdm_pipeline::source();
     assert_eq!(common::naga_entry_points(&source), ["vs_main", "fs_main"]);
 }
 
@@ -476,7 +476,7 @@ fn the_wgsl_pipeline_renders_what_its_cpu_specification_renders() {
         let cpu = VdmRenderer::new(&loaded.shell, &query, baked.relief()).unwrap();
         let shot = loaded.scene.shot();
         let cpu = render_image(&shot.camera, |o, d| cpu.radiance(&shot, o, d));
-        let gpu = VdmPreview::new(&gpu, &loaded, &query, baked.relief())
+        let gpu = VdmPreview::new(&gpu, &shot, &loaded.shell, &query, baked.relief())
             .unwrap()
             .render()
             .unwrap();

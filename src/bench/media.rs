@@ -3,11 +3,11 @@
 //! pipeline's frame time in each cell order against the CPU specification's seconds per
 //! image in the same run, the per-view sort's share, and each WGSL image against the CPU's.
 
-use crate::realtime::gpu::{AdapterDescription, Gpu};
-use crate::realtime::medium_pipeline::MediumPreview;
 use crate::scene::{LoadedScene, Scene};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
+use mesobake_gpu::gpu::{AdapterDescription, Gpu};
+use mesobake_gpu::medium_pipeline::MediumPreview;
 use mesobake_render::image::{Comparison, compare};
 use mesobake_render::medium_cells::CellRenderer;
 use mesobake_render::medium_settings::{CellIntegration, CellOrder, TransparencySettings};
@@ -150,7 +150,7 @@ pub fn run(params: &MediaBenchParams, limits: &Limits) -> Result<MediaBench> {
             };
             let rendered = MediumPreview::new(
                 &gpu,
-                &scene,
+                &scene.shot(),
                 CellRenderer::new(&loaded.shell, &medium, scene.transparency),
             )
             .and_then(|p| Ok((p.render()?, p)));

@@ -2,15 +2,15 @@
 //! renderer on the same scene and package, in the same run, over every GDM codec, quality
 //! preset, image size and volume depth, with and without the early depth test.
 
-use crate::realtime::gpu::{AdapterDescription, Gpu};
-use crate::realtime::pipeline::Preview;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
+use crate::scene::preview::gdm_pipeline;
 use crate::scene::{LoadedScene, Scene};
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::Preset;
+use mesobake_gpu::gpu::{AdapterDescription, Gpu};
 use mesobake_render::gdm_lookup::package_lookup;
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::render_image;
@@ -84,7 +84,7 @@ pub fn run(
                 render_image(&shot.camera, |o, d| r.radiance(&shot, o, d));
                 let cpu_seconds = start.elapsed().as_secs_f64();
                 let time = |early_z: bool| -> Result<(bool, f64)> {
-                    let preview = Preview::new(&gpu, &loaded, &package, early_z)?;
+                    let preview = gdm_pipeline(&gpu, &loaded, &package, early_z)?;
                     Ok((
                         preview.variant().early_depth_test,
                         preview.time_frames(frames, &())?,

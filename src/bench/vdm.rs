@@ -2,14 +2,14 @@
 //! renderers' seconds per image and the real-time pipelines' frame times, and each image's
 //! error against the ground truth (the height field cast exactly through the shell).
 
-use crate::realtime::gpu::{AdapterDescription, Gpu};
-use crate::realtime::pipeline::Preview;
-use crate::realtime::vdm_pipeline::VdmPreview;
 use crate::scene::LoadedScene;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package};
+use crate::scene::preview::gdm_pipeline;
 use crate::scene::render::load_scene;
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
+use mesobake_gpu::gpu::{AdapterDescription, Gpu};
+use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::gdm_lookup::package_lookup;
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::image::{Comparison, compare};
@@ -81,7 +81,7 @@ pub fn run(
             .with_quality(scene.quality);
         let (image, cpu_seconds) =
             timed(|| Ok(render_image(camera, |o, d| gdm.radiance(&shot, o, d))))?;
-        let gpu_seconds = Preview::new(&gpu, &loaded, &package, true)?.time_frames(frames, &())?;
+        let gpu_seconds = gdm_pipeline(&gpu, &loaded, &package, true)?.time_frames(frames, &())?;
         rows.push(VdmBenchRow {
             technique: "gdm",
             size,
@@ -94,8 +94,8 @@ pub fn run(
         let vdm = VdmRenderer::new(&loaded.shell, &query, relief)?;
         let (image, cpu_seconds) =
             timed(|| Ok(render_image(camera, |o, d| vdm.radiance(&shot, o, d))))?;
-        let gpu_seconds =
-            VdmPreview::new(&gpu, &loaded, &query, relief)?.time_frames(frames, &())?;
+        let gpu_seconds = VdmPreview::new(&gpu, &shot, &loaded.shell, &query, relief)?
+            .time_frames(frames, &())?;
         rows.push(VdmBenchRow {
             technique: "vdm",
             size,

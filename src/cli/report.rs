@@ -5,7 +5,6 @@ use super::output::Progress;
 use super::vdm::parse_pair;
 use clap::Subcommand;
 use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::realtime::gpu::Gpu;
 use mesobake::report::{accuracy, codecs, conformance, gi, quality, render, transparency, vdm};
 use mesobake::scene::LoadedScene;
 use mesobake::scene::render::load_scene;
@@ -15,6 +14,7 @@ use mesobake_bake::vdm::VdmMethod;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
+use mesobake_gpu::gpu::Gpu;
 use std::path::{Path, PathBuf};
 
 /// The reports.

@@ -12,7 +12,6 @@
 //! SVD, the shadow query's escape bits at a reduced direction resolution).
 
 use crate::grid::DirectionGrid;
-use crate::realtime::gpu::Gpu;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
@@ -28,6 +27,7 @@ use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_gpu::gpu::Gpu;
 use mesobake_render::gdm_lookup::{GdmLookup, RawLookup, SplitLookup, package_lookup};
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::image::compare;

@@ -11,7 +11,6 @@
 //! shadows them with maps, with shadows traced through the cells (the maps' reference).
 //! Packages are the scene's defaults (the `occupancy` codec for the GDM).
 
-use crate::realtime::gpu::Gpu;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
@@ -26,6 +25,7 @@ use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::{Preset, ShadowMethod};
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
+use mesobake_gpu::gpu::Gpu;
 use mesobake_render::image::{Comparison, Image, compare, difference};
 use mesobake_render::medium_settings::ShadowMethod as MediumShadows;
 use serde::Serialize;

@@ -4,7 +4,6 @@
 //! an adapter exists, by the real-time pipeline) from the scene's default package, against
 //! the truth rendered once per scene. PSNR against time is the curve the user chooses on.
 
-use crate::realtime::gpu::Gpu;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::{plot_error, scene_panels};
@@ -16,6 +15,7 @@ use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::{Preset, Quality, ShadingFrame, ShadowMethod};
+use mesobake_gpu::gpu::Gpu;
 use mesobake_render::gdm_lookup::package_lookup;
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::image::compare;

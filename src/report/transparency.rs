@@ -11,8 +11,6 @@
 //! sorted lists) on the CPU, and for each per-view sort the time to sort the cells once for
 //! the view and the pixels it misorders, are measured on their own.
 
-use crate::realtime::gpu::Gpu;
-use crate::realtime::medium_pipeline::MediumPreview;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
@@ -25,6 +23,8 @@ use mesobake_bake::package::medium::{self as medium_package, MediumPackage};
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
+use mesobake_gpu::gpu::Gpu;
+use mesobake_gpu::medium_pipeline::MediumPreview;
 use mesobake_render::image::{Comparison, Image, compare};
 use mesobake_render::medium_cells::CellRenderer;
 use mesobake_render::medium_settings::{
@@ -232,7 +232,7 @@ pub fn transparency_report(
             shaded.transparency = transparency;
             let rendered = MediumPreview::new(
                 gpu,
-                &shaded,
+                &shot,
                 CellRenderer::with_levels(&loaded.shell, &levels, transparency),
             )
             .and_then(|p| Ok((p.render()?, p)));

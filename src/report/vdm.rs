@@ -8,8 +8,6 @@
 //! package. With both bake methods in the sweep, the paper's bake is also measured against
 //! the exact one on the scene's grid.
 
-use crate::realtime::gpu::Gpu;
-use crate::realtime::vdm_pipeline::VdmPreview;
 use crate::report::Steps;
 use crate::report::accuracy::table;
 use crate::report::plot::labelled_scatter;
@@ -26,6 +24,8 @@ use mesobake_bake::vdm::{self, Vdm, VdmMethod};
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_gpu::gpu::Gpu;
+use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::gdm_lookup::package_lookup;
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::image::{Comparison, Image, compare};
@@ -226,7 +226,7 @@ pub fn vdm_report(
         let cpu_s = start.elapsed().as_secs_f64();
         let realtime = match &gpu {
             Some(gpu) => {
-                let preview = VdmPreview::new(gpu, loaded, &query, relief)?;
+                let preview = VdmPreview::new(gpu, &shot, &loaded.shell, &query, relief)?;
                 let frame = preview.time_frames(sweep.frames, &())?;
                 Some((frame, preview.render()?))
             }

@@ -41,7 +41,7 @@ use mesobake_core::fs::read_bounded;
 use mesobake_core::light::{Light, MaterialParams};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
-use mesobake_core::quality::Quality;
+use mesobake_core::quality::{MAX_GDM_REFINEMENTS, Quality};
 use mesobake_render::medium_settings::TransparencySettings;
 use mesobake_render::path_tracer::PathTracer;
 use mesobake_render::shot::Shot;
@@ -179,9 +179,6 @@ fn default_gdm_refinements() -> u32 {
     0
 }
 
-/// Largest accepted `gdm_refinements`.
-pub const MAX_GDM_REFINEMENTS: u32 = 8;
-
 /// Where the base mesh comes from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
@@ -245,13 +242,15 @@ impl Scene {
     }
 
     /// What the renderers read of the scene: its camera, lights, material, effects and the
-    /// VDM lookup's knobs.
+    /// real-time algorithms' knobs.
     pub fn shot(&self) -> Shot {
         Shot {
             camera: self.camera,
             lights: self.lights.clone(),
             material: self.material,
             effects: self.effects.clone(),
+            quality: self.quality,
+            gdm_refinements: self.gdm_refinements,
             vdm_refine_texels: self.vdm.refine_texels,
             vdm_shadows: self.vdm.shadows,
         }

@@ -3,12 +3,6 @@
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
 //! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's.
 
-use crate::realtime::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
-use crate::realtime::medium_pipeline::MediumPreview;
-use crate::realtime::pipeline::Preview;
-use crate::realtime::resources::GpuMemory;
-use crate::realtime::variant::ShaderVariant;
-use crate::realtime::vdm_pipeline::VdmPreview;
 use crate::scene::LoadedScene;
 use crate::scene::gi;
 use crate::scene::technique::Technique;
@@ -21,6 +15,12 @@ use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
+use mesobake_gpu::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
+use mesobake_gpu::medium_pipeline::MediumPreview;
+use mesobake_gpu::pipeline::Preview;
+use mesobake_gpu::resources::GpuMemory;
+use mesobake_gpu::variant::ShaderVariant;
+use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::gdm_lookup::package_lookup;
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::image::Image;
@@ -259,6 +259,31 @@ pub fn preview(
     }
 }
 
+/// The GDM pipeline for `loaded` with `package` (and, where the scene calls for environment
+/// lighting, the package's RTV with the scene's environment), with the early depth test
+/// where `early_depth_test` allows it and the adapter has it.
+pub fn gdm_pipeline<'g>(
+    gpu: &'g Gpu,
+    loaded: &LoadedScene,
+    package: &Package,
+    early_depth_test: bool,
+) -> Result<Preview<'g>> {
+    let gi = if loaded.scene.wants(Effect::EnvironmentLighting) {
+        Some(gi::shading_from_package(loaded, package)?)
+    } else {
+        None
+    };
+    Preview::new(
+        gpu,
+        &loaded.scene.shot(),
+        &loaded.shell,
+        &loaded.material,
+        package,
+        gi.as_ref(),
+        early_depth_test,
+    )
+}
+
 /// [`preview`] by the GDM pipeline.
 pub fn gdm_preview(
     gpu: &Gpu,
@@ -268,7 +293,7 @@ pub fn gdm_preview(
     observer: &dyn BakeObserver,
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
-    let preview = Preview::new(gpu, loaded, package, true)?;
+    let preview = gdm_pipeline(gpu, loaded, package, true)?;
     let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
     measure(
         gpu,
@@ -295,7 +320,8 @@ fn vdm_preview(
         field: &field,
         depth: package.manifest().relief.depth,
     };
-    let preview = VdmPreview::new(gpu, loaded, &package.query(), relief)?;
+    let shot = loaded.scene.shot();
+    let preview = VdmPreview::new(gpu, &shot, &loaded.shell, &package.query(), relief)?;
     let setup = (None, start.elapsed().as_secs_f64());
     measure(
         gpu,
@@ -363,7 +389,7 @@ fn cells_preview(
     observer: &dyn BakeObserver,
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
-    let preview = MediumPreview::new(gpu, &loaded.scene, cells)?;
+    let preview = MediumPreview::new(gpu, &loaded.scene.shot(), cells)?;
     let setup = (None, start.elapsed().as_secs_f64());
     let technique = Technique::Transparency.name();
     let camera = &loaded.scene.camera;

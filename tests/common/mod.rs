@@ -52,8 +52,8 @@ pub fn small_scene(dir: &std::path::Path) -> std::path::PathBuf {
 }
 
 /// The adapter, or `None` (loudly) where there is none and MESOBAKE_SKIP_GPU_TESTS=1.
-pub fn gpu() -> Option<mesobake::realtime::gpu::Gpu> {
-    match mesobake::realtime::gpu::Gpu::open(None) {
+pub fn gpu() -> Option<mesobake_gpu::gpu::Gpu> {
+    match mesobake_gpu::gpu::Gpu::open(None) {
         Ok(gpu) => Some(gpu),
         Err(e) if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
             eprintln!("SKIPPED: no GPU adapter ({e}) and MESOBAKE_SKIP_GPU_TESTS=1");

@@ -19,6 +19,9 @@ use serde::de::{self, Deserializer, MapAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
+/// Most GDM refinement queries per hit a scene may ask for (`gdm_refinements`).
+pub const MAX_GDM_REFINEMENTS: u32 = 8;
+
 /// Most chords a scene may ask for per prism segment.
 pub const MAX_CHORDS: u32 = 16;
 

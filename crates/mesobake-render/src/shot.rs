@@ -1,14 +1,15 @@
 //! What one image shows and how, as the renderers read it: the camera, the lights, the
-//! material's reflectance, the effects called for, and the VDM lookup's knobs. A scene file
+//! material's reflectance, the effects called for, and the knobs of the real-time GDM and
+//! VDM algorithms. A scene file
 //! makes one (`Scene::shot` in the binary); the renderers never see the file.
 
 use mesobake_bake::gi::rtv::Glossy;
 use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
 use mesobake_core::light::{Light, MaterialParams};
-use mesobake_core::quality::ShadowMethod;
+use mesobake_core::quality::{Quality, ShadowMethod};
 
-/// The camera, lights, material and effects of one render.
+/// The camera, lights, material, effects and algorithm knobs of one render.
 #[derive(Clone, Debug)]
 pub struct Shot {
     /// Where the image is seen from, its size and samples per pixel.
@@ -19,6 +20,10 @@ pub struct Shot {
     pub material: MaterialParams,
     /// The effects called for: nothing else is shaded.
     pub effects: Vec<Effect>,
+    /// The GDM per-pixel algorithm's accuracy knobs.
+    pub quality: Quality,
+    /// GDM refinement queries per hit.
+    pub gdm_refinements: u32,
     /// Height-field texels the VDM's refinement walks (0: the lookup alone).
     pub vdm_refine_texels: u32,
     /// How the VDM tests a light's visibility.

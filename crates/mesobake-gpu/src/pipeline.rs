@@ -12,19 +12,22 @@ use super::resources::{
 };
 use super::target::{DrawState, HitTargets, Target, target_pipeline, time_frames};
 use super::variant::ShaderVariant;
-use crate::scene::{LoadedScene, Scene};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
 use glam::{DMat4, DVec3};
+use mesobake_bake::mesostructure::material::MaterialVolume;
 use mesobake_bake::package::Package;
 use mesobake_bake::package::manifest::GdmCodec;
+use mesobake_bake::surface::shell::Shell;
 use mesobake_core::camera::Camera;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::light::Light;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::ShadowMethod;
+use mesobake_render::gi_shading::GiShading;
 use mesobake_render::image::Image;
 use mesobake_render::prepared_prism::prepare_prisms;
+use mesobake_render::shot::Shot;
 use wgpu::util::DeviceExt;
 
 /// The shader's `View`.
@@ -71,13 +74,13 @@ fn light_record(light: &Light) -> LightRecord {
 }
 
 /// The shader's `View` for `scene`, its depth range around the points `bounds`.
-pub(super) fn view_uniform(scene: &Scene, bounds: impl Iterator<Item = DVec3>) -> ViewUniform {
-    let m = &scene.material;
+pub(super) fn view_uniform(shot: &Shot, bounds: impl Iterator<Item = DVec3>) -> ViewUniform {
+    let m = &shot.material;
     ViewUniform {
-        view_proj: view_projection(&scene.camera, bounds)
+        view_proj: view_projection(&shot.camera, bounds)
             .as_mat4()
             .to_cols_array_2d(),
-        eye: DVec3::from(scene.camera.eye)
+        eye: DVec3::from(shot.camera.eye)
             .extend(0.0)
             .as_vec4()
             .to_array(),
@@ -87,8 +90,8 @@ pub(super) fn view_uniform(scene: &Scene, bounds: impl Iterator<Item = DVec3>) -
             m.specular[2] as f32,
             m.shininess as f32,
         ],
-        light_count: scene.lights.len() as u32,
-        width: scene.camera.width,
+        light_count: shot.lights.len() as u32,
+        width: shot.camera.width,
         _pad: [0; 2],
     }
 }
@@ -139,8 +142,8 @@ impl ViewBuffer {
 
 /// The shader's lights for `scene` (one zeroed record when it has none: a storage buffer
 /// may not be empty).
-pub(super) fn light_records(scene: &Scene) -> Vec<LightRecord> {
-    let mut lights: Vec<LightRecord> = scene.lights.iter().map(light_record).collect();
+pub(super) fn light_records(shot: &Shot) -> Vec<LightRecord> {
+    let mut lights: Vec<LightRecord> = shot.lights.iter().map(light_record).collect();
     if lights.is_empty() {
         lights.push(LightRecord::zeroed());
     }
@@ -268,26 +271,29 @@ fn uint_texture(dimension: wgpu::TextureViewDimension) -> wgpu::BindingType {
 }
 
 impl<'g> Preview<'g> {
-    /// Uploads `loaded`'s shell and material and `package`'s GDM (and, for environment
-    /// lighting, its RTV and PRT with the scene's environment), and builds the pipeline of
-    /// the scene's shader variant (with the early depth test where `early_depth_test` allows
-    /// it and the adapter has it). The package's grid must be the scene's.
+    /// Uploads `shell`, `material` and `package`'s GDM (and, for environment lighting, the
+    /// package's RTV with `gi`, the shading the CPU twin reads from the same package), and
+    /// builds the pipeline of `shot`'s shader variant (with the early depth test where
+    /// `early_depth_test` allows it and the adapter has it). The package's grid must be the
+    /// material's.
     pub fn new(
         gpu: &'g Gpu,
-        loaded: &LoadedScene,
+        shot: &Shot,
+        shell: &Shell,
+        material: &MaterialVolume,
         package: &Package,
+        gi: Option<&GiShading>,
         early_depth_test: bool,
     ) -> Result<Preview<'g>> {
-        let scene = &loaded.scene;
-        package.check_grid(loaded.material.dims())?;
+        package.check_grid(material.dims())?;
         let early_depth_test = early_depth_test
             && gpu
                 .device
                 .features()
                 .contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST);
         let codec = package.manifest().codec;
-        let variant = ShaderVariant::for_scene(scene, codec, early_depth_test);
-        let (width, height) = (scene.camera.width, scene.camera.height);
+        let variant = ShaderVariant::for_shot(shot, codec, early_depth_test);
+        let (width, height) = (shot.camera.width, shot.camera.height);
         let target = Target::new(gpu, width, height)?;
         let hits = HitTargets::new(gpu, &target);
         let frag = wgpu::ShaderStages::FRAGMENT;
@@ -358,25 +364,27 @@ impl<'g> Preview<'g> {
                 layout_entry(5, frag, storage()),
             ],
         });
-        let prisms = prepare_prisms(&loaded.shell, package.dims());
+        let prisms = prepare_prisms(shell, package.dims());
         let (gpu_package, material, shell, bvh, environment) =
             gpu.checked("uploading the scene", || {
                 Ok::<_, Error>((
                     upload_package(gpu, &package_layout, package)?,
-                    upload_material(gpu, &material_layout, &loaded.material)?,
-                    upload_shell(gpu, &prisms, DVec3::from(scene.camera.eye))?,
+                    upload_material(gpu, &material_layout, material)?,
+                    upload_shell(gpu, &prisms, DVec3::from(shot.camera.eye))?,
                     if shell_shadows {
                         Some(upload_prism_bvh(gpu, &prisms)?)
                     } else {
                         None
                     },
                     if variant.environment {
-                        Some(upload_environment(
-                            gpu,
-                            &environment_layout,
-                            loaded,
-                            package,
-                        )?)
+                        let gi = gi.ok_or_else(|| {
+                            Error::Scene(
+                                "effects call for environment_lighting but the preview was \
+                                 given no environment shading"
+                                    .into(),
+                            )
+                        })?;
+                        Some(upload_environment(gpu, &environment_layout, gi, package)?)
                     } else {
                         None
                     },
@@ -389,10 +397,10 @@ impl<'g> Preview<'g> {
                 .into_iter()
                 .chain(p.faces[1].triangle.corners)
         });
-        let lights = light_records(scene);
+        let lights = light_records(shot);
         let (hit_pipeline, shade_pipeline, scene_group, shade_group, nearest_hit, view) = gpu
             .checked("building the pipeline", || {
-                let view = ViewBuffer::new(d, view_uniform(scene, corners), &scene.camera);
+                let view = ViewBuffer::new(d, view_uniform(shot, corners), &shot.camera);
                 let lights = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("lights"),
                     contents: bytemuck::cast_slice(&lights),

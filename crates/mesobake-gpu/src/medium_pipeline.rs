@@ -16,7 +16,6 @@ use super::pipeline::{
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
 use super::variant::COMMON;
-use crate::scene::Scene;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 use mesobake_core::camera::Camera;
@@ -28,12 +27,14 @@ use mesobake_render::cell_order::ViewSort;
 use mesobake_render::image::Image;
 use mesobake_render::medium_cells::{Cell, CellRenderer};
 use mesobake_render::medium_settings::{CellIntegration, ShadowMethod};
+use mesobake_render::medium_shadow_map::MapMedium;
 use mesobake_render::medium_shadow_map::{LightFrame, Projection, map_frames};
 use mesobake_render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
+use mesobake_render::shot::Shot;
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 
-const SHADER: &str = include_str!("../../shaders/medium_preview.wgsl");
+const SHADER: &str = include_str!("../../../shaders/medium_preview.wgsl");
 
 /// Most mip levels the shader takes.
 const MAX_LEVELS: usize = 16;
@@ -227,20 +228,20 @@ struct Buffers {
 
 impl<'g> MediumPreview<'g> {
     /// Uploads the cells of `cells`, their BVH and its medium's levels, and builds the
-    /// pipeline of `scene`'s cell order for its camera, lights and effects (`cells` was
-    /// made with `scene`'s transparency settings).
-    pub fn new(gpu: &'g Gpu, scene: &Scene, cells: CellRenderer<'g>) -> Result<MediumPreview<'g>> {
-        let settings = scene.transparency;
-        let shadows = scene.wants(Effect::Shadows);
+    /// pipeline of the cell order of `cells`' transparency settings for `shot`'s camera,
+    /// lights and effects.
+    pub fn new(gpu: &'g Gpu, shot: &Shot, cells: CellRenderer<'g>) -> Result<MediumPreview<'g>> {
+        let settings = cells.settings();
+        let shadows = shot.wants(Effect::Shadows);
         let mesh = cells.cells();
         let frames = if shadows {
-            map_frames(&cells, &scene.shot())
+            map_frames(&cells, shot)
         } else {
-            vec![None; scene.lights.len()]
+            vec![None; shot.lights.len()]
         };
         // Whether some light's shadows are traced as rays.
         let rays = shadows
-            && (frames.iter().zip(&scene.lights))
+            && (frames.iter().zip(&shot.lights))
                 .any(|(f, l)| f.is_none() && !matches!(l, Light::Ambient { .. }));
         if let (Some(budget), Some(_), true) = (gpu.loop_budget(), settings.order.view_sort(), rays)
         {
@@ -260,7 +261,7 @@ impl<'g> MediumPreview<'g> {
         let map_size = settings.shadow_map_size;
         let (frame_list, map_values) =
             frame_records(&frames, u64::from(map_size).pow(2) * u64::from(stride));
-        let target = Target::new(gpu, scene.camera.width, scene.camera.height)?;
+        let target = Target::new(gpu, shot.camera.width, shot.camera.height)?;
         let mut records: Vec<CellRecord> = mesh.cells().iter().map(cell_record).collect();
         if records.is_empty() {
             // A storage buffer may not be empty; the BVH then has no leaf to list it.
@@ -281,7 +282,7 @@ impl<'g> MediumPreview<'g> {
                 )));
             }
         }
-        let camera = &scene.camera;
+        let camera = &shot.camera;
         let plane = camera.image_plane();
         let mut level_table = [[0u32; 4]; MAX_LEVELS];
         level_table[..levels.len()].copy_from_slice(&levels);
@@ -311,8 +312,8 @@ impl<'g> MediumPreview<'g> {
             shadow_stride: stride,
             levels: level_table,
         };
-        let view: ViewUniform = view_uniform(scene, mesh.cells().iter().flat_map(|c| c.corners));
-        let lights: Vec<LightRecord> = light_records(scene);
+        let view: ViewUniform = view_uniform(shot, mesh.cells().iter().flat_map(|c| c.corners));
+        let lights: Vec<LightRecord> = light_records(shot);
         let bvh = upload_box_bvh(gpu, &mesh.bounds())?;
         let order: Vec<u32> = (0..records.len() as u32).collect();
         let memory = GpuMemory {
@@ -334,7 +335,7 @@ impl<'g> MediumPreview<'g> {
                 })
             };
             let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
-            let view = ViewBuffer::new(d, view, &scene.camera);
+            let view = ViewBuffer::new(d, view, &shot.camera);
             let own = [
                 view.buffer.clone(),
                 buffer("lights", bytemuck::cast_slice(&lights), s),
@@ -531,7 +532,7 @@ impl<'g> MediumPreview<'g> {
             lights: frame_list.len() as u32,
             buffers,
             params,
-            camera: scene.camera,
+            camera: shot.camera,
             target,
             memory,
         })

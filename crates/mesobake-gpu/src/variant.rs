@@ -2,22 +2,23 @@
 //! scene calls for, so that an effect it does not call for is absent from the pipeline (not
 //! switched off at run time). The variant matrix is documented in ARCHITECTURE.md.
 
-use crate::scene::{MAX_GDM_REFINEMENTS, Scene};
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::effect::Effect;
+use mesobake_core::quality::MAX_GDM_REFINEMENTS;
 use mesobake_core::quality::{MAX_CHORDS, ShadingFrame, ShadowMethod};
+use mesobake_render::shot::Shot;
 use serde::Serialize;
 
 /// What every real-time pipeline's source starts with (`shaders/common.wgsl`).
-pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
-const PIPELINE: &str = include_str!("../../shaders/gdm_preview.wgsl");
-const QUERY_SVD: &str = include_str!("../../shaders/query_svd.wgsl");
-const QUERY_OCCUPANCY: &str = include_str!("../../shaders/query_occupancy.wgsl");
-const SHADOWS_LOCAL: &str = include_str!("../../shaders/shadows_local.wgsl");
-const SHADOWS_SHELL: &str = include_str!("../../shaders/shadows_shell.wgsl");
-const SHADOWS_OFF: &str = include_str!("../../shaders/shadows_off.wgsl");
-const GI_ON: &str = include_str!("../../shaders/gi_on.wgsl");
-const GI_OFF: &str = include_str!("../../shaders/gi_off.wgsl");
+pub const COMMON: &str = include_str!("../../../shaders/common.wgsl");
+const PIPELINE: &str = include_str!("../../../shaders/gdm_preview.wgsl");
+const QUERY_SVD: &str = include_str!("../../../shaders/query_svd.wgsl");
+const QUERY_OCCUPANCY: &str = include_str!("../../../shaders/query_occupancy.wgsl");
+const SHADOWS_LOCAL: &str = include_str!("../../../shaders/shadows_local.wgsl");
+const SHADOWS_SHELL: &str = include_str!("../../../shaders/shadows_shell.wgsl");
+const SHADOWS_OFF: &str = include_str!("../../../shaders/shadows_off.wgsl");
+const GI_ON: &str = include_str!("../../../shaders/gi_on.wgsl");
+const GI_OFF: &str = include_str!("../../../shaders/gi_off.wgsl");
 
 /// The fragment entry point as `shaders/gdm_preview.wgsl` declares it.
 const FRAGMENT_ENTRY: &str = "@fragment\nfn fs_main";
@@ -55,20 +56,18 @@ pub struct ShaderVariant {
 }
 
 impl ShaderVariant {
-    /// The variant a scene calls for with a package of `codec`.
-    pub fn for_scene(scene: &Scene, codec: GdmCodec, early_depth_test: bool) -> ShaderVariant {
+    /// The variant `shot` calls for with a package of `codec`.
+    pub fn for_shot(shot: &Shot, codec: GdmCodec, early_depth_test: bool) -> ShaderVariant {
         ShaderVariant {
             codec,
-            shadows: scene
-                .wants(Effect::Shadows)
-                .then_some(scene.quality.shadows),
-            environment: scene.wants(Effect::EnvironmentLighting),
+            shadows: shot.wants(Effect::Shadows).then_some(shot.quality.shadows),
+            environment: shot.wants(Effect::EnvironmentLighting),
             refinements: match codec {
-                GdmCodec::PaperSvd => scene.gdm_refinements,
+                GdmCodec::PaperSvd => shot.gdm_refinements,
                 GdmCodec::Occupancy => 0,
             },
-            chords: scene.quality.chords,
-            frame: scene.quality.frame,
+            chords: shot.quality.chords,
+            frame: shot.quality.frame,
             early_depth_test,
         }
     }

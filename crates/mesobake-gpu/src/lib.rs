@@ -1,10 +1,11 @@
-//! The real-time preview: the GDM pipeline of the paper in WGSL (`shaders/`), run headless
-//! on wgpu (any adapter, including Mesa's software Vulkan driver). It renders the same image
-//! as [`mesobake_render::gdm_renderer`], its executable specification, from a package's
-//! textures uploaded as they are laid out.
+//! mesobake's real-time preview: the GDM pipeline of the paper in WGSL (`shaders/`), run
+//! headless on wgpu (any adapter, including Mesa's software Vulkan driver). It renders the
+//! same image as [`mesobake_render::gdm_renderer`], its executable specification, from a
+//! package's textures uploaded as they are laid out. Like the CPU renderers, a pipeline reads
+//! a [`mesobake_render::shot::Shot`], never a scene file; it knows nothing of HTTP or SQL.
 //!
 //! - [`gpu`]: adapter choice and device;
-//! - [`variant`]: the shader variants, chosen from the scene's effects;
+//! - [`variant`]: the shader variants, chosen from the shot's effects and knobs;
 //! - [`resources`]: package, material and shell uploads, with the GPU memory they take;
 //! - [`pipeline`]: the render pipeline, frames, read-back and timing;
 //! - [`target`]: the colour and depth target every pipeline draws into, and its read-back;

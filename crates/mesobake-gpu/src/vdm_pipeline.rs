@@ -11,10 +11,10 @@ use super::pipeline::{
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{Target, time_frames, triangle_pipeline};
 use super::variant::COMMON;
-use crate::scene::LoadedScene;
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
 use mesobake_bake::surface::curvature::VertexCurvature;
+use mesobake_bake::surface::shell::Shell;
 use mesobake_bake::vdm::Relief;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::Result;
@@ -22,10 +22,11 @@ use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::ShadowMethod;
 use mesobake_package::vdm::VdmQuery;
 use mesobake_render::image::Image;
+use mesobake_render::shot::Shot;
 use mesobake_render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 use wgpu::util::DeviceExt;
 
-const SHADER: &str = include_str!("../../shaders/vdm_preview.wgsl");
+const SHADER: &str = include_str!("../../../shaders/vdm_preview.wgsl");
 
 /// The complete WGSL source of the VDM pipeline.
 pub fn source() -> String {
@@ -130,17 +131,17 @@ pub struct VdmPreview<'g> {
 }
 
 impl<'g> VdmPreview<'g> {
-    /// Uploads `loaded`'s top surface, `query`'s factors and `relief`'s heights (the relief
-    /// the VDM was baked from) and builds the pipeline.
+    /// Uploads `shell`'s top surface, `query`'s factors and `relief`'s heights (the relief
+    /// the VDM was baked from) and builds the pipeline that renders `shot`.
     pub fn new(
         gpu: &'g Gpu,
-        loaded: &LoadedScene,
+        shot: &Shot,
+        shell: &Shell,
         query: &VdmQuery,
         relief: Relief,
     ) -> Result<VdmPreview<'g>> {
-        let scene = &loaded.scene;
-        let target = Target::new(gpu, scene.camera.width, scene.camera.height)?;
-        let faces = prepare_top_faces(&loaded.shell, relief.depth);
+        let target = Target::new(gpu, shot.camera.width, shot.camera.height)?;
+        let faces = prepare_top_faces(shell, relief.depth);
         let records: Vec<FaceRecord> = faces.iter().map(face_record).collect();
         let vertices: Vec<VdmVertex> = faces
             .iter()
@@ -153,14 +154,13 @@ impl<'g> VdmPreview<'g> {
                 })
             })
             .collect();
-        let view: ViewUniform = view_uniform(scene, faces.iter().flat_map(|f| f.triangle.corners));
-        let lights: Vec<LightRecord> = light_records(scene);
+        let view: ViewUniform = view_uniform(shot, faces.iter().flat_map(|f| f.triangle.corners));
+        let lights: Vec<LightRecord> = light_records(shot);
         let g = query.grid();
         let (w, h) = query.size();
         let (rank, mvm_rank) = query.ranks();
-        let albedo = scene.material.albedo.map(|c| c as f32);
-        let shell_shadows =
-            scene.wants(Effect::Shadows) && scene.vdm.shadows == ShadowMethod::Shell;
+        let albedo = shot.material.albedo.map(|c| c as f32);
+        let shell_shadows = shot.wants(Effect::Shadows) && shot.vdm_shadows == ShadowMethod::Shell;
         // Step 7's BVH over the top faces' boxes, the boxes the CPU renderer's traversal
         // tests (one empty node where the scene does not call for it).
         let face_boxes: Vec<_> = match shell_shadows {
@@ -175,13 +175,13 @@ impl<'g> VdmPreview<'g> {
             n_curvature: g.n_curvature,
             rank: rank as u32,
             mvm_rank: mvm_rank as u32,
-            shadows: u32::from(scene.wants(Effect::Shadows)),
+            shadows: u32::from(shot.wants(Effect::Shadows)),
             c_min: g.c_min as f32,
             c_max: g.c_max as f32,
             depth: relief.depth as f32,
             shadow_tolerance: shadow_tolerance(query) as f32,
             albedo: [albedo[0], albedo[1], albedo[2], 0.0],
-            refine_texels: scene.vdm.refine_texels,
+            refine_texels: shot.vdm_refine_texels,
             top_depth: top_depth(relief) as f32,
             shell_shadows: u32::from(shell_shadows),
             padding: 0,
@@ -208,7 +208,7 @@ impl<'g> VdmPreview<'g> {
                     })
                 };
                 let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
-                let view = ViewBuffer::new(d, view, &scene.camera);
+                let view = ViewBuffer::new(d, view, &shot.camera);
                 let buffers = [
                     view.buffer.clone(),
                     buffer("lights", bytemuck::cast_slice(&lights), s),

@@ -13,6 +13,7 @@ use mesobake_bake::mesostructure::material::MaterialVolume;
 use mesobake_bake::package::Package;
 use mesobake_bake::package::manifest::TexelFormat;
 use mesobake_core::error::{Error, Result};
+use mesobake_render::gi_shading::GiShading;
 use mesobake_render::prepared_prism::PreparedPrism;
 use serde::Serialize;
 use wgpu::util::DeviceExt;
@@ -91,19 +92,17 @@ struct GiPrismRecord {
     uv2: [f32; 4],
 }
 
-/// Uploads what the environment variant reads: `package`'s RTV sections as they are (after
-/// checking them and its PRT against `loaded`'s base mesh), the incident light at each base
-/// vertex (the package's PRT times `loaded`'s environment, in SH) and each prism's base
-/// triangle in texture space.
+/// Uploads what the environment variant reads: `package`'s RTV sections as they are, and
+/// from `shading` (the CPU twin's, read from the same package: the same tables on both
+/// sides) the incident light at each base vertex and each prism's base triangle in texture
+/// space.
 pub fn upload_environment(
     gpu: &Gpu,
     layout: &wgpu::BindGroupLayout,
-    loaded: &crate::scene::LoadedScene,
+    shading: &GiShading,
     package: &Package,
 ) -> Result<GpuEnvironment> {
     use mesobake_bake::package::gi::{RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
-    // The CPU twin's own tables: the same incident light and triangles on both sides.
-    let shading = crate::scene::gi::shading_from_package(loaded, package)?;
     let incident: Vec<f32> = shading
         .incident()
         .iter()
@@ -124,11 +123,9 @@ pub fn upload_environment(
         })
         .collect();
     let (dims, dirs) = (package.dims(), package.dirs());
-    let info = package
-        .manifest()
-        .gi
-        .as_ref()
-        .expect("checked by from_package");
+    let info = package.manifest().gi.as_ref().ok_or_else(|| {
+        Error::Package("environment lighting needs a package with radiance transfer".into())
+    })?;
     let params = GiParams {
         dims: [dims.x, dims.y, dims.z, info.samples],
         dirs: [dirs.n_theta, dirs.n_phi, info.compression.rank as u32, 0],
