@@ -5,9 +5,9 @@ mod cli;
 
 use clap::{Parser, Subcommand};
 use cli::{bench, explicit, gdm, package, preview, render, report, sample, server, vdm};
-use mesobake::Result;
-use mesobake::bench::counting_alloc::CountingAlloc;
+use mesobake_core::Result;
 use mesobake_core::limits::{Limits, parse_bytes};
+use mesobake_scene::bench::counting_alloc::CountingAlloc;
 use std::process::ExitCode;
 
 #[global_allocator]

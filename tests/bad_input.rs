@@ -1,13 +1,13 @@
 //! Bad input gets a clear error naming the problem, never a panic.
 
-use mesobake::Error;
-use mesobake::grid::{Dims, DirectionGrid};
 use mesobake_bake::gdm::{self, Method};
 use mesobake_bake::mesostructure::mesh_tile::MeshTile;
 use mesobake_bake::mesostructure::trimesh::TriMesh;
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format::{self, HEADER_BYTES};
+use mesobake_core::Error;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::{Dims, DirectionGrid};
 
 fn sample_bytes() -> Vec<u8> {
     let d = Dims::new(4, 4, 2).unwrap();

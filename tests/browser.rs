@@ -9,9 +9,9 @@ mod binary_server;
 
 use binary_server::BinaryServer;
 use fantoccini::{ClientBuilder, Locator};
-use mesobake::grid::Dims;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -155,7 +155,7 @@ async fn upload_bake_and_preview_in_a_browser() {
         .click()
         .await
         .unwrap();
-    let digest = mesobake::server::blobs::key_of(&std::fs::read(&file).unwrap());
+    let digest = mesobake_server::blobs::key_of(&std::fs::read(&file).unwrap());
     eventually(30, "the upload's digest", || async {
         let text = c
             .find(Locator::Id("upload-status"))

@@ -7,16 +7,16 @@
 //! tracer, and their GDM part is the one of the same mesostructure under point lights.
 
 use glam::DVec3;
-use mesobake::grid::Dims;
-use mesobake::report::codecs::{CodecSweep, codec_report};
-use mesobake::scene::render::load_scene;
 use mesobake_bake::gdm::EscapeConvention;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 use mesobake_render::gdm_lookup::{GdmLookup, Lookup, RawLookup};
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::prepared_prism::{longest_segment, prepare_prisms};
 use mesobake_render::render_image;
+use mesobake_scene::render::load_scene;
+use mesobake_scene::report::codecs::{CodecSweep, codec_report};
 use std::path::Path;
 
 mod common;
@@ -58,7 +58,7 @@ fn the_default_package_renders_like_the_uncompressed_gdm_on_every_sample_scene()
         frames: 0,
     };
     let report = codec_report(&scenes, &sweep, &limits, &()).unwrap();
-    eprintln!("{}", mesobake::report::codecs::markdown(&report));
+    eprintln!("{}", mesobake_scene::report::codecs::markdown(&report));
     for pair in report.rows.chunks(2) {
         let [uncompressed, default] = pair else {
             panic!("rows come in pairs: {pair:?}")

@@ -10,12 +10,12 @@ mod binary_server;
 mod server;
 
 use binary_server::BinaryServer;
-use mesobake::grid::Dims;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::package::Package;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 use serde_json::{Value, json};
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -219,7 +219,7 @@ async fn sigterm_hands_the_running_job_back_and_exits_within_the_grace_period() 
         "{log}"
     );
     // The job is queued again, its attempt not counted, for the next server or worker.
-    let db = mesobake::server::db::Db::connect(&format!(
+    let db = mesobake_server::db::Db::connect(&format!(
         "sqlite://{}",
         cwd.path().join("data/mesobake.sqlite").display()
     ))

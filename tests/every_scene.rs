@@ -7,10 +7,6 @@
 
 mod common;
 
-use mesobake::scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
-use mesobake::scene::preview::{preview, render_on_cpu};
-use mesobake::scene::technique::Technique;
-use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::package::AnyPackage;
@@ -19,6 +15,10 @@ use mesobake_core::limits::Limits;
 use mesobake_core::quality::Preset;
 use mesobake_gpu::gpu::Gpu;
 use mesobake_render::image::{Image, compare};
+use mesobake_scene::package::{ScenePackageParams, gdm_scene_package, scene_package};
+use mesobake_scene::preview::{preview, render_on_cpu};
+use mesobake_scene::technique::Technique;
+use mesobake_scene::{LoadedScene, Scene};
 use std::path::{Path, PathBuf};
 
 /// The image's longer side in these tests.
@@ -166,9 +166,9 @@ fn every_opaque_scene_s_gdm_renders_alike_with_both_codecs_at_every_preset() {
 /// 17.6 dB against `paper`'s 36.0 (`report conformance`, 16 samples per pixel).
 #[test]
 fn every_preset_is_at_least_as_close_to_the_truth_as_the_paper_s_algorithm() {
-    use mesobake::scene::render::{MapSource, RenderMethod, render};
     use mesobake_core::effect::Effect;
     use mesobake_core::samples_per_pixel::SamplesPerPixel;
+    use mesobake_scene::render::{MapSource, RenderMethod, render};
     let limits = Limits::default();
     let mut failures = Vec::new();
     for path in scene_files() {

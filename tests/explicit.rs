@@ -5,13 +5,13 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::grid::Dims;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::trimesh::TriMesh;
 use mesobake_bake::surface::base_mesh::{BaseMesh, BuiltinMesh};
 use mesobake_bake::surface::explicit::{Explicit, ExplicitParams, export};
 use mesobake_bake::surface::shell::{PrismPoint, Shell, ShellParams};
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 use std::collections::HashMap;
 
 fn base(mesh: BuiltinMesh) -> BaseMesh {

@@ -8,13 +8,13 @@
 //! hit-mask disagreement of at most 0.1 % and a PSNR of at least 40 dB; the truth's old
 //! convention (the material volume's smooth normals and a voxel's shadow offset) must not.
 
-use mesobake::grid::Dims;
-use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render};
 use mesobake_bake::mesostructure::samples::{SampleKind, mesh};
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 use mesobake_render::image::compare;
 use mesobake_render::render_image;
 use mesobake_render::truth::{TruthRenderer, TruthShading};
+use mesobake_scene::render::{MapSource, RenderMethod, load_scene, render};
 use std::path::Path;
 
 mod common;

@@ -5,7 +5,6 @@
 //! f64 traces are compared at 1e-9 voxel. The mesh path works in f32 (obvhs), so it is compared
 //! at 2e-3 voxel over distances of at most a few hundred voxels.
 
-use mesobake::grid::{Dims, DirectionGrid};
 use mesobake_bake::gdm::caster::{Caster, Trace};
 use mesobake_bake::gdm::mesh_caster::MeshCaster;
 use mesobake_bake::gdm::volume_caster::VolumeCaster;
@@ -15,6 +14,7 @@ use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::trimesh::TriMesh;
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::{Dims, DirectionGrid};
 use proptest::prelude::*;
 
 fn dims(x: u32, y: u32, z: u32) -> Dims {
@@ -423,7 +423,7 @@ fn near_pole_and_near_horizon_directions() {
     });
     let from = [3.5, 3.5, 2.5];
     for (theta, want) in [(1e-6, Some(3.5)), (std::f64::consts::PI - 1e-6, Some(1.5))] {
-        let v = mesobake::grid::spherical_to_vector(theta, 0.3);
+        let v = mesobake_package::grid::spherical_to_vector(theta, 0.3);
         match c.trace(from, v, f64::INFINITY) {
             Trace::Hit(t) => assert!(
                 (t - want.unwrap() / theta.cos().abs()).abs() < 1e-9,
@@ -433,7 +433,7 @@ fn near_pole_and_near_horizon_directions() {
         }
     }
     // Just below the horizon the floor (layer 0, top at z = 1) is hit after 1.5/sin(1e-6).
-    let v = mesobake::grid::spherical_to_vector(std::f64::consts::FRAC_PI_2 + 1e-6, 0.7);
+    let v = mesobake_package::grid::spherical_to_vector(std::f64::consts::FRAC_PI_2 + 1e-6, 0.7);
     match c.trace(from, v, f64::INFINITY) {
         Trace::Hit(t) => assert!((t - 1.5 / v[2].abs()).abs() < 1e-6 * t, "{t}"),
         other => panic!("{other:?}"),
@@ -504,7 +504,7 @@ proptest! {
     ) {
         let d = dims(8, 8, 6);
         let c = random_volume(&bits, d);
-        let v = mesobake::grid::spherical_to_vector(theta, phi);
+        let v = mesobake_package::grid::spherical_to_vector(theta, phi);
         prop_assume!(v[2].abs() > 1e-3);
         let o = [o.0, o.1, o.2];
         let cell = [o[0] as u32, o[1] as u32, o[2] as u32];
@@ -547,7 +547,7 @@ proptest! {
         let vol = Volume::from_fn(d, &Limits::default(), |i, j, k| bits[d.index(i, j, k)]).unwrap();
         let fast = VolumeCaster::new(&vol);
         let plain = VolumeCaster::from_occupancy(vol.occupancy(), false);
-        let v = mesobake::grid::spherical_to_vector(theta, phi);
+        let v = mesobake_package::grid::spherical_to_vector(theta, phi);
         let o = [o.0, o.1, o.2];
         let (a, b) = (fast.trace(o, v, 1e4), plain.trace(o, v, 1e4));
         match (a, b) {

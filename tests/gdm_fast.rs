@@ -1,6 +1,5 @@
 //! The fast (sweep) bake against the exact bake, with the error bounds it must hold.
 
-use mesobake::grid::{Dims, DirectionGrid};
 use mesobake_bake::gdm::compare::compare;
 use mesobake_bake::gdm::exact;
 use mesobake_bake::gdm::fast::{self, FastParams};
@@ -9,6 +8,7 @@ use mesobake_bake::gdm::volume_caster::VolumeCaster;
 use mesobake_bake::mesostructure::mesh_tile::MeshTile;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::{Dims, DirectionGrid};
 
 /// On every sample at 32×32×16 with 8×16 directions, the default fast bake stays within the
 /// targets of the W1 benchmark: mean absolute error ≤ 0.25 voxel over samples both bakes hit,

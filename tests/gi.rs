@@ -12,7 +12,7 @@ use std::f64::consts::PI;
 
 /// The SH convention's direction of polar angle θ (from +z) and azimuth φ.
 fn direction_zup(theta: f64, phi: f64) -> DVec3 {
-    DVec3::from(mesobake::grid::spherical_to_vector(theta, phi))
+    DVec3::from(mesobake_package::grid::spherical_to_vector(theta, phi))
 }
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
@@ -338,7 +338,7 @@ fn gdm_and_material(
     mesobake_bake::mesostructure::material::MaterialVolume,
 ) {
     use mesobake_bake::gdm::{self, Method, fast::FastParams, volume_caster::VolumeCaster};
-    let dirs = mesobake::grid::DirectionGrid::new(16, 32).unwrap();
+    let dirs = mesobake_package::grid::DirectionGrid::new(16, 32).unwrap();
     let g = gdm::bake(
         &VolumeCaster::new(volume),
         dirs,
@@ -358,7 +358,7 @@ fn gdm_and_material(
 #[test]
 fn a_flat_slab_reflects_the_clamped_cosine_and_nothing_bounces() {
     use mesobake_bake::gi::rtv;
-    let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
+    let dims = mesobake_package::grid::Dims::new(16, 16, 8).unwrap();
     let slab = mesobake_bake::mesostructure::volume::Volume::from_fn(
         dims,
         &Limits::default(),
@@ -394,7 +394,7 @@ fn a_white_furnace_converges_to_the_light_with_bounces() {
     use mesobake_bake::gi::rtv;
     // A floor with pillars and bars over them (overhangs): every downward ray hits something,
     // so with albedo 1 under constant radiance 1 every surface point must reach radiance 1.
-    let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
+    let dims = mesobake_package::grid::Dims::new(16, 16, 8).unwrap();
     let volume = mesobake_bake::mesostructure::volume::Volume::from_fn(
         dims,
         &Limits::default(),
@@ -428,7 +428,7 @@ fn a_white_furnace_converges_to_the_light_with_bounces() {
 
 /// A flat plane under a sky of radiance `c` above the horizon and `ground` below, with a
 /// height-field slab (half the depth) and effects `effects`, loaded.
-fn flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::LoadedScene {
+fn flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake_scene::LoadedScene {
     let material =
         serde_json::json!({ "albedo": [0.5, 0.25, 1.0], "specular": [0, 0, 0], "shininess": 1 });
     flat_slab_with(effects, c, ground, c, material)
@@ -441,7 +441,7 @@ fn flat_slab_with(
     ground: f64,
     sun: f64,
     material: serde_json::Value,
-) -> mesobake::scene::LoadedScene {
+) -> mesobake_scene::LoadedScene {
     let dir = tempfile::tempdir().unwrap();
     let mut png = Vec::new();
     let mut encoder = png::Encoder::new(&mut png, 4, 4);
@@ -469,12 +469,12 @@ fn flat_slab_with(
     });
     let path = dir.path().join("scene.json");
     std::fs::write(&path, scene.to_string()).unwrap();
-    mesobake::scene::render::load_scene(&path, &Limits::default()).unwrap()
+    mesobake_scene::render::load_scene(&path, &Limits::default()).unwrap()
 }
 
 /// [`flat_slab`] rendered by the GDM renderer.
-fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake::scene::render::Rendered {
-    use mesobake::scene::render::{MapSource, RenderMethod, render};
+fn render_flat_slab(effects: &[&str], c: f64, ground: f64) -> mesobake_scene::render::Rendered {
+    use mesobake_scene::render::{MapSource, RenderMethod, render};
     let loaded = flat_slab(effects, c, ground);
     render(
         &loaded,
@@ -540,12 +540,12 @@ fn a_slab_under_a_constant_sky_reflects_albedo_times_radiance() {
 
 #[test]
 fn the_gi_report_measures_against_its_references() {
-    use mesobake::report::gi::{GiSweep, gi_accuracy, markdown};
+    use mesobake_scene::report::gi::{GiSweep, gi_accuracy, markdown};
     let loaded = flat_slab(&["environment_lighting"], 1.0, 0.2);
     let sweep = GiSweep {
         dirs: vec![
-            mesobake::grid::DirectionGrid::new(4, 8).unwrap(),
-            mesobake::grid::DirectionGrid::new(16, 32).unwrap(),
+            mesobake_package::grid::DirectionGrid::new(4, 8).unwrap(),
+            mesobake_package::grid::DirectionGrid::new(16, 32).unwrap(),
         ],
         bounces: vec![0, 2],
         prt_samples: vec![64, 1024],
@@ -604,7 +604,7 @@ fn the_gi_report_measures_against_its_references() {
 /// The cosine-weighted integral over the upper hemisphere (normal +y) of `loaded`'s
 /// environment map, exact for its piecewise-constant texels: Σ L·Δφ·(sin²θⱼ₊₁ − sin²θⱼ)/2
 /// over the rows above the horizon; its green channel.
-fn exact_irradiance(loaded: &mesobake::scene::LoadedScene) -> f64 {
+fn exact_irradiance(loaded: &mesobake_scene::LoadedScene) -> f64 {
     let map = loaded.environment.as_ref().unwrap();
     let (w, h) = map.size();
     assert_eq!(h % 2, 0, "the horizon is a row boundary");
@@ -631,8 +631,8 @@ fn hit_greens(image: &mesobake_render::image::Image) -> Vec<f64> {
 }
 
 /// The slab's hit pixels' green values, and their mean.
-fn slab_greens(loaded: &mesobake::scene::LoadedScene) -> (Vec<f64>, f64) {
-    use mesobake::scene::render::{MapSource, RenderMethod, render};
+fn slab_greens(loaded: &mesobake_scene::LoadedScene) -> (Vec<f64>, f64) {
+    use mesobake_scene::render::{MapSource, RenderMethod, render};
     let r = render(
         loaded,
         RenderMethod::Truth,
@@ -707,12 +707,12 @@ fn the_path_tracer_adds_the_phong_lobe_when_the_scene_calls_for_gloss() {
 
 #[test]
 fn path_traced_and_rtv_white_furnaces_agree() {
-    use mesobake::scene::render::{MapSource, RenderMethod, render};
+    use mesobake_scene::render::{MapSource, RenderMethod, render};
     // Pillars and bars on a floor, albedo 1, under radiance 1 everywhere: every surface
     // point's radiance is 1, which the path tracer reaches with enough bounces and the RTV
     // with enough bounces (without macro shadows the incident SH is the constant's).
     let dir = tempfile::tempdir().unwrap();
-    let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
+    let dims = mesobake_package::grid::Dims::new(16, 16, 8).unwrap();
     let volume = mesobake_bake::mesostructure::volume::Volume::from_fn(
         dims,
         &Limits::default(),
@@ -742,7 +742,7 @@ fn path_traced_and_rtv_white_furnaces_agree() {
     let path = dir.path().join("furnace.json");
     std::fs::write(&path, scene.to_string()).unwrap();
     let limits = Limits::default();
-    let loaded = mesobake::scene::render::load_scene(&path, &limits).unwrap();
+    let loaded = mesobake_scene::render::load_scene(&path, &limits).unwrap();
     let mean = |method| {
         let r = render(&loaded, method, MapSource::Bake, &limits, &()).unwrap();
         let hits = hit_greens(&r.image);
@@ -789,7 +789,7 @@ fn the_phong_lobe_convolves_by_its_closed_form() {
 #[test]
 fn a_glossy_slab_reflects_the_phong_filtered_upper_hemisphere() {
     use mesobake_bake::gi::rtv::{self, Glossy, RtvParams};
-    let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
+    let dims = mesobake_package::grid::Dims::new(16, 16, 8).unwrap();
     let slab = mesobake_bake::mesostructure::volume::Volume::from_fn(
         dims,
         &Limits::default(),
@@ -846,7 +846,7 @@ fn the_rtv_svd_is_the_dense_svd_and_reports_its_error_exactly() {
     use mesobake_bake::gi::compressed_rtv::{CompressedRtv, MATRICES};
     use mesobake_bake::gi::rtv::{self, Glossy, RtvParams};
     // Pillars and bars over a floor: view-dependent glossy transfer with bounces.
-    let dims = mesobake::grid::Dims::new(8, 8, 6).unwrap();
+    let dims = mesobake_package::grid::Dims::new(8, 8, 6).unwrap();
     let volume = mesobake_bake::mesostructure::volume::Volume::from_fn(
         dims,
         &Limits::default(),

@@ -6,11 +6,11 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::scene::gi;
-use mesobake::scene::package::{ScenePackageParams, bake_scene_package};
-use mesobake::scene::render::load_scene;
 use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
+use mesobake_scene::gi;
+use mesobake_scene::package::{ScenePackageParams, bake_scene_package};
+use mesobake_scene::render::load_scene;
 use std::path::{Path, PathBuf};
 
 /// A small GI scene (wavy plane, weave 32×32×16, 16×32 directions, overcast sky, glossy

@@ -2,11 +2,6 @@
 //! medium (each quantization's error measured), an animated surface that re-bakes nothing,
 //! an opaque mesostructure as a medium against the opaque truth, and bad input.
 
-use mesobake::scene::package::{
-    ScenePackageParams, bake_scene_package, check_any_package_input, scene_package,
-};
-use mesobake::scene::preview::{medium_render_on_cpu, render_on_cpu};
-use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::package::AnyPackage;
 use mesobake_bake::package::medium as medium_package;
 use mesobake_core::limits::Limits;
@@ -14,6 +9,11 @@ use mesobake_render::image::{Comparison, compare};
 use mesobake_render::medium_truth::MediumTruth;
 use mesobake_render::render_image;
 use mesobake_render::truth::TruthRenderer;
+use mesobake_scene::package::{
+    ScenePackageParams, bake_scene_package, check_any_package_input, scene_package,
+};
+use mesobake_scene::preview::{medium_render_on_cpu, render_on_cpu};
+use mesobake_scene::{LoadedScene, Scene};
 use serde_json::{Value, json};
 use std::path::Path;
 
@@ -272,7 +272,7 @@ fn scenes_and_packages_that_do_not_fit_are_refused_by_name() {
     // A volume file whose header has an opacity channel is found translucent when the scene
     // is loaded: environment lighting is refused then, before anything is baked.
     let dir = tempfile::tempdir().unwrap();
-    let dims = mesobake::grid::Dims::new(16, 16, 8).unwrap();
+    let dims = mesobake_package::grid::Dims::new(16, 16, 8).unwrap();
     let clouds = mesobake_bake::mesostructure::media::volume(
         mesobake_bake::mesostructure::media::MediumKind::Clouds,
         dims,

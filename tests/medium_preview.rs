@@ -11,18 +11,18 @@
 mod common;
 
 use common::{gpu, succeeds};
-use mesobake::Error;
-use mesobake::grid::Dims;
-use mesobake::scene::preview::{medium_preview, medium_render_on_cpu};
-use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
+use mesobake_core::Error;
 use mesobake_core::limits::Limits;
 use mesobake_gpu::gpu::Gpu;
+use mesobake_package::grid::Dims;
 use mesobake_render::image::{Comparison, Image, compare};
 use mesobake_render::medium_settings::{
     CellIntegration, CellOrder, ShadowMethod, TransparencySettings,
 };
+use mesobake_scene::preview::{medium_preview, medium_render_on_cpu};
+use mesobake_scene::{LoadedScene, Scene};
 use std::path::Path;
 
 /// The shipped torus-fur scene at `side`² pixels with a `base` segment grid (its own

@@ -4,8 +4,6 @@ mod common;
 
 use common::{each_fails_with, succeeds};
 use glam::DVec3;
-use mesobake::grid::Dims;
-use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::mesostructure::media::ABSORBING_OPACITY;
 use mesobake_bake::mesostructure::medium::Medium;
@@ -14,6 +12,7 @@ use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::light::Light;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 use mesobake_render::cell_order::ViewSort;
 use mesobake_render::image::Image;
 use mesobake_render::image::{Comparison, compare};
@@ -24,6 +23,7 @@ use mesobake_render::medium_settings::{
 use mesobake_render::medium_truth::MediumTruth;
 use mesobake_render::render_image;
 use mesobake_render::truth::TruthRenderer;
+use mesobake_scene::{LoadedScene, Scene};
 use std::path::Path;
 
 /// Exact integration of each cell.

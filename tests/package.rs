@@ -1,6 +1,5 @@
 //! GDM packages: round trips, determinism, and rejection of every kind of corrupt file.
 
-use mesobake::grid::{Dims, DirectionGrid};
 use mesobake_bake::compress::gdm::{CompressedGdm, compress};
 use mesobake_bake::compress::layout::GdmRows;
 use mesobake_bake::compress::quantize::Quantization;
@@ -13,6 +12,7 @@ use mesobake_bake::package::bake::{PackageParams, bake_info, bake_package};
 use mesobake_bake::package::manifest::{GdmCodec, InputInfo, Manifest};
 use mesobake_bake::package::{GdmPayload, OCCUPANCY_SECTION, Package, container};
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::{Dims, DirectionGrid};
 use proptest::prelude::*;
 
 fn params(rank: usize, quantization: Quantization) -> PackageParams {

@@ -4,9 +4,6 @@
 //! Vulkan driver. Without any adapter these tests fail, unless MESOBAKE_SKIP_GPU_TESTS=1 says
 //! to skip them (loudly).
 
-use mesobake::scene::package::{ScenePackageParams, gdm_scene_package};
-use mesobake::scene::preview::{gdm_pipeline, gdm_preview, gdm_render_on_cpu};
-use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::package::Package;
@@ -15,6 +12,9 @@ use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
 use mesobake_gpu::gpu::Gpu;
 use mesobake_render::image::{Image, compare};
+use mesobake_scene::package::{ScenePackageParams, gdm_scene_package};
+use mesobake_scene::preview::{gdm_pipeline, gdm_preview, gdm_render_on_cpu};
+use mesobake_scene::{LoadedScene, Scene};
 use std::path::Path;
 
 /// Whether GPU tests run here; panics with the reason when no adapter exists and skipping

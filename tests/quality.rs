@@ -5,10 +5,10 @@
 //! must buy what it is for. Images at 256² (the targets hold at the scenes' 512²:
 //! docs/BENCHMARKS.md); the package is the scene's default (the exact occupancy march).
 
-use mesobake::report::quality::{QualityRow, default_settings, quality_report};
-use mesobake::scene::render::load_scene;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Preset;
+use mesobake_scene::render::load_scene;
+use mesobake_scene::report::quality::{QualityRow, default_settings, quality_report};
 use std::path::Path;
 
 mod common;
@@ -23,7 +23,7 @@ fn report(scene: &str) -> Vec<QualityRow> {
     loaded.scene.camera.height = 256;
     let mut scenes = vec![(scene.to_owned(), loaded, dir.as_path())];
     let report = quality_report(&mut scenes, &default_settings(), 0, &limits, &()).unwrap();
-    eprintln!("{}", mesobake::report::quality::markdown(&report));
+    eprintln!("{}", mesobake_scene::report::quality::markdown(&report));
     // The scene's own quality is left as it was.
     assert_eq!(scenes[0].1.scene.quality, own);
     report.rows

@@ -6,13 +6,13 @@
 mod server;
 
 use futures_util::future::join_all;
-use mesobake::grid::Dims;
-use mesobake::server::jobs::JobSpec;
-use mesobake::server::spawn_workers;
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
+use mesobake_server::jobs::JobSpec;
+use mesobake_server::spawn_workers;
 use serde_json::json;
 use server::{TestServer, database_urls};
 use std::process::{Child, Command};
@@ -63,7 +63,7 @@ async fn fifty_concurrent_8mb_uploads_are_stored_once_and_intact() {
         "each volume created exactly once: {created:?}"
     );
     for body in &bodies {
-        let key = mesobake::server::blobs::key_of(body);
+        let key = mesobake_server::blobs::key_of(body);
         assert_eq!(s.state.blobs.get(&key).unwrap().as_deref(), Some(&body[..]));
     }
     let rows: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM assets")
@@ -76,7 +76,7 @@ async fn fifty_concurrent_8mb_uploads_are_stored_once_and_intact() {
     for sub in std::fs::read_dir(data.path().join("blobs")).unwrap() {
         for f in std::fs::read_dir(sub.unwrap().path()).unwrap() {
             let name = f.unwrap().file_name().into_string().unwrap();
-            assert!(mesobake::server::blobs::is_key(&name), "stray file {name}");
+            assert!(mesobake_server::blobs::is_key(&name), "stray file {name}");
             files += 1;
         }
     }

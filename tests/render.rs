@@ -4,9 +4,6 @@
 //! a nearly inverted shell. Tolerances are stated with each assertion.
 
 use glam::{DVec2, DVec3};
-use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::scene::render::{MapSource, RenderMethod, render};
-use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::gdm::caster::{Caster, Trace};
 use mesobake_bake::gdm::input::Mesostructure;
 use mesobake_bake::gdm::volume_caster::VolumeCaster;
@@ -18,11 +15,14 @@ use mesobake_bake::surface::base_mesh::BaseMesh;
 use mesobake_bake::surface::shell::{Shell, ShellParams};
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::{Quality, ShadingFrame, ShadowMethod};
+use mesobake_package::grid::{Dims, DirectionGrid};
 use mesobake_render::gdm_lookup::RawLookup;
 use mesobake_render::gdm_renderer::{GdmRenderer, Substitutions};
 use mesobake_render::image::compare;
 use mesobake_render::render_image;
 use mesobake_render::truth::TruthRenderer;
+use mesobake_scene::render::{MapSource, RenderMethod, render};
+use mesobake_scene::{LoadedScene, Scene};
 
 const SLAB_SCENE: &str = r#"{
   "base_mesh": { "builtin": { "plane": {} } },

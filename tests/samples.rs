@@ -1,12 +1,12 @@
 //! Built-in samples: deterministic, closed on the tiling, and the volume and OBJ forms agree.
 
-use mesobake::grid::Dims;
 use mesobake_bake::gdm::caster::Caster;
 use mesobake_bake::gdm::mesh_caster::MeshCaster;
 use mesobake_bake::mesostructure::mesh_tile::MeshTile;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 
 /// The OBJ tile's inside classification of voxel centres agrees with the volume's solid voxels
 /// for at least 97 % of voxels (they differ only within about half a voxel of the surface,

@@ -5,11 +5,11 @@
 #[path = "common/server.rs"]
 mod server;
 
-use mesobake::grid::Dims;
-use mesobake::server::db::{PackageRow, now_ms};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
+use mesobake_server::db::{PackageRow, now_ms};
 use server::{TestServer, database_urls};
 
 fn volume_bytes(kind: SampleKind, res: u32) -> Vec<u8> {
@@ -217,7 +217,7 @@ async fn api_keys_guard_the_api_by_scope() {
     for url in database_urls(dir.path(), "keys").await {
         let data = tempfile::tempdir().unwrap();
         let s = TestServer::start_with(&url, data.path(), 1 << 20, |c| c.require_keys = true).await;
-        use mesobake::server::auth::Scope;
+        use mesobake_server::auth::Scope;
         let reader = s
             .state
             .db

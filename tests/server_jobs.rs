@@ -4,12 +4,12 @@
 #[path = "common/server.rs"]
 mod server;
 
-use mesobake::grid::Dims;
-use mesobake::server::spawn_workers;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
+use mesobake_server::spawn_workers;
 use object_store::ObjectStoreExt;
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};
@@ -142,9 +142,9 @@ fn assert_previews_as_its_cpu_twin(
     package: &mesobake_bake::package::AnyPackage,
     dir: &std::path::Path,
 ) {
-    use mesobake::scene::preview::render_on_cpu;
-    use mesobake::scene::{LoadedScene, Scene};
     use mesobake_render::image::{Image, compare};
+    use mesobake_scene::preview::render_on_cpu;
+    use mesobake_scene::{LoadedScene, Scene};
     let shown = dir.join("preview.png");
     std::fs::write(&shown, png).unwrap();
     let shown = Image::read(&shown).unwrap();
@@ -636,9 +636,9 @@ async fn the_ci_client_bakes_on_the_server_and_verifies_downloads() {
         .db
         .create_api_key(
             &[
-                mesobake::server::auth::Scope::Upload,
-                mesobake::server::auth::Scope::Bake,
-                mesobake::server::auth::Scope::Read,
+                mesobake_server::auth::Scope::Upload,
+                mesobake_server::auth::Scope::Bake,
+                mesobake_server::auth::Scope::Read,
             ],
             "ci",
         )
@@ -689,7 +689,7 @@ async fn the_ci_client_bakes_on_the_server_and_verifies_downloads() {
     let summary: Value = serde_json::from_slice(&o.stdout).unwrap();
     let digest = summary["digest"].as_str().unwrap().to_owned();
     let bytes = std::fs::read(&out).unwrap();
-    assert_eq!(mesobake::server::blobs::key_of(&bytes), digest);
+    assert_eq!(mesobake_server::blobs::key_of(&bytes), digest);
     assert_eq!(
         Package::parse(bytes.clone())
             .unwrap()
@@ -837,7 +837,7 @@ async fn an_s3_blob_store_is_shared_by_servers_on_other_machines() {
     };
     let dir = tempfile::tempdir().unwrap();
     let url = database_urls(dir.path(), "s3").await.remove(0);
-    let on_s3 = |c: &mut mesobake::server::config::ServerConfig| {
+    let on_s3 = |c: &mut mesobake_server::config::ServerConfig| {
         c.blob_url = "s3://mesobake-test/blobs".into();
         for (k, v) in [
             ("endpoint", s3.1.as_str()),

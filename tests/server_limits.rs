@@ -7,12 +7,12 @@
 #[path = "common/server.rs"]
 mod server;
 
-use mesobake::grid::Dims;
-use mesobake::server::config::ServerConfig;
-use mesobake::server::db::{PackageRow, now_ms};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
+use mesobake_server::config::ServerConfig;
+use mesobake_server::db::{PackageRow, now_ms};
 use serde_json::{Value, json};
 use server::{TestServer, database_urls};
 use std::time::{Duration, Instant};
@@ -396,7 +396,7 @@ async fn validators_ranges_and_keys_follow_http() {
         c.public_packages = false;
     })
     .await;
-    use mesobake::server::auth::Scope;
+    use mesobake_server::auth::Scope;
     let key = s
         .state
         .db
@@ -525,7 +525,7 @@ async fn the_preview_cache_evicts_the_least_recently_used_beyond_its_bytes() {
         c.preview_cache_bytes = 250;
     })
     .await;
-    use mesobake::server::preview_cache::{lookup, store};
+    use mesobake_server::preview_cache::{lookup, store};
     let image = |n: u8| vec![n; 100];
     let pause = || tokio::time::sleep(Duration::from_millis(5));
     store(&s.state, "a", image(1)).await.unwrap();
@@ -544,7 +544,7 @@ async fn the_preview_cache_evicts_the_least_recently_used_beyond_its_bytes() {
     assert!(
         s.state
             .blobs
-            .get(&mesobake::server::blobs::key_of(&image(2)))
+            .get(&mesobake_server::blobs::key_of(&image(2)))
             .unwrap()
             .is_none()
     );
@@ -560,7 +560,7 @@ async fn the_preview_cache_evicts_the_least_recently_used_beyond_its_bytes() {
         None,
         "over the budget alone"
     );
-    let key = mesobake::server::blobs::key_of(&volume);
+    let key = mesobake_server::blobs::key_of(&volume);
     assert_eq!(s.state.blobs.get(&key).unwrap(), Some(volume));
 }
 
@@ -570,7 +570,7 @@ async fn failed_jobs_name_the_asset_not_the_servers_paths() {
     let data = dir.path().join("data");
     let s = TestServer::start(&sqlite(dir.path()), &data, 1 << 20).await;
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    mesobake::server::spawn_workers(&s.state, 1, &stop);
+    mesobake_server::spawn_workers(&s.state, 1, &stop);
     let volume = volume_bytes(SampleKind::Chain, 16);
     let r = upload(&s, volume).await;
     let digest = r.json::<Value>().await.unwrap()["id"]

@@ -4,15 +4,15 @@
 
 mod common;
 
-use mesobake::scene::package::scene_package;
-use mesobake::scene::preview::{preview, render_on_cpu};
-use mesobake::scene::{LoadedScene, Scene};
 use mesobake_bake::package::AnyPackage;
 use mesobake_core::limits::Limits;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use mesobake_render::image::{Image, compare};
 use mesobake_render::render_image;
 use mesobake_render::truth::TruthRenderer;
+use mesobake_scene::package::scene_package;
+use mesobake_scene::preview::{preview, render_on_cpu};
+use mesobake_scene::{LoadedScene, Scene};
 use std::path::Path;
 
 fn load(name: &str, width: u32, height: u32) -> LoadedScene {

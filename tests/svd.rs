@@ -214,11 +214,11 @@ fn bad_matrices_are_refused() {
 /// (+∞) are refused.
 #[test]
 fn gdm_layout_rows_and_columns() {
-    use mesobake::grid::{Dims, DirectionGrid};
     use mesobake_bake::compress::layout::GdmRows;
     use mesobake_bake::compress::svd::RowSource;
     use mesobake_bake::gdm::{EscapeConvention, exact, volume_caster::VolumeCaster};
     use mesobake_bake::mesostructure::volume::Volume;
+    use mesobake_package::grid::{Dims, DirectionGrid};
     let d = Dims::new(5, 3, 4).unwrap();
     let limits = Limits::default();
     let v = Volume::from_fn(d, &limits, |i, j, k| (i + 2 * j + k) % 4 == 0).unwrap();
@@ -267,7 +267,7 @@ fn the_gram_accumulation_stops_when_cancelled() {
         asked: 0.into(),
     };
     let e = GramEigen::observed(&a, &limits, &cancel(2)).err();
-    assert!(matches!(e, Some(mesobake::Error::Cancelled)), "{e:?}");
+    assert!(matches!(e, Some(mesobake_core::Error::Cancelled)), "{e:?}");
     // An observer that never cancels changes nothing.
     let spectrum = |g: GramEigen| {
         g.truncate(&a, RankChoice::Rank(3), &limits)

@@ -2,7 +2,6 @@
 //! against a plain brute-force march, and the paper's resampled bake against the exact one.
 
 use glam::DVec3;
-use mesobake::grid::Dims;
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::vdm::{VdmMatrix, compress};
 use mesobake_bake::gdm::caster::{Caster, Trace};
@@ -13,6 +12,7 @@ use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::package::vdm::VdmPackage;
 use mesobake_bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, bend::Bend, exact};
 use mesobake_core::limits::Limits;
+use mesobake_package::grid::Dims;
 
 mod common;
 use common::{each_fails_with, succeeds};

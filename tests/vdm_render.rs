@@ -5,9 +5,6 @@
 mod common;
 
 use common::{each_fails_with, gpu, succeeds};
-use mesobake::scene::LoadedScene;
-use mesobake::scene::Scene;
-use mesobake::scene::render::{MapSource, RenderMethod, render, render_substituted};
 use mesobake_bake::vdm::bend::Bend;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
@@ -15,6 +12,9 @@ use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::image::{Comparison, Image, compare};
 use mesobake_render::render_image;
 use mesobake_render::vdm_renderer::{VdmRenderer, exit_arc};
+use mesobake_scene::LoadedScene;
+use mesobake_scene::Scene;
+use mesobake_scene::render::{MapSource, RenderMethod, render, render_substituted};
 
 /// VDM settings that leave out compression's error: every component, in f32.
 const UNCOMPRESSED: &str = r#"{ "rank": 64, "mvm_rank": 16, "quantization": "f32" }"#;
@@ -618,7 +618,7 @@ fn torus_bumps(
     let (dir, limits) = (path.parent().unwrap(), Limits::default());
     let loaded = LoadedScene::load(scene, dir, &limits).unwrap();
     let package =
-        mesobake::scene::package::scene_package(&loaded, dir, Default::default(), &limits, &())
+        mesobake_scene::package::scene_package(&loaded, dir, Default::default(), &limits, &())
             .unwrap();
     (loaded, package)
 }
@@ -635,7 +635,7 @@ fn the_compressed_vdm_shadows_no_lit_bump_the_truth_lights() {
     // 0.15 with the top triangles' own frames.
     let (mut loaded, package) = torus_bumps(192, 1, |_| {});
     let images = |loaded: &LoadedScene| {
-        let vdm = mesobake::scene::preview::render_on_cpu(loaded, &package).unwrap();
+        let vdm = mesobake_scene::preview::render_on_cpu(loaded, &package).unwrap();
         (truth_image(loaded), vdm)
     };
     let (truth, vdm) = images(&loaded);
@@ -666,7 +666,7 @@ fn the_refinement_settles_hits_and_silhouettes_on_the_height_field() {
     let truth = truth_image(&loaded);
     let mut at = |texels| {
         loaded.scene.vdm.refine_texels = texels;
-        let image = mesobake::scene::preview::render_on_cpu(&loaded, &package).unwrap();
+        let image = mesobake_scene::preview::render_on_cpu(&loaded, &package).unwrap();
         compare(&truth, &image).unwrap()
     };
     let (lookup, refined) = (at(0), at(16));
@@ -699,7 +699,7 @@ fn shadows_traced_through_the_top_surface_find_the_far_sides_shadows() {
     let shadowed_truth = truth_image(&loaded);
     let vdm = |loaded: &mut LoadedScene, shadows| {
         loaded.scene.vdm.shadows = shadows;
-        mesobake::scene::preview::render_on_cpu(loaded, &package).unwrap()
+        mesobake_scene::preview::render_on_cpu(loaded, &package).unwrap()
     };
     let (local, shell) = (
         vdm(&mut loaded, ShadowMethod::Local),

@@ -3,11 +3,12 @@
 
 use super::output::Progress;
 use clap::Subcommand;
-use mesobake::bench::counting_alloc::CountingAlloc;
-use mesobake::bench::{bakes, media, preview, server, vdm};
-use mesobake::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Preset;
+use mesobake_core::{Error, Result};
+use mesobake_scene::bench::counting_alloc::CountingAlloc;
+use mesobake_scene::bench::{bakes, media, preview, vdm};
+use mesobake_server::bench as server;
 use std::path::PathBuf;
 
 /// The benchmarks.

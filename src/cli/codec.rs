@@ -1,11 +1,11 @@
 //! The GDM codec options shared by `mesobake bake` and `mesobake preview`.
 
-use mesobake::scene::package::ScenePackageParams;
-use mesobake::{Error, Result};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::package::bake::check_codec_options;
 use mesobake_bake::package::manifest::GdmCodec;
+use mesobake_core::{Error, Result};
+use mesobake_scene::package::ScenePackageParams;
 
 /// How a baked package answers GDM queries, and the SVD's size for `paper-svd`.
 #[derive(clap::Args)]

@@ -2,11 +2,11 @@
 //! binary glTF.
 
 use super::output::{Progress, print_json};
-use mesobake::scene::explicit::explicit_input;
-use mesobake::{Error, Result};
 use mesobake_bake::surface::explicit::ExplicitInput;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
+use mesobake_core::{Error, Result};
+use mesobake_scene::explicit::explicit_input;
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -3,12 +3,12 @@
 
 use super::output::{Progress, print_json};
 use clap::ValueEnum;
-use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::{Error, Result};
 use mesobake_bake::gdm::input;
 use mesobake_bake::gdm::npy;
 use mesobake_bake::gdm::{self, Method};
 use mesobake_core::limits::Limits;
+use mesobake_core::{Error, Result};
+use mesobake_package::grid::{Dims, DirectionGrid};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -5,11 +5,6 @@
 use super::codec::CodecOptions;
 use super::gdm::BakeOptions;
 use super::output::{Progress, print_json};
-use mesobake::client::Client;
-use mesobake::grid::Dims;
-use mesobake::scene::package::{ScenePayload, bake_scene_package};
-use mesobake::scene::render::load_scene;
-use mesobake::{Error, Result};
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::gdm::Method;
 use mesobake_bake::gdm::npy::write_gdm;
@@ -22,7 +17,12 @@ use mesobake_bake::vdm::{NO_HIT, VdmGrid};
 use mesobake_core::fs::{read_bounded, write_atomic};
 use mesobake_core::limits::Limits;
 use mesobake_core::npy::write_array;
+use mesobake_core::{Error, Result};
+use mesobake_package::grid::Dims;
 use mesobake_package::vdm::{VDM_FORMAT_NAME, VdmQuery};
+use mesobake_scene::package::{ScenePayload, bake_scene_package};
+use mesobake_scene::render::load_scene;
+use mesobake_server::client::Client;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -2,15 +2,15 @@
 
 use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
-use mesobake::Result;
-use mesobake::scene::package::{check_any_package_input, scene_package};
-use mesobake::scene::preview::{PreviewDevice, PreviewFallback};
-use mesobake::scene::render::load_scene;
-use mesobake::scene::technique::Technique;
 use mesobake_bake::package::AnyPackage;
+use mesobake_core::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Quality;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
+use mesobake_scene::package::{check_any_package_input, scene_package};
+use mesobake_scene::preview::{PreviewDevice, PreviewFallback};
+use mesobake_scene::render::load_scene;
+use mesobake_scene::technique::Technique;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -77,7 +77,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     } = args;
     codec.check(None)?;
     if package.is_some() && codec.is_chosen() {
-        return Err(mesobake::Error::InvalidParameter(
+        return Err(mesobake_core::Error::InvalidParameter(
             "--gdm-codec, --rank and --quant choose the package baked for the scene; \
              --package renders a package as it is"
                 .into(),

@@ -3,18 +3,18 @@
 
 use super::codec::CodecOptions;
 use super::output::{Progress, print_json};
-use mesobake::scene::package::{check_any_package_input, gdm_scene_package, scene_package};
-use mesobake::scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
-use mesobake::scene::technique::Technique;
-use mesobake::{Error, Result};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::package::AnyPackage;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Quality;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
+use mesobake_core::{Error, Result};
 use mesobake_render::gdm_renderer::Substitutions;
 use mesobake_render::image::{Image, compare, difference};
+use mesobake_scene::package::{check_any_package_input, gdm_scene_package, scene_package};
+use mesobake_scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
+use mesobake_scene::technique::Technique;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::time::Instant;

@@ -4,17 +4,19 @@
 use super::output::Progress;
 use super::vdm::parse_pair;
 use clap::Subcommand;
-use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::report::{accuracy, codecs, conformance, gi, quality, render, transparency, vdm};
-use mesobake::scene::LoadedScene;
-use mesobake::scene::render::load_scene;
-use mesobake::{Error, Result};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::vdm::VdmMethod;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
+use mesobake_core::{Error, Result};
 use mesobake_gpu::gpu::Gpu;
+use mesobake_package::grid::{Dims, DirectionGrid};
+use mesobake_scene::LoadedScene;
+use mesobake_scene::render::load_scene;
+use mesobake_scene::report::{
+    accuracy, codecs, conformance, gi, quality, render, transparency, vdm,
+};
 use std::path::{Path, PathBuf};
 
 /// The reports.

@@ -4,8 +4,6 @@
 
 use super::output::Progress;
 use clap::ValueEnum;
-use mesobake::grid::{Dims, DirectionGrid};
-use mesobake::{Error, Result};
 use mesobake_bake::gdm;
 use mesobake_bake::gdm::npy;
 use mesobake_bake::mesostructure::raw_medium::{self, RawFormat};
@@ -13,6 +11,8 @@ use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::fs::write_atomic;
 use mesobake_core::limits::Limits;
+use mesobake_core::{Error, Result};
+use mesobake_package::grid::{Dims, DirectionGrid};
 use mesobake_render::flat_preview;
 use std::path::PathBuf;
 use std::time::Instant;

@@ -2,11 +2,11 @@
 //! (workers only) and `mesobake keys` (API keys in the configured database).
 
 use clap::Subcommand;
-use mesobake::server::auth::Scope;
-use mesobake::server::config::ServerConfig;
-use mesobake::server::db::Db;
-use mesobake::{Error, Result};
 use mesobake_core::limits::Limits;
+use mesobake_core::{Error, Result};
+use mesobake_server::auth::Scope;
+use mesobake_server::config::ServerConfig;
+use mesobake_server::db::Db;
 use std::path::PathBuf;
 
 /// Options of `mesobake serve` and `mesobake worker`.
@@ -20,13 +20,13 @@ pub struct ConfigArgs {
 /// Runs the server until Ctrl-C or SIGTERM.
 pub fn serve(args: ConfigArgs, limits: Limits) -> Result<()> {
     let config = ServerConfig::load(args.config.as_deref())?;
-    run_service(mesobake::server::serve(config, limits))
+    run_service(mesobake_server::serve(config, limits))
 }
 
 /// Runs workers until Ctrl-C or SIGTERM.
 pub fn worker(args: ConfigArgs, limits: Limits) -> Result<()> {
     let config = ServerConfig::load(args.config.as_deref())?;
-    run_service(mesobake::server::work(config, limits))
+    run_service(mesobake_server::work(config, limits))
 }
 
 /// A tokio runtime for the commands that talk to the server's database.

@@ -3,7 +3,6 @@
 //! relief as a 16-bit PNG.
 
 use super::output::{Progress, print_json};
-use mesobake::{Error, Result};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::vdm::compress;
 use mesobake_bake::mesostructure::height_field::HeightField;
@@ -13,6 +12,7 @@ use mesobake_bake::vdm::{self, NO_HIT, Relief, Vdm, VdmGrid, VdmMethod, VdmParam
 use mesobake_core::fs::{read_bounded, write_atomic};
 use mesobake_core::limits::Limits;
 use mesobake_core::npy;
+use mesobake_core::{Error, Result};
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -1,8 +1,8 @@
 //! Running the server in-process against each database backend.
 #![allow(dead_code)] // each test file uses part of it
 
-use mesobake::server::{AppState, config::ServerConfig, open_state, serve_on};
 use mesobake_core::limits::Limits;
+use mesobake_server::{AppState, config::ServerConfig, open_state, serve_on};
 use std::net::SocketAddr;
 
 /// The PostgreSQL server of the test machine (trust authentication).

@@ -1,0 +1,218 @@
+//! `POST /api/v1/preview`: a scene rendered by the real-time pipeline (wgpu) from the package
+//! baked for it, as PNG, cached by (scene, package).
+
+use super::AppState;
+use super::api_error::{ApiError, ApiResult};
+use super::config::millis;
+use super::jobs::JobSpec;
+use super::jobs_api::{check_spec, enqueue};
+use super::json_body::JsonBody;
+use super::preview_cache;
+use super::worker::resolve_assets;
+use axum::Json;
+use axum::extract::State;
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use mesobake_bake::package::AnyPackage;
+use mesobake_core::effect::Effect;
+use mesobake_core::error::{Error, Result};
+use mesobake_scene::preview::PreviewDevice;
+use mesobake_scene::{EnvironmentSource, LoadedScene, Scene};
+use std::path::Path;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::Instant;
+use tokio::sync::Semaphore;
+
+/// The header that says which technique's pipeline drew a preview: `gdm` or `vdm` (the
+/// plan's choice for the scene).
+pub const TECHNIQUE_HEADER: &str = "x-mesobake-technique";
+
+/// The header that says which renderer drew a preview: `gpu`, or `cpu` (the CPU twin, where
+/// no GPU adapter exists).
+pub const RENDERER_HEADER: &str = "x-mesobake-renderer";
+
+/// The GPU (or, where none exists, the CPU twin), opened on first use and shared by previews,
+/// one render at a time.
+pub struct PreviewGpu {
+    device: Mutex<Option<PreviewDevice>>,
+    /// `gpu` or `cpu`, once the device is open.
+    renderer: OnceLock<&'static str>,
+    /// The right to render: whoever holds it may lock `device` without waiting.
+    slot: Arc<Semaphore>,
+}
+
+impl Default for PreviewGpu {
+    fn default() -> Self {
+        PreviewGpu {
+            device: Mutex::new(None),
+            renderer: OnceLock::new(),
+            slot: Arc::new(Semaphore::new(1)),
+        }
+    }
+}
+
+/// Renders the PNG, opening the device on first use; returns it with the renderer's name.
+fn render_png(
+    gpu: &PreviewGpu,
+    scene: &Scene,
+    package: Vec<u8>,
+    state: &AppState,
+) -> Result<(Vec<u8>, &'static str)> {
+    let package = AnyPackage::parse(package)?;
+    let mut scene = scene.clone();
+    resolve_assets(&mut scene, &state.blobs)?;
+    let loaded = LoadedScene::load(scene, Path::new("/"), &state.limits)?;
+    let mut guard = gpu
+        .device
+        .lock()
+        .map_err(|_| Error::Gpu("a previous preview panicked".into()))?;
+    if guard.is_none() {
+        let device = PreviewDevice::open(None, state.config.preview_fallback)?;
+        if let PreviewDevice::Cpu { reason } = &device {
+            tracing::warn!(
+                "previews render with the CPU twin of the real-time pipeline: {reason} \
+                 (preview_fallback = \"cpu\")"
+            );
+        }
+        let _ = gpu.renderer.set(device.renderer());
+        *guard = Some(device);
+    }
+    let device = guard.as_ref().expect("opened above");
+    let (image, _) = device.render(&loaded, &package, 0, &())?;
+    Ok((image.to_png()?, device.renderer()))
+}
+
+/// Renders `spec`'s scene from `package` on the GPU: waits at most `busy_wait_ms` for the
+/// GPU and `preview_timeout_ms` for the render (503 beyond either; an abandoned render keeps
+/// the GPU until it ends, and the next waits for it at most `busy_wait_ms`).
+async fn render_on_gpu(
+    state: &AppState,
+    spec: &JobSpec,
+    package: Vec<u8>,
+) -> ApiResult<(Vec<u8>, &'static str)> {
+    let config = &state.config;
+    let permit = tokio::time::timeout(
+        millis(config.busy_wait_ms),
+        state.gpu.slot.clone().acquire_owned(),
+    )
+    .await
+    .map_err(|_| ApiError::busy("the GPU is busy with other previews; try again shortly"))?
+    .map_err(|_| ApiError::busy("the GPU is closed"))?;
+    let (st, scene) = (state.clone(), spec.scene.clone());
+    let render = tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        render_png(&st.gpu, &scene, package, &st).map_err(|e| ApiError::scrubbed(e, &st.blobs))
+    });
+    match tokio::time::timeout(millis(config.preview_timeout_ms), render).await {
+        Ok(result) => Ok(result??),
+        Err(_) => Err(ApiError::busy(format!(
+            "the preview render ran past {} ms (preview_timeout_ms) and was abandoned",
+            config.preview_timeout_ms
+        ))),
+    }
+}
+
+/// Renders a scene with the real-time pipeline from the package baked for it. While that
+/// package is not baked, answers 409 with the job baking it (submitted if needed).
+#[utoipa::path(
+    post,
+    path = "/api/v1/preview",
+    request_body = JobSpec,
+    responses(
+        (status = 200, description = "The image", content_type = "image/png"),
+        (status = 409, description = "The scene's package is not baked yet: {error, job}"),
+        (status = 413, description = "Body over max_json_bytes"),
+        (status = 422, description = "Invalid scene, or a cost over the server's limits"),
+        (status = 429, description = "The scene's package is not baked and the queue is full"),
+        (status = 503, description = "No GPU adapter (with preview_fallback = \"none\"), the GPU busy, or the render past preview_timeout_ms"),
+    )
+)]
+pub async fn render(
+    State(state): State<AppState>,
+    JsonBody(spec): JsonBody<JobSpec>,
+) -> ApiResult<Response> {
+    let start = Instant::now();
+    let plan = check_spec(&state, &spec).await?;
+    let lit_by_exr = matches!(spec.scene.environment, Some(EnvironmentSource::Exr(_)))
+        && spec.scene.wants(Effect::EnvironmentLighting);
+    if lit_by_exr {
+        return Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "previews light environment-lit scenes with the built-in skies only: the server \
+             takes no EXR environment uploads (bake jobs do not need the environment)"
+                .to_owned(),
+        ));
+    }
+    let job = match state.db.job_for(&spec, plan.technique.technique).await? {
+        Some(job) if job.state == "succeeded" => job,
+        _ => enqueue(&state, &spec, &plan).await?.0,
+    };
+    let Some(digest) = job
+        .package_digest
+        .clone()
+        .filter(|_| job.state == "succeeded")
+    else {
+        let body = serde_json::json!({
+            "error": format!("the scene's package is not baked yet (job {} is {})", job.id, job.state),
+            "job": job,
+        });
+        return Ok((StatusCode::CONFLICT, Json(body)).into_response());
+    };
+    let scene_text = serde_json::to_string(&spec.scene).expect("scenes serialize");
+    let cache_key = |renderer: &str| {
+        let text = format!("preview-v2\n{renderer}\n{digest}\n{scene_text}");
+        blake3::hash(text.as_bytes()).to_hex().to_string()
+    };
+    // Before the device is first opened the renderer is unknown, and so is the cache key.
+    let cached = match state.gpu.renderer.get() {
+        Some(&renderer) => preview_cache::lookup(&state, &cache_key(renderer))
+            .await?
+            .map(|png| (png, renderer)),
+        None => None,
+    };
+    let (png, renderer) = match cached {
+        Some(hit) => {
+            state
+                .metrics
+                .preview_cache_hits
+                .fetch_add(1, Ordering::Relaxed);
+            hit
+        }
+        None => {
+            state
+                .metrics
+                .preview_cache_misses
+                .fetch_add(1, Ordering::Relaxed);
+            let package = {
+                let (blobs, digest) = (state.blobs.clone(), digest.clone());
+                tokio::task::spawn_blocking(move || blobs.get(&digest)).await??
+            }
+            .ok_or_else(|| {
+                ApiError::new(
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    "the package's blob is missing",
+                )
+            })?;
+            let (png, renderer) = render_on_gpu(&state, &spec, package).await?;
+            preview_cache::store(&state, &cache_key(renderer), png.clone()).await?;
+            (png, renderer)
+        }
+    };
+    state
+        .metrics
+        .observe("preview", start.elapsed().as_secs_f64());
+    Ok((
+        [
+            (header::CONTENT_TYPE, "image/png"),
+            (header::CACHE_CONTROL, "no-cache"),
+            (header::HeaderName::from_static(RENDERER_HEADER), renderer),
+            (
+                header::HeaderName::from_static(TECHNIQUE_HEADER),
+                plan.technique.technique.name(),
+            ),
+        ],
+        png,
+    )
+        .into_response())
+}
