@@ -251,14 +251,14 @@ pub enum ReportCommand {
 }
 
 /// Writes `files` (name, contents) into `out`, prints `table` and says what was written.
-/// Refuses an image side outside 1..=[`mesobake_core::camera::MAX_IMAGE_SIDE`].
+/// Refuses an image side outside 1..=[`mesobake_core::limits::MAX_IMAGE_SIDE`].
 fn check_side(side: u32) -> Result<()> {
-    if (1..=mesobake_core::camera::MAX_IMAGE_SIDE).contains(&side) {
+    if (1..=mesobake_core::limits::MAX_IMAGE_SIDE).contains(&side) {
         Ok(())
     } else {
         Err(Error::InvalidParameter(format!(
             "--side must be between 1 and {}, got {side}",
-            mesobake_core::camera::MAX_IMAGE_SIDE
+            mesobake_core::limits::MAX_IMAGE_SIDE
         )))
     }
 }

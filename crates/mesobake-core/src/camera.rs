@@ -1,12 +1,10 @@
 //! The pinhole camera and its image plane: where each pixel's rays go.
 
 use crate::error::{Error, Result};
+use crate::limits::MAX_IMAGE_SIDE;
 use crate::samples_per_pixel::{MAX_IMAGE_SAMPLES, SamplesPerPixel};
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
-
-/// Largest accepted image side in pixels.
-pub const MAX_IMAGE_SIDE: u32 = 8192;
 
 /// A pinhole camera.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

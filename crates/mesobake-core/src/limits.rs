@@ -8,6 +8,9 @@ pub const DEFAULT_MEMORY_LIMIT: u64 = 4 << 30;
 /// Default limit on the pixels of an input image: 2²⁸ (16384 × 16384).
 pub const DEFAULT_IMAGE_PIXELS: u64 = 1 << 28;
 
+/// Largest accepted image side in pixels.
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
 /// Limits that protect the process from input that asks for absurd sizes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Limits {

@@ -8,8 +8,8 @@
 //! They are stratified: for N a power of two each of N equal sub-pixel boxes (of any
 //! aspect that tiles the pixel in powers of two) holds exactly one.
 
-use crate::camera::MAX_IMAGE_SIDE;
 use crate::error::{Error, Result};
+use crate::limits::MAX_IMAGE_SIDE;
 use serde::{Deserialize, Serialize};
 use std::str::FromStr;
 

@@ -1,10 +1,10 @@
 //! Rendered images: linear RGB with a hit/miss mask; PNG (sRGB, alpha = mask) and OpenEXR
 //! (linear float, A = mask) files; `compare`.
 
-use mesobake_core::camera::MAX_IMAGE_SIDE;
 use mesobake_core::color::linear_to_srgb;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::fs::write_atomic;
+use mesobake_core::limits::MAX_IMAGE_SIDE;
 use serde::Serialize;
 use std::path::Path;
 

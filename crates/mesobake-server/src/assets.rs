@@ -3,7 +3,7 @@
 
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
-use super::blobs::is_key;
+use super::blobs::{BlobStore, is_key};
 use super::config::millis;
 use super::db::{AssetRow, now_ms};
 use super::json_body::body_error;
@@ -19,6 +19,7 @@ use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::surface::base_mesh::BaseMesh;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
+use mesobake_scene::{BaseMeshSource, MesostructureSource, Scene};
 use serde::Deserialize;
 use tokio::io::AsyncWriteExt;
 
@@ -226,4 +227,34 @@ pub async fn get(
     Ok(Json(state.db.asset(&id).await?.ok_or_else(|| {
         ApiError::not_found(format!("asset {id}"))
     })?))
+}
+
+/// Replaces every file a scene names (an asset digest) by the blob's path; an unknown
+/// digest is an input error naming it.
+pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
+    let resolve = |p: &mut std::path::PathBuf| -> Result<()> {
+        let digest = p.to_string_lossy().into_owned();
+        if !is_key(&digest) {
+            return Err(Error::Scene(format!(
+                "{digest:?} is not the digest of an uploaded asset"
+            )));
+        }
+        *p = blobs
+            .file(&digest)?
+            .ok_or_else(|| Error::Scene(format!("no uploaded asset has the digest {digest}")))?;
+        Ok(())
+    };
+    match &mut scene.mesostructure {
+        MesostructureSource::Volume(p)
+        | MesostructureSource::Tile(p)
+        | MesostructureSource::HeightField(p) => resolve(p)?,
+        MesostructureSource::Sample(_)
+        | MesostructureSource::SampleTile(_)
+        | MesostructureSource::Relief(_)
+        | MesostructureSource::Medium(_) => {}
+    }
+    if let BaseMeshSource::Obj(p) = &mut scene.base_mesh {
+        resolve(p)?;
+    }
+    Ok(())
 }

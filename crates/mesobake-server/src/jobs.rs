@@ -10,9 +10,9 @@
 //! with exponential backoff; input errors fail at once.
 
 use super::api_error::ApiError;
+use super::assets::resolve_assets;
 use super::blobs::BlobStore;
 use super::db::{Db, db_error, now_ms};
-use super::worker::resolve_assets;
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::mesostructure::volume_format;

@@ -3,12 +3,12 @@
 
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
+use super::assets::resolve_assets;
 use super::config::millis;
 use super::jobs::JobSpec;
 use super::jobs_api::{check_spec, enqueue};
 use super::json_body::JsonBody;
 use super::preview_cache;
-use super::worker::resolve_assets;
 use axum::Json;
 use axum::extract::State;
 use axum::http::{StatusCode, header};

@@ -4,6 +4,7 @@
 //! `mesobake worker` processes on other machines that share the database and blob store.
 
 use super::AppState;
+use super::assets::resolve_assets;
 use super::blobs::BlobStore;
 use super::db::{PackageRow, now_ms};
 use super::jobs::{Claimed, JobSpec, MAX_ATTEMPTS};
@@ -11,8 +12,8 @@ use mesobake_bake::package::AnyPackage;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_scene::LoadedScene;
 use mesobake_scene::package::bake_scene_package;
-use mesobake_scene::{BaseMeshSource, LoadedScene, MesostructureSource, Scene};
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,36 +26,6 @@ pub const LEASE_MS: i64 = 10_000;
 const HEARTBEAT: Duration = Duration::from_millis(250);
 /// How long an idle worker waits before looking for work again.
 const POLL: Duration = Duration::from_millis(200);
-
-/// Replaces every file a scene names (an asset digest) by the blob's path; an unknown
-/// digest is an input error naming it.
-pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
-    let resolve = |p: &mut std::path::PathBuf| -> Result<()> {
-        let digest = p.to_string_lossy().into_owned();
-        if !super::blobs::is_key(&digest) {
-            return Err(Error::Scene(format!(
-                "{digest:?} is not the digest of an uploaded asset"
-            )));
-        }
-        *p = blobs
-            .file(&digest)?
-            .ok_or_else(|| Error::Scene(format!("no uploaded asset has the digest {digest}")))?;
-        Ok(())
-    };
-    match &mut scene.mesostructure {
-        MesostructureSource::Volume(p)
-        | MesostructureSource::Tile(p)
-        | MesostructureSource::HeightField(p) => resolve(p)?,
-        MesostructureSource::Sample(_)
-        | MesostructureSource::SampleTile(_)
-        | MesostructureSource::Relief(_)
-        | MesostructureSource::Medium(_) => {}
-    }
-    if let BaseMeshSource::Obj(p) = &mut scene.base_mesh {
-        resolve(p)?;
-    }
-    Ok(())
-}
 
 /// Relative cost of each stage, for the job's overall progress.
 fn stage_weight(stage: &str) -> f64 {

@@ -1,7 +1,8 @@
 //! The built-in base meshes and the parametric surfaces they are made of.
 
+use super::grid::grid;
 use super::{BaseMesh, MeshReport, teapot};
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use mesobake_core::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -359,50 +360,10 @@ fn circle(n: u32) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// The (nu + 1)·(nv + 1) vertices `vertex(i, j)` (position, normal) with UVs (i/nu, j/nv),
-/// row j after row j − 1, and two triangles per quad, counter-clockwise in UV space. With
-/// `pole_at_v0` the row j = 0 is a single point and each of its quads gives only the triangle
-/// that is not zero-area.
-pub(super) fn grid(
-    nu: u32,
-    nv: u32,
-    pole_at_v0: bool,
-    vertex: impl Fn(u32, u32) -> (DVec3, DVec3),
-) -> BaseMesh {
-    let mut mesh = BaseMesh::empty();
-    let count = (nu as usize + 1) * (nv as usize + 1);
-    mesh.positions.reserve(count);
-    mesh.normals.reserve(count);
-    mesh.uvs.reserve(count);
-    for j in 0..=nv {
-        for i in 0..=nu {
-            let (p, n) = vertex(i, j);
-            mesh.positions.push(p);
-            mesh.normals.push(n);
-            mesh.uvs.push(DVec2::new(
-                f64::from(i) / f64::from(nu),
-                f64::from(j) / f64::from(nv),
-            ));
-        }
-    }
-    let index = |i: u32, j: u32| j * (nu + 1) + i;
-    mesh.triangles.reserve(2 * nu as usize * nv as usize);
-    for j in 0..nv {
-        for i in 0..nu {
-            let (a, b) = (index(i, j), index(i + 1, j));
-            let (c, d) = (index(i + 1, j + 1), index(i, j + 1));
-            if !(pole_at_v0 && j == 0) {
-                mesh.triangles.push([a, b, c]);
-            }
-            mesh.triangles.push([a, c, d]);
-        }
-    }
-    mesh
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec2;
 
     /// The angle between two vectors, accurate for small angles too (unlike an arccosine).
     fn angle(a: DVec3, b: DVec3) -> f64 {

@@ -30,6 +30,7 @@
 //! vertex would make every other triangle zero-area against the mesh's extent.
 
 mod builtin;
+mod grid;
 mod teapot;
 
 pub use builtin::BuiltinMesh;

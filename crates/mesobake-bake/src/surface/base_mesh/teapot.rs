@@ -2,7 +2,7 @@
 //! public data set distributed as `teaset`), tessellated per patch and turned +Y up.
 
 use super::BaseMesh;
-use super::builtin::grid;
+use super::grid::grid;
 use glam::DVec3;
 
 /// Patches of the handle, which touches the body at one point (control point 68, a corner of
