@@ -14,6 +14,8 @@
 //! 4. every code span that looks like a repository path (it contains `/` and starts with
 //!    `src/`, `crates/`, `shaders/`, `tests/`, `docs/`, `scenes/`, `migrations/` or
 //!    `config/`) names a file or directory that exists.
+//!
+//! And one rule of the code that the document states: no module cycle inside any crate.
 
 use std::path::Path;
 
@@ -240,4 +242,141 @@ fn every_path_in_backticks_exists() {
         "{DOCUMENT} names paths that do not exist: {}",
         missing.join(", ")
     );
+}
+
+/// A module of a crate: its path below the crate root (empty for `lib.rs` and `main.rs`).
+type ModulePath = Vec<String>;
+
+/// The Rust files under `dir` (recursively), as paths relative to `dir`.
+fn rust_files(dir: &Path, below: &Path, out: &mut Vec<std::path::PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir.join(below)) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let relative = below.join(entry.file_name());
+        if entry.path().is_dir() {
+            rust_files(dir, &relative, out);
+        } else if relative.extension().is_some_and(|e| e == "rs") {
+            out.push(relative);
+        }
+    }
+}
+
+/// The module a source file (relative to `src/`) defines: `a/b.rs` and `a/b/mod.rs` are
+/// `a::b`; `lib.rs` and `main.rs` the crate root.
+fn module_of(file: &Path) -> ModulePath {
+    let mut parts: Vec<String> = file
+        .iter()
+        .map(|p| p.to_string_lossy().into_owned())
+        .collect();
+    let last = parts.pop().unwrap_or_default();
+    let stem = last.trim_end_matches(".rs");
+    if !(stem == "mod" || (parts.is_empty() && (stem == "lib" || stem == "main"))) {
+        parts.push(stem.to_string());
+    }
+    parts
+}
+
+/// The modules that the code lines of `source` (module `at` of a crate whose modules are
+/// `known`) name through `crate::`, `super::` or a child module's name: each resolved to the
+/// longest known module its path starts with.
+fn imported_modules(source: &str, at: &ModulePath, known: &[ModulePath]) -> Vec<ModulePath> {
+    let mut out = Vec::new();
+    for line in source.lines() {
+        let code = line.split("//").next().unwrap_or("");
+        let words = code.split(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'));
+        for word in words.filter(|w| w.contains("::")) {
+            let mut segments: Vec<&str> = word.split("::").filter(|s| !s.is_empty()).collect();
+            let mut path: ModulePath = match segments.first() {
+                Some(&"crate") => {
+                    segments.remove(0);
+                    Vec::new()
+                }
+                Some(&"super") => {
+                    let mut base = at.clone();
+                    while segments.first() == Some(&"super") {
+                        segments.remove(0);
+                        base.pop();
+                    }
+                    base
+                }
+                Some(&"self") => {
+                    segments.remove(0);
+                    at.clone()
+                }
+                Some(first) => {
+                    let mut child = at.clone();
+                    child.push(first.to_string());
+                    if !known.contains(&child) {
+                        continue;
+                    }
+                    at.clone()
+                }
+                None => continue,
+            };
+            let mut best = path.clone();
+            for segment in segments {
+                path.push(segment.to_string());
+                if known.contains(&path) {
+                    best = path.clone();
+                }
+            }
+            out.push(best);
+        }
+    }
+    out
+}
+
+/// No module of any crate imports a module that imports it back, directly or around a
+/// loop (imports between a module and the modules inside it do not count: a parent hands
+/// on its children's names, and a child uses its parent's).
+#[test]
+fn no_module_imports_one_that_imports_it_back() {
+    let mut cycles = Vec::new();
+    for member in workspace_members() {
+        let src = root().join(member.as_str()).join("src");
+        let mut files = Vec::new();
+        rust_files(&src, Path::new(""), &mut files);
+        files.sort();
+        let modules: Vec<ModulePath> = files.iter().map(|f| module_of(f)).collect();
+        let nested = |a: &ModulePath, b: &ModulePath| a.starts_with(b) || b.starts_with(a);
+        let edges: Vec<Vec<usize>> = files
+            .iter()
+            .zip(&modules)
+            .map(|(file, at)| {
+                let source = std::fs::read_to_string(src.join(file)).unwrap();
+                let mut to: Vec<usize> = imported_modules(&source, at, &modules)
+                    .iter()
+                    .filter(|m| !nested(m, at))
+                    .filter_map(|m| modules.iter().position(|k| k == m))
+                    .collect();
+                to.sort_unstable();
+                to.dedup();
+                to
+            })
+            .collect();
+        // A module is on a cycle when it can reach itself.
+        for start in 0..modules.len() {
+            let mut seen = vec![false; modules.len()];
+            let mut stack: Vec<(usize, Vec<usize>)> = vec![(start, vec![start])];
+            while let Some((node, trail)) = stack.pop() {
+                for &next in &edges[node] {
+                    if next == start {
+                        let names: Vec<String> = trail
+                            .iter()
+                            .chain([&start])
+                            .map(|&i| files[i].display().to_string())
+                            .collect();
+                        cycles.push(format!("{member}: {}", names.join(" -> ")));
+                    } else if !seen[next] {
+                        seen[next] = true;
+                        stack.push((next, [trail.clone(), vec![next]].concat()));
+                    }
+                }
+            }
+        }
+    }
+    cycles.sort();
+    cycles.dedup();
+    assert!(cycles.is_empty(), "module cycles:\n{}", cycles.join("\n"));
 }

@@ -3,8 +3,9 @@
 //! covered by a checksum or must be zero, so any corruption is detected. The byte-exact layout
 //! is specified in `docs/package-format.md`.
 
-use super::manifest::{Section, TextureDimension};
 use crate::error::{Error, Result};
+use crate::supercompression::Supercompression;
+use crate::texture::{Texture, TextureDimension};
 use rayon::prelude::*;
 
 /// The first eight bytes of every package.
@@ -28,6 +29,40 @@ pub const MAX_SECTIONS: usize = 4096;
 /// Most bytes a package's supercompressed sections may inflate to, in all (checked against
 /// their textures before inflating, so a small file cannot claim more memory than this).
 pub const MAX_INFLATED_BYTES: u64 = 4 << 30;
+
+/// One binary section.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Section {
+    /// Unique name.
+    pub name: String,
+    /// Byte offset from the start of the file, a multiple of 256.
+    pub offset: u64,
+    /// Length in bytes, as stored.
+    pub bytes: u64,
+    /// CRC-32 (IEEE 802.3, as zlib's `crc32`) of the section's stored bytes.
+    pub crc32: u32,
+    /// The texture the bytes upload to.
+    pub texture: Texture,
+    /// How the stored bytes encode the texels; `None` (omitted): they are the texels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub supercompression: Option<Supercompression>,
+}
+
+impl Section {
+    /// A section named `name` holding `texture`, placed by [`crate::container::assemble`],
+    /// which stores it supercompressed where that is smaller.
+    pub fn new(name: &str, texture: Texture) -> Section {
+        Section {
+            name: name.into(),
+            offset: 0,
+            bytes: 0,
+            crc32: 0,
+            texture,
+            supercompression: Some(Supercompression::PaethZlib),
+        }
+    }
+}
 
 fn invalid(message: impl Into<String>) -> Error {
     Error::Package(message.into())

@@ -25,6 +25,7 @@ pub mod occupancy;
 pub mod quantize;
 pub mod supercompression;
 pub mod svd;
+pub mod texture;
 pub mod vdm;
 
 pub use error::{Error, Result};

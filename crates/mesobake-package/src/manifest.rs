@@ -1,9 +1,10 @@
 //! The JSON manifest of a package (see `docs/package-format.md`). Every map is a struct or a
 //! list, so serialization order is fixed and identical packages are byte-identical.
 
+pub use crate::container::Section;
 use crate::error::{Error, Result};
 use crate::quantize::Quantization;
-use crate::supercompression::Supercompression;
+pub use crate::texture::{TexelFormat, Texture, TextureDimension};
 
 /// The value of [`Manifest::format`].
 pub const FORMAT_NAME: &str = "mesobake-package";
@@ -224,137 +225,6 @@ pub struct FactorInfo {
     pub scale: Vec<f32>,
     /// Per component: see `scale`.
     pub bias: Vec<f32>,
-}
-
-/// One binary section.
-#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Section {
-    /// Unique name.
-    pub name: String,
-    /// Byte offset from the start of the file, a multiple of 256.
-    pub offset: u64,
-    /// Length in bytes, as stored.
-    pub bytes: u64,
-    /// CRC-32 (IEEE 802.3, as zlib's `crc32`) of the section's stored bytes.
-    pub crc32: u32,
-    /// The texture the bytes upload to.
-    pub texture: Texture,
-    /// How the stored bytes encode the texels; `None` (omitted): they are the texels.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub supercompression: Option<Supercompression>,
-}
-
-impl Section {
-    /// A section named `name` holding `texture`, placed by [`crate::container::assemble`],
-    /// which stores it supercompressed where that is smaller.
-    pub fn new(name: &str, texture: Texture) -> Section {
-        Section {
-            name: name.into(),
-            offset: 0,
-            bytes: 0,
-            crc32: 0,
-            texture,
-            supercompression: Some(Supercompression::PaethZlib),
-        }
-    }
-}
-
-/// A texture with tightly packed texels: `width` texels per row (x fastest), `height` rows
-/// per image, `depth` images.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Texture {
-    /// `"2d"` or `"3d"`.
-    pub dimension: TextureDimension,
-    /// The texel format.
-    pub format: TexelFormat,
-    /// Texels per row.
-    pub width: u32,
-    /// Rows per image.
-    pub height: u32,
-    /// Images (1 for 2D textures).
-    pub depth: u32,
-}
-
-/// Texture dimensionality.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum TextureDimension {
-    /// A 2D texture.
-    #[serde(rename = "2d")]
-    D2,
-    /// A 3D texture.
-    #[serde(rename = "3d")]
-    D3,
-    /// A storage buffer of `width` texels (`height` and `depth` are 1).
-    #[serde(rename = "buffer")]
-    Buffer,
-}
-
-/// Texel formats, named as in WebGPU: one, two or four channels of little-endian f32,
-/// IEEE binary16, or 8-bit codes read as code / 255.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-#[allow(missing_docs)]
-pub enum TexelFormat {
-    R32float,
-    Rg32float,
-    Rgba32float,
-    R16float,
-    Rg16float,
-    Rgba16float,
-    R8unorm,
-    Rg8unorm,
-    Rgba8unorm,
-    R8uint,
-    R32uint,
-}
-
-impl TexelFormat {
-    /// The narrowest format that holds `components` (1 to 4) values quantized with `q`.
-    pub fn of(q: Quantization, components: usize) -> Self {
-        use TexelFormat::*;
-        let [one, two, four] = match q {
-            Quantization::F32 => [R32float, Rg32float, Rgba32float],
-            Quantization::F16 => [R16float, Rg16float, Rgba16float],
-            Quantization::U8 => [R8unorm, Rg8unorm, Rgba8unorm],
-        };
-        match components {
-            0 | 1 => one,
-            2 => two,
-            _ => four,
-        }
-    }
-
-    /// Channels per texel.
-    pub fn channels(self) -> u32 {
-        use TexelFormat::*;
-        match self {
-            R32float | R16float | R8unorm | R8uint | R32uint => 1,
-            Rg32float | Rg16float | Rg8unorm => 2,
-            Rgba32float | Rgba16float | Rgba8unorm => 4,
-        }
-    }
-
-    /// Bytes per texel.
-    pub fn texel_bytes(self) -> u32 {
-        use TexelFormat::*;
-        let per_channel = match self {
-            R32float | Rg32float | Rgba32float | R32uint => 4,
-            R16float | Rg16float | Rgba16float => 2,
-            R8unorm | Rg8unorm | Rgba8unorm | R8uint => 1,
-        };
-        per_channel * self.channels()
-    }
-}
-
-impl Texture {
-    /// Total bytes, computed without overflow (None when it would overflow).
-    pub fn byte_len(&self) -> Option<u64> {
-        (self.width as u64 * self.format.texel_bytes() as u64)
-            .checked_mul(self.height as u64)?
-            .checked_mul(self.depth as u64)
-    }
 }
 
 /// Which baking algorithm made the GDM.

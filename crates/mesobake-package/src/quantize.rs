@@ -6,67 +6,10 @@
 //! `bias + scale · q / 255`, which is exactly what a GPU's `rgba8unorm` sampler returns
 //! (q / 255) followed by one fused multiply–add.
 
-use crate::error::{Error, Result};
-use crate::manifest::{TexelFormat, Texture};
-use crate::svd::CHANNELS;
+pub use crate::texture::Quantization;
+use crate::texture::{CHANNELS, TexelFormat, Texture};
 use half::f16;
 use std::ops::Range;
-
-/// The number format of quantized maps (f16 by default).
-#[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum Quantization {
-    /// 32-bit float (no quantization).
-    F32,
-    /// 16-bit float (IEEE binary16, round to nearest even).
-    #[default]
-    F16,
-    /// 8-bit unsigned normalized code with a per-map scale and bias.
-    U8,
-}
-
-impl Quantization {
-    /// Every format, smallest last.
-    pub const ALL: [Quantization; 3] = [Quantization::F32, Quantization::F16, Quantization::U8];
-
-    /// Bytes per stored value.
-    pub fn bytes(self) -> usize {
-        match self {
-            Quantization::F32 => 4,
-            Quantization::F16 => 2,
-            Quantization::U8 => 1,
-        }
-    }
-
-    /// The name used on the command line and in package manifests.
-    pub fn name(self) -> &'static str {
-        match self {
-            Quantization::F32 => "f32",
-            Quantization::F16 => "f16",
-            Quantization::U8 => "u8",
-        }
-    }
-}
-
-impl std::str::FromStr for Quantization {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self> {
-        Quantization::ALL
-            .into_iter()
-            .find(|q| q.name() == s)
-            .ok_or_else(|| {
-                Error::InvalidParameter(format!("quantization {s:?}: expected f32, f16 or u8"))
-            })
-    }
-}
-
-impl std::fmt::Display for Quantization {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// A quantized m × k factor: the stored codes and what decodes them.
 #[derive(Clone, Debug, PartialEq)]

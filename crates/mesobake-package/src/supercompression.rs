@@ -5,7 +5,7 @@
 //! vary slowly, the low bytes do not), and the predictor turns smooth images into runs of
 //! small residuals that deflate compresses well.
 
-use crate::manifest::Texture;
+use crate::texture::Texture;
 
 /// How a section's stored bytes encode its texels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -111,7 +111,7 @@ impl Supercompression {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::manifest::{TexelFormat, TextureDimension};
+    use crate::texture::{TexelFormat, TextureDimension};
 
     fn texture(format: TexelFormat, width: u32, height: u32, depth: u32) -> Texture {
         Texture {

@@ -3,15 +3,13 @@
 //! factors out as textures, checks a manifest's entry against them, and reconstructs the GDM
 //! with the package's escape rule.
 
+use crate::container::Section;
 use crate::error::{Error, Result};
 use crate::grid::{Dims, DirectionGrid, boundary_distance};
-use crate::manifest::TextureDimension;
-use crate::manifest::{Accuracy, FactorInfo, GdmInfo, RankChoice, Section, TexelFormat, Texture};
+use crate::manifest::{Accuracy, FactorInfo, GdmInfo, RankChoice};
 use crate::quantize::{Quantization, QuantizedFactor};
+use crate::texture::{CHANNELS, TexelFormat, Texture, TextureDimension};
 use rayon::prelude::*;
-
-/// Components per texture (RGBA).
-pub const CHANNELS: usize = 4;
 
 /// Largest relative escape margin μ a package may hold.
 pub const MAX_ESCAPE_MARGIN: f32 = 0.5;

@@ -12,7 +12,7 @@ use crate::container::{self, ContainerManifest, Contents};
 use crate::error::{Error, Result};
 use crate::manifest::{FactorInfo, InputInfo, Section, TexelFormat, Texture, TextureDimension};
 use crate::quantize::{Quantization, QuantizedFactor};
-use crate::svd::CHANNELS;
+use crate::texture::CHANNELS;
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::path::Path;
 

@@ -166,3 +166,47 @@ impl Stages {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::technique::tests::{RELIEF, TORUS, VOLUME, chosen, scene};
+    use mesobake_bake::package::manifest::GdmCodec;
+
+    #[test]
+    fn a_vdm_plan_runs_only_the_vdm_stages_and_a_gdm_plan_skips_them() {
+        let s = scene(RELIEF, TORUS, "").unwrap();
+        let vdm = plan(&s, GdmCodec::Occupancy, chosen(&s));
+        assert_eq!(vdm.stages, ["load", "bake_vdm", "compress_vdm", "encode"]);
+        let skipped: Vec<&str> = vdm.skipped.iter().map(|k| k.stage.as_str()).collect();
+        assert_eq!(
+            skipped,
+            [
+                "bake_gdm",
+                "occupancy",
+                "compress",
+                "bake_prt",
+                "bake_rtv",
+                "compress_rtv"
+            ]
+        );
+        assert!(
+            vdm.skipped[0]
+                .reason
+                .contains("the technique is vdm (auto: ")
+        );
+
+        let s = scene(RELIEF, TORUS, r#", "technique": "gdm""#).unwrap();
+        let gdm = plan(&s, GdmCodec::Occupancy, chosen(&s));
+        assert_eq!(gdm.stages, ["load", "occupancy", "encode"]);
+        assert_eq!(gdm.skipped[0].stage, "bake_vdm");
+        assert_eq!(
+            gdm.skipped[0].reason,
+            "the technique is gdm (the scene asks for gdm)"
+        );
+        // A volume never had VDM to skip.
+        let s = scene(VOLUME, TORUS, "").unwrap();
+        let volume = plan(&s, GdmCodec::Occupancy, chosen(&s));
+        assert!(volume.skipped.iter().all(|k| k.stage != "bake_vdm"));
+    }
+}

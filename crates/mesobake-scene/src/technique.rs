@@ -280,12 +280,11 @@ pub fn choose(scene: &Scene, surface: &Surface) -> TechniqueChoice {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
-    use crate::plan::plan;
-    use mesobake_bake::package::manifest::GdmCodec;
 
-    fn scene(mesostructure: &str, mesh: &str, extra: &str) -> Result<Scene> {
+    /// A small scene of `mesostructure` on the built-in `mesh`, with `extra` keys.
+    pub(crate) fn scene(mesostructure: &str, mesh: &str, extra: &str) -> Result<Scene> {
         Scene::from_json(&format!(
             r#"{{
                 "base_mesh": {{ "builtin": {mesh} }},
@@ -300,10 +299,10 @@ mod tests {
         ))
     }
 
-    const TORUS: &str = r#"{ "torus": {} }"#;
+    pub(crate) const TORUS: &str = r#"{ "torus": {} }"#;
     const PLANE: &str = r#"{ "plane": {} }"#;
-    const RELIEF: &str = r#"{ "relief": "bumps" }"#;
-    const VOLUME: &str = r#"{ "sample": "weave" }"#;
+    pub(crate) const RELIEF: &str = r#"{ "relief": "bumps" }"#;
+    pub(crate) const VOLUME: &str = r#"{ "sample": "weave" }"#;
 
     fn surface(s: &Scene) -> Surface {
         let (base, report) = match &s.base_mesh {
@@ -313,7 +312,8 @@ mod tests {
         Surface::of(&report, &Shell::new(&base, s.shell).unwrap())
     }
 
-    fn chosen(s: &Scene) -> TechniqueChoice {
+    /// The technique `s` gets.
+    pub(crate) fn chosen(s: &Scene) -> TechniqueChoice {
         choose(s, &surface(s))
     }
 
@@ -392,42 +392,5 @@ mod tests {
         assert!(e.to_string().contains("environment_lighting"), "{e}");
         let e = scene(RELIEF, TORUS, r#", "technique": "vdn""#).unwrap_err();
         assert!(e.to_string().contains("unknown variant"), "{e}");
-    }
-
-    #[test]
-    fn a_vdm_plan_runs_only_the_vdm_stages_and_a_gdm_plan_skips_them() {
-        let s = scene(RELIEF, TORUS, "").unwrap();
-        let vdm = plan(&s, GdmCodec::Occupancy, chosen(&s));
-        assert_eq!(vdm.stages, ["load", "bake_vdm", "compress_vdm", "encode"]);
-        let skipped: Vec<&str> = vdm.skipped.iter().map(|k| k.stage.as_str()).collect();
-        assert_eq!(
-            skipped,
-            [
-                "bake_gdm",
-                "occupancy",
-                "compress",
-                "bake_prt",
-                "bake_rtv",
-                "compress_rtv"
-            ]
-        );
-        assert!(
-            vdm.skipped[0]
-                .reason
-                .contains("the technique is vdm (auto: ")
-        );
-
-        let s = scene(RELIEF, TORUS, r#", "technique": "gdm""#).unwrap();
-        let gdm = plan(&s, GdmCodec::Occupancy, chosen(&s));
-        assert_eq!(gdm.stages, ["load", "occupancy", "encode"]);
-        assert_eq!(gdm.skipped[0].stage, "bake_vdm");
-        assert_eq!(
-            gdm.skipped[0].reason,
-            "the technique is gdm (the scene asks for gdm)"
-        );
-        // A volume never had VDM to skip.
-        let s = scene(VOLUME, TORUS, "").unwrap();
-        let volume = plan(&s, GdmCodec::Occupancy, chosen(&s));
-        assert!(volume.skipped.iter().all(|k| k.stage != "bake_vdm"));
     }
 }
