@@ -2,7 +2,8 @@
 // prism's base vertices (PRT × environment, computed on the CPU per vertex), interpolated with
 // the hit's barycentric coordinates in texture space, dotted with the package's compressed
 // RTV read at the hit towards the eye: step for step `GiShading::radiance`
-// (`src/gi/shading.rs`) and `CompressedRtv::interpolate` (`src/gi/compressed_rtv.rs`).
+// (`crates/mesobake-render/src/gi_shading.rs`) and `CompressedRtv::interpolate`
+// (`crates/mesobake-bake/src/gi/compressed_rtv.rs`).
 
 struct GiParams {
     // X, Y, Z, RTV samples.

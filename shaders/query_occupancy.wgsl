@@ -1,5 +1,6 @@
-// GDM queries of the `occupancy` codec (crates/mesobake-render/src/gdm_lookup.rs, OccupancyLookup, which runs
-// the traversal of src/bake/gdm/volume_caster.rs): the voxels ray-marched exactly along the
+// GDM queries of the `occupancy` codec (`OccupancyLookup` in
+// crates/mesobake-render/src/gdm_lookup.rs, which runs the traversal of
+// crates/mesobake-bake/src/gdm/volume_caster.rs): the voxels ray-marched exactly along the
 // query, crossing empty space in boxes whose size the stored distances give.
 
 // Per voxel: 0 solid, else the Chebyshev distance in voxels to the nearest solid voxel

@@ -21,3 +21,5 @@ pub mod resources;
 pub mod target;
 pub mod variant;
 pub mod vdm_pipeline;
+#[cfg(test)]
+mod wgsl_twin;

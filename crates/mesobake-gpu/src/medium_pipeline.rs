@@ -643,3 +643,50 @@ impl<'g> MediumPreview<'g> {
         Some(start.elapsed().as_secs_f64())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wgsl_twin::{assert_twin, rust_layout};
+
+    /// The media pipeline's records are laid out as their structs in `medium_preview.wgsl`.
+    #[test]
+    fn the_media_records_are_their_wgsl_structs() {
+        let source = source();
+        let cell = rust_layout!(CellRecord {
+            planes,
+            to_texture,
+            normal_to_object,
+            corners
+        });
+        assert_twin(&source, "Cell", cell);
+        let medium = rust_layout!(MediumUniform {
+            forward,
+            right,
+            up,
+            height,
+            integration,
+            samples,
+            shadows,
+            level_count,
+            mip_bias,
+            light_step,
+            shadow_start,
+            min_transmittance,
+            loop_budget,
+            shadow_size,
+            shadow_stride,
+            levels
+        });
+        assert_twin(&source, "Medium", medium);
+        let frame = rust_layout!(FrameRecord {
+            origin,
+            axis,
+            u_axis,
+            v_axis,
+            kind,
+            first
+        });
+        assert_twin(&source, "ShadowFrame", frame);
+    }
+}

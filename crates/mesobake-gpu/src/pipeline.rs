@@ -586,3 +586,33 @@ impl<'g> Preview<'g> {
         time_frames(self.gpu, frames, observer, || self.submit_frame(false))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::variant::source_with_every_struct;
+    use crate::wgsl_twin::{assert_twin, rust_layout};
+
+    /// The view and light records are laid out as `View` and `Light` in `common.wgsl`.
+    #[test]
+    fn the_view_and_light_records_are_their_wgsl_structs() {
+        let source = source_with_every_struct();
+        let view = rust_layout!(ViewUniform {
+            view_proj,
+            eye,
+            specular,
+            light_count,
+            width
+        });
+        assert_twin(&source, "View", view);
+        assert_twin(
+            &source,
+            "Light",
+            rust_layout!(LightRecord {
+                kind,
+                vector,
+                colour
+            }),
+        );
+    }
+}

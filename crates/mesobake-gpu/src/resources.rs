@@ -886,3 +886,51 @@ pub fn upload_box_bvh(gpu: &Gpu, bounds: &[(DVec3, DVec3)]) -> Result<GpuBvh> {
         bytes,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::variant::source_with_every_struct;
+    use crate::wgsl_twin::{assert_twin, rust_layout};
+
+    /// The GDM pipeline's records are laid out as their structs in the WGSL.
+    #[test]
+    fn the_gdm_records_are_their_wgsl_structs() {
+        let source = source_with_every_struct();
+        let gdm = rust_layout!(GdmParams {
+            dims,
+            n_phi,
+            full_groups,
+            has_tail,
+            margin
+        });
+        assert_twin(&source, "GdmParams", gdm);
+        assert_twin(&source, "GiParams", rust_layout!(GiParams { dims, dirs }));
+        let prism = rust_layout!(GiPrismRecord {
+            vertices,
+            uv01,
+            uv2
+        });
+        assert_twin(&source, "GiPrism", prism);
+        let face = rust_layout!(FaceRecord {
+            corners,
+            texture,
+            plane
+        });
+        assert_twin(&source, "Face", face);
+        let prism = rust_layout!(PrismRecord {
+            faces,
+            frame,
+            convex
+        });
+        assert_twin(&source, "Prism", prism);
+        let node = rust_layout!(BvhNodeRecord {
+            lo,
+            count,
+            hi,
+            first,
+            skip
+        });
+        assert_twin(&source, "BvhNode", node);
+    }
+}

@@ -155,3 +155,15 @@ impl ShaderVariant {
         )
     }
 }
+
+/// The source of a variant that holds every struct of the GDM pipeline (the paper-svd
+/// query, environment light and shell shadows), for the layout tests.
+#[cfg(test)]
+pub(crate) fn source_with_every_struct() -> String {
+    ShaderVariant::all()
+        .find(|v| {
+            v.codec == GdmCodec::PaperSvd && v.environment && v.shadows == Some(ShadowMethod::Shell)
+        })
+        .expect("the variant exists")
+        .source()
+}

@@ -318,3 +318,47 @@ impl<'g> VdmPreview<'g> {
         time_frames(self.gpu, frames, observer, || self.submit_frame(false))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::wgsl_twin::{assert_twin, rust_layout};
+
+    /// The VDM pipeline's records are laid out as their structs in `vdm_preview.wgsl`.
+    #[test]
+    fn the_vdm_records_are_their_wgsl_structs() {
+        let source = source();
+        let curvature = rust_layout!(CurvatureRecord {
+            k,
+            dir_max,
+            dir_min
+        });
+        assert_twin(&source, "Curvature", curvature);
+        let face = rust_layout!(FaceRecord {
+            corners,
+            uv,
+            to_vdm,
+            from_vdm,
+            curvature
+        });
+        assert_twin(&source, "Face", face);
+        let vdm = rust_layout!(VdmUniform {
+            size,
+            n_theta,
+            n_phi,
+            n_curvature,
+            rank,
+            mvm_rank,
+            shadows,
+            c_min,
+            c_max,
+            depth,
+            shadow_tolerance,
+            albedo,
+            refine_texels,
+            top_depth,
+            shell_shadows
+        });
+        assert_twin(&source, "Vdm", vdm);
+    }
+}
