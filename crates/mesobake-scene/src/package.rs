@@ -12,7 +12,7 @@
 use crate::gi::{prt_matrices, rtv_params};
 use crate::plan::{Plan, plan};
 use crate::technique::{self, Technique, TechniqueChoice};
-use crate::{LoadedScene, MesostructureSource, Scene};
+use crate::{LoadedScene, MesostructureSource, Scene, load_base_mesh};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
 use mesobake_bake::gdm::fast::FastParams;
@@ -20,7 +20,7 @@ use mesobake_bake::gdm::{EscapeConvention, Method};
 use mesobake_bake::gi::compressed_rtv::{CompressedRtv, RtvCompression};
 use mesobake_bake::gi::prt::geometry_hash;
 use mesobake_bake::gi::rtv::{self, RtvStats};
-use mesobake_bake::mesostructure::reliefs;
+use mesobake_bake::mesostructure::{reliefs, volume_format};
 use mesobake_bake::package::bake::{PackageParams, StageSeconds, compress_gdm};
 use mesobake_bake::package::gi::GiPayload;
 use mesobake_bake::package::manifest::{BakeInfo, GdmCodec};
@@ -28,6 +28,7 @@ use mesobake_bake::package::manifest::{GiInfo, InputInfo};
 use mesobake_bake::package::medium as medium_package;
 use mesobake_bake::package::vdm as vdm_package;
 use mesobake_bake::package::{AnyPackage, GdmPayload, Package};
+use mesobake_bake::surface::shell::Shell;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
@@ -109,6 +110,98 @@ pub struct ScenePackage {
     pub seconds: Vec<(String, f64)>,
     /// The radiance transfer's figures, when baked.
     pub gi: Option<GiBake>,
+}
+
+/// The plan of `scene`'s package made with `params` (its files relative to `base_dir`),
+/// without loading its mesostructure: the technique chosen on its base mesh and shell (a
+/// volume probed for an opacity channel) and checked, then the stages it calls for
+/// ([`plan`]). Parameters that do not apply to the technique are an error.
+pub fn plan_package(
+    scene: &Scene,
+    base_dir: &Path,
+    params: ScenePackageParams,
+    limits: &Limits,
+) -> Result<Plan> {
+    let (base, report) = load_base_mesh(scene, base_dir, limits)?;
+    let translucent = match &scene.mesostructure {
+        MesostructureSource::Volume(path) => {
+            volume_format::has_opacity(&base_dir.join(path), limits)?
+        }
+        _ => false,
+    };
+    let shell = Shell::new(&base, scene.shell)?;
+    let surface = technique::Surface::of(&report, &shell).with_translucent(translucent);
+    let choice = technique::choose(scene, &surface);
+    technique::check(scene, &choice, &surface)?;
+    check_params(&choice, params)?;
+    Ok(plan(scene, params.codec, choice))
+}
+
+/// What a package of `technique` for `scene` made with `params` depends on, as JSON: equal
+/// keys, equal packages. A medium package: the mesostructure, its grid, whether the mip-map
+/// is baked and the quantization (never the base mesh or the shell, so an animated surface
+/// bakes nothing). A VDM package: the height field, the VDM settings, and what the relief's
+/// depth depends on (the base mesh, its scale and the shell). A GDM package: the
+/// mesostructure, its grids and the package parameters; with environment lighting also what
+/// the PRT and RTV depend on (the base mesh, the material, the GI knobs and effects). Never
+/// the camera, lights or environment, which a package does not hold.
+pub fn package_key(
+    scene: &Scene,
+    technique: Technique,
+    params: ScenePackageParams,
+) -> serde_json::Value {
+    let s = scene;
+    let version = mesobake_bake::package::container::VERSION;
+    match technique {
+        Technique::Transparency => {
+            return serde_json::json!({
+                "version": version,
+                "technique": technique,
+                "mesostructure": s.mesostructure,
+                "resolution": s.resolution,
+                "mipmap": s.transparency.mipmap,
+                "quantization": s.transparency.quantization,
+            });
+        }
+        Technique::Vdm => {
+            return serde_json::json!({
+                "version": version,
+                "technique": technique,
+                "mesostructure": s.mesostructure,
+                "resolution": s.resolution,
+                "vdm": s.vdm,
+                "base_mesh": s.base_mesh,
+                "mesh_scale": s.mesh_scale,
+                "shell": s.shell,
+            });
+        }
+        Technique::Gdm | Technique::Auto => {}
+    }
+    let mut key = serde_json::json!({
+        "version": version,
+        "mesostructure": s.mesostructure,
+        "resolution": s.resolution,
+        "directions": s.directions,
+        "codec": params.codec,
+    });
+    if params.codec == GdmCodec::PaperSvd {
+        key["rank"] = serde_json::json!(params.rank);
+        key["quantization"] = serde_json::json!(params.quantization);
+    }
+    if s.wants(Effect::EnvironmentLighting) {
+        let effects: Vec<Effect> = [Effect::MacroShadows, Effect::EnvironmentGloss]
+            .into_iter()
+            .filter(|e| s.wants(*e))
+            .collect();
+        key["gi"] = serde_json::json!({
+            "base_mesh": s.base_mesh,
+            "mesh_scale": s.mesh_scale,
+            "material": s.material,
+            "gi": [s.gi.bounces as usize, s.gi.prt_samples, s.gi.rtv_rank],
+            "effects": effects,
+        });
+    }
+    key
 }
 
 /// Checks that `params` apply to a package for `technique`: a VDM package is made as the

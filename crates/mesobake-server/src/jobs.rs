@@ -15,16 +15,13 @@ use super::blobs::BlobStore;
 use super::db::{Db, db_error, now_ms};
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
-use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::package::manifest::GdmCodec;
-use mesobake_bake::surface::shell::Shell;
-use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
-use mesobake_scene::package::{ScenePackageParams, check_params};
+use mesobake_scene::Scene;
+use mesobake_scene::package::{ScenePackageParams, package_key, plan_package};
 use mesobake_scene::plan::Plan;
-use mesobake_scene::technique::{Surface, Technique, check, choose};
-use mesobake_scene::{MesostructureSource, Scene, load_base_mesh};
+use mesobake_scene::technique::Technique;
 use serde::{Deserialize, Serialize};
 use sqlx::any::AnyRow;
 use sqlx::{AssertSqlSafe, Row};
@@ -70,90 +67,18 @@ impl JobSpec {
     pub fn plan(&self, blobs: &BlobStore, limits: &Limits) -> Result<Plan> {
         let mut scene = self.scene.clone();
         resolve_assets(&mut scene, blobs)?;
-        let (base, report) = load_base_mesh(&scene, Path::new("/"), limits)?;
-        let translucent = match &scene.mesostructure {
-            MesostructureSource::Volume(path) => volume_format::has_opacity(path, limits)?,
-            _ => false,
-        };
-        let surface =
-            Surface::of(&report, &Shell::new(&base, scene.shell)?).with_translucent(translucent);
-        let technique = choose(&scene, &surface);
-        check(&scene, &technique, &surface)?;
-        check_params(&technique, self.package_params())?;
-        let mut plan = mesobake_scene::plan::plan(&scene, self.codec, technique);
+        let mut plan = plan_package(&scene, Path::new("/"), self.package_params(), limits)?;
         plan.stages.push("store".into());
         Ok(plan)
     }
 
-    /// What the result depends on, hashed, for a package of `technique`. A medium package:
-    /// the mesostructure, its grid, whether the mip-map is baked and the quantization (never
-    /// the base mesh or the shell, so an animated surface bakes nothing). A VDM package: the
-    /// height field, the VDM settings, and what the relief's depth depends on (the base
-    /// mesh, its scale and the shell). A GDM package: the mesostructure, its grids and the
-    /// package parameters; with environment lighting also what the PRT and RTV depend on
-    /// (the base mesh, the material, the GI knobs and effects). Never the camera, lights or
-    /// environment, which a package does not hold.
+    /// What the result depends on ([`package_key`]), hashed: jobs with equal keys share
+    /// one package.
     pub fn dedup_key(&self, technique: Technique) -> String {
-        let s = &self.scene;
-        let hash = |key: serde_json::Value| {
-            blake3::hash(key.to_string().as_bytes())
-                .to_hex()
-                .to_string()
-        };
-        let version = mesobake_bake::package::container::VERSION;
-        match technique {
-            // Nothing in a medium package depends on the base mesh or the shell: an animated
-            // surface reuses it.
-            Technique::Transparency => {
-                return hash(serde_json::json!({
-                    "version": version,
-                    "technique": technique,
-                    "mesostructure": s.mesostructure,
-                    "resolution": s.resolution,
-                    "mipmap": s.transparency.mipmap,
-                    "quantization": s.transparency.quantization,
-                }));
-            }
-            Technique::Vdm => {
-                return hash(serde_json::json!({
-                    "version": version,
-                    "technique": technique,
-                    "mesostructure": s.mesostructure,
-                    "resolution": s.resolution,
-                    "vdm": s.vdm,
-                    "base_mesh": s.base_mesh,
-                    "mesh_scale": s.mesh_scale,
-                    "shell": s.shell,
-                }));
-            }
-            Technique::Gdm | Technique::Auto => {}
-        }
-        let mut key = serde_json::json!({
-            "version": version,
-            "mesostructure": s.mesostructure,
-            "resolution": s.resolution,
-            "directions": s.directions,
-            "codec": self.codec,
-        });
-        if self.codec == GdmCodec::PaperSvd {
-            let p = self.package_params();
-            key["rank"] = serde_json::json!(p.rank);
-            key["quantization"] = serde_json::json!(p.quantization);
-        }
-        if s.wants(Effect::EnvironmentLighting) {
-            let effects: Vec<Effect> = [Effect::MacroShadows, Effect::EnvironmentGloss]
-                .into_iter()
-                .filter(|e| s.wants(*e))
-                .collect();
-            key["gi"] = serde_json::json!({
-                "base_mesh": s.base_mesh,
-                "mesh_scale": s.mesh_scale,
-                "material": s.material,
-                "gi": [s.gi.bounces as usize, s.gi.prt_samples, s.gi.rtv_rank],
-                "effects": effects,
-            });
-        }
-        hash(key)
+        let key = package_key(&self.scene, technique, self.package_params());
+        blake3::hash(key.to_string().as_bytes())
+            .to_hex()
+            .to_string()
     }
 }
 
