@@ -15,7 +15,8 @@
 //!    `src/`, `crates/`, `shaders/`, `tests/`, `docs/`, `scenes/`, `migrations/` or
 //!    `config/`) names a file or directory that exists.
 //!
-//! And one rule of the code that the document states: no module cycle inside any crate.
+//! And two rules of the code that the document states: no module cycle inside any crate,
+//! and no server, database, async-runtime or GPU crate below the layers that need one.
 
 use std::path::Path;
 
@@ -379,4 +380,55 @@ fn no_module_imports_one_that_imports_it_back() {
     cycles.sort();
     cycles.dedup();
     assert!(cycles.is_empty(), "module cycles:\n{}", cycles.join("\n"));
+}
+
+/// The names of the `[dependencies]` of the member at `member` (not its dev-dependencies).
+fn normal_dependencies(member: &str) -> Vec<String> {
+    let manifest = read(&format!("{member}/Cargo.toml"));
+    let mut in_table = false;
+    let mut names = Vec::new();
+    for line in manifest.lines() {
+        let line = line.trim();
+        if line.starts_with('[') {
+            in_table = line == "[dependencies]";
+        } else if in_table && let Some((name, _)) = line.split_once('=') {
+            names.push(name.trim().to_string());
+        }
+    }
+    names
+}
+
+/// The layers' dependency rules that Cargo does not check by itself: the format, core,
+/// bake and render crates take no server, database, async-runtime or GPU crate, and the
+/// GPU and scene crates no server, database or async-runtime crate.
+#[test]
+fn the_lower_layers_depend_on_no_server_database_async_or_gpu_crate() {
+    const SERVICE: [&str; 8] = [
+        "axum",
+        "hyper",
+        "hyper-util",
+        "object_store",
+        "reqwest",
+        "sqlx",
+        "tokio",
+        "tower-http",
+    ];
+    const GPU: [&str; 3] = ["wgpu", "naga", "pollster"];
+    let rules: [(&str, Vec<&str>); 6] = [
+        ("crates/mesobake-package", [&SERVICE[..], &GPU[..]].concat()),
+        ("crates/mesobake-core", [&SERVICE[..], &GPU[..]].concat()),
+        ("crates/mesobake-bake", [&SERVICE[..], &GPU[..]].concat()),
+        ("crates/mesobake-render", [&SERVICE[..], &GPU[..]].concat()),
+        ("crates/mesobake-gpu", SERVICE.to_vec()),
+        ("crates/mesobake-scene", SERVICE.to_vec()),
+    ];
+    let mut failures = Vec::new();
+    for (member, forbidden) in rules {
+        for name in normal_dependencies(member) {
+            if forbidden.contains(&name.as_str()) {
+                failures.push(format!("{member} depends on {name}"));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "layering: {}", failures.join("; "));
 }
