@@ -1,7 +1,7 @@
 // Shadow variant `shell`: the per-pixel algorithm itself traced towards the light (as
 // `GdmRenderer::shell_blocked`): the rest of the hit's prism from the shadow ray's start,
 // then every front face the ray meets beyond it, found through a BVH over the prisms'
-// boxes (`upload_prism_bvh` in `crates/mesobake-gpu/src/resources.rs`). A light is visible iff no
+// boxes (`upload_prism_bvh` in `crates/mesobake-gpu/src/resources/bvh.rs`). A light is visible iff no
 // fragment hits nearer than the light.
 
 @group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
