@@ -10,8 +10,8 @@
 
 use super::gpu::Gpu;
 use super::pipeline::{
-    LightRecord, ViewBuffer, ViewUniform, bind_group, layout_entry, light_records, storage,
-    storage_read_write, uniform, view_uniform,
+    LightRecord, ViewBuffer, ViewUniform, bind_group, init_buffer, layout_entry, light_records,
+    storage, storage_read_write, uniform, view_uniform,
 };
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
@@ -32,7 +32,6 @@ use mesobake_render::medium_shadow_map::{LightFrame, Projection, map_frames};
 use mesobake_render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADOW_START};
 use mesobake_render::shot::Shot;
 use std::time::Instant;
-use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("../../../shaders/medium_preview.wgsl");
 
@@ -327,13 +326,8 @@ impl<'g> MediumPreview<'g> {
         };
         let d = &gpu.device;
         let built = gpu.checked("building the media pipeline", || {
-            let buffer = |label: &str, contents: &[u8], usage| {
-                d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage,
-                })
-            };
+            let buffer =
+                |label: &str, contents: &[u8], usage| init_buffer(d, label, contents, usage);
             let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
             let view = ViewBuffer::new(d, view, &shot.camera);
             let own = [

@@ -217,6 +217,20 @@ pub(super) fn bind_group(
     (layout, group)
 }
 
+/// A buffer labelled `label` holding `contents`, for `usage`.
+pub(super) fn init_buffer(
+    d: &wgpu::Device,
+    label: &str,
+    contents: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage,
+    })
+}
+
 pub(super) fn layout_entry(
     binding: u32,
     visibility: wgpu::ShaderStages,

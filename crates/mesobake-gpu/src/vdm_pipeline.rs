@@ -5,8 +5,8 @@
 
 use super::gpu::Gpu;
 use super::pipeline::{
-    LightRecord, ViewBuffer, ViewUniform, bind_group, layout_entry, light_records, storage,
-    uniform, view_uniform,
+    LightRecord, ViewBuffer, ViewUniform, bind_group, init_buffer, layout_entry, light_records,
+    storage, uniform, view_uniform,
 };
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{Target, time_frames, triangle_pipeline};
@@ -24,7 +24,6 @@ use mesobake_package::vdm::VdmQuery;
 use mesobake_render::image::Image;
 use mesobake_render::shot::Shot;
 use mesobake_render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
-use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("../../../shaders/vdm_preview.wgsl");
 
@@ -200,13 +199,8 @@ impl<'g> VdmPreview<'g> {
         let d = &gpu.device;
         let (pipeline, group, vertex_buffer, view) =
             gpu.checked("building the VDM pipeline", || {
-                let buffer = |label: &str, contents: &[u8], usage| {
-                    d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some(label),
-                        contents,
-                        usage,
-                    })
-                };
+                let buffer =
+                    |label: &str, contents: &[u8], usage| init_buffer(d, label, contents, usage);
                 let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
                 let view = ViewBuffer::new(d, view, &shot.camera);
                 let buffers = [
