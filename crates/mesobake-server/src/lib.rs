@@ -6,6 +6,9 @@
 //! `Content-Length` before reading), scenes by [`request_limits`], uploads and GPU renders by
 //! the number running at once, previews by a render deadline, the queue by its length. Slow
 //! clients are bounded by [`connections`].
+//!
+//! Beside the server: its benchmark ([`bench`], `mesobake bench server`) and the CI client
+//! that talks to it ([`client`]).
 
 pub mod api_error;
 pub mod assets;
