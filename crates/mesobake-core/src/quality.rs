@@ -12,7 +12,7 @@
 //!
 //! Measured on torus-chain at 512² against the exact truth (docs/BENCHMARKS.md): `paper`
 //! 17.9 dB, shell shadows alone 23.9 dB at 1.1× its time, `high` 32.5 dB and 0.15 % mask at
-//! 2.7× (a twelfth of the truth's time); 4 chords instead of 8 give 30.2 dB at 2×.
+//! 2.7× (0.15 of the truth's time); 4 chords instead of 8 give 30.2 dB at 2×.
 
 use crate::error::{Error, Result};
 use serde::de::{self, Deserializer, MapAccess, Visitor};
