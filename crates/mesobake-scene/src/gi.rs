@@ -64,6 +64,16 @@ pub fn shading_from_package(loaded: &LoadedScene, package: &Package) -> Result<G
     )
 }
 
+/// The shading from `package` where `loaded`'s scene calls for environment lighting, else
+/// none.
+pub fn called_for_shading(loaded: &LoadedScene, package: &Package) -> Result<Option<GiShading>> {
+    if loaded.scene.wants(Effect::EnvironmentLighting) {
+        shading_from_package(loaded, package).map(Some)
+    } else {
+        Ok(None)
+    }
+}
+
 /// Shading with `transfer` under `loaded`'s environment, timing its projection in `report`.
 fn shading(
     loaded: &LoadedScene,

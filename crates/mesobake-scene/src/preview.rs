@@ -12,7 +12,6 @@ use mesobake_bake::package::vdm::{VdmPackage, height_field};
 use mesobake_bake::package::{AnyPackage, Package};
 use mesobake_bake::vdm::Relief;
 use mesobake_core::camera::Camera;
-use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
 use mesobake_gpu::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
@@ -197,11 +196,7 @@ pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Imag
     package.check_grid(loaded.material.dims())?;
     let scene = &loaded.scene;
     let lookup = package_lookup(package)?;
-    let gi = if scene.wants(Effect::EnvironmentLighting) {
-        Some(gi::shading_from_package(loaded, package)?)
-    } else {
-        None
-    };
+    let gi = gi::called_for_shading(loaded, package)?;
     let mut r = GdmRenderer::new(
         &loaded.shell,
         &*lookup,
@@ -268,11 +263,7 @@ pub fn gdm_pipeline<'g>(
     package: &Package,
     early_depth_test: bool,
 ) -> Result<Preview<'g>> {
-    let gi = if loaded.scene.wants(Effect::EnvironmentLighting) {
-        Some(gi::shading_from_package(loaded, package)?)
-    } else {
-        None
-    };
+    let gi = gi::called_for_shading(loaded, package)?;
     Preview::new(
         gpu,
         &loaded.scene.shot(),
