@@ -192,6 +192,32 @@ int32_t mbpkg_distance(const struct MbpkgPackage *package,
                        uint32_t b,
                        float *distance);
 
+// The RTV's transfer vector at voxel centre (i, j, k) towards the centre of view bin (a, b):
+// writes 48 floats to `out`, per colour channel c the weights t of the 16 SH coefficients l
+// of the light arriving in the vertex's local frame at `out[16·c + l]` (the radiance towards
+// the view is L_c = Σ_l t[16·c + l]·ℓ_local,c,l; see the package format). Returns 1 for an RTV sample voxel, 0 for a voxel that is not one
+// (nothing written), −1 when the package is null, holds no radiance transfer, or a
+// coordinate is off the grids.
+//
+// # Safety
+// `package` is null or open; `out` is null or has 48 writable floats.
+int32_t mbpkg_rtv_transfer(const struct MbpkgPackage *package,
+                           uint32_t i,
+                           uint32_t j,
+                           uint32_t k,
+                           uint32_t a,
+                           uint32_t b,
+                           float *out);
+
+// The PRT matrix T of base-mesh vertex `vertex` (16×16, row-major), copied to `out`: it takes
+// the environment's SH (world frame) to the light arriving at the vertex in its local frame,
+// ℓ_local,i = Σⱼ T[i][j]·ℓ_world,j. Returns false when the
+// package is null, holds no radiance transfer, or `vertex` is past the last.
+//
+// # Safety
+// `package` is null or open; `out` is null or has 256 writable floats.
+bool mbpkg_prt_matrix(const struct MbpkgPackage *package, uint32_t vertex, float *out);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus

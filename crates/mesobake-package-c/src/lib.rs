@@ -1,12 +1,14 @@
 //! The C ABI of `mesobake-package`, for engines and build tools written in C or C++: open a
 //! package (validated exactly as mesobake validates it), read its manifest, reach each
-//! section's bytes with the texture they upload to, and query its GDM. The header
+//! section's bytes with the texture they upload to, and query its GDM and its radiance
+//! transfer (the RTV at the baked samples, the PRT per base-mesh vertex). The header
 //! `include/mesobake_package.h` is generated from this file by cbindgen.
 //!
 //! Conventions: every function accepts a null package pointer and then returns its failure
 //! value; strings are NUL-terminated UTF-8 owned by the package, valid until
 //! [`mbpkg_close`]; nothing here panics across the boundary.
 
+use mesobake_package::gi::{RadianceTransfer, SH_COEFFS};
 use mesobake_package::manifest::{GdmCodec, TexelFormat, TextureDimension};
 use mesobake_package::{GdmQuery, Package};
 use std::ffi::{CStr, CString, c_char};
@@ -16,6 +18,7 @@ use std::path::Path;
 pub struct MbpkgPackage {
     package: Package,
     query: GdmQuery,
+    transfer: Option<RadianceTransfer>,
     manifest_json: CString,
     section_names: Vec<CString>,
 }
@@ -123,6 +126,7 @@ unsafe fn write_error(message: &str, error: *mut c_char, error_len: usize) {
 fn open(package: mesobake_package::Result<Package>) -> Result<Box<MbpkgPackage>, String> {
     let package = package.map_err(|e| e.to_string())?;
     let query = package.query().map_err(|e| e.to_string())?;
+    let transfer = (package.radiance_transfer().transpose()).map_err(|e| e.to_string())?;
     let json = serde_json::to_string(package.manifest()).map_err(|e| e.to_string())?;
     let cstring = |s: &str| CString::new(s).map_err(|_| "a name holds a NUL byte".to_string());
     let section_names = (package.manifest().sections.iter())
@@ -132,6 +136,7 @@ fn open(package: mesobake_package::Result<Package>) -> Result<Box<MbpkgPackage>,
         manifest_json: cstring(&json)?,
         package,
         query,
+        transfer,
         section_names,
     }))
 }
@@ -344,4 +349,74 @@ pub unsafe extern "C" fn mbpkg_distance(
         }
         None => 0,
     }
+}
+
+/// The RTV's transfer vector at voxel centre (i, j, k) towards the centre of view bin (a, b):
+/// writes 48 floats to `out`, per colour channel c the weights t of the 16 SH coefficients l
+/// of the light arriving in the vertex's local frame at `out[16·c + l]` (the radiance towards
+/// the view is L_c = Σ_l t[16·c + l]·ℓ_local,c,l; see the package format). Returns 1 for an RTV sample voxel, 0 for a voxel that is not one
+/// (nothing written), −1 when the package is null, holds no radiance transfer, or a
+/// coordinate is off the grids.
+///
+/// # Safety
+/// `package` is null or open; `out` is null or has 48 writable floats.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn mbpkg_rtv_transfer(
+    package: *const MbpkgPackage,
+    i: u32,
+    j: u32,
+    k: u32,
+    a: u32,
+    b: u32,
+    out: *mut f32,
+) -> i32 {
+    // SAFETY: null or open, by the caller's contract.
+    let Some(p) = (unsafe { package.as_ref() }) else {
+        return -1;
+    };
+    let (d, g) = (p.package.dims(), p.package.dirs());
+    let Some(transfer) = &p.transfer else {
+        return -1;
+    };
+    if i >= d.x || j >= d.y || k >= d.z || a >= g.n_theta || b >= g.n_phi {
+        return -1;
+    }
+    match transfer.transfer_at_bin([i, j, k], [a, b]) {
+        Some(vector) => {
+            if !out.is_null() {
+                // SAFETY: out has 48 writable floats, by the caller's contract.
+                let out = unsafe { std::slice::from_raw_parts_mut(out, 3 * SH_COEFFS) };
+                out.copy_from_slice(vector.as_flattened());
+            }
+            1
+        }
+        None => 0,
+    }
+}
+
+/// The PRT matrix T of base-mesh vertex `vertex` (16×16, row-major), copied to `out`: it takes
+/// the environment's SH (world frame) to the light arriving at the vertex in its local frame,
+/// ℓ_local,i = Σⱼ T[i][j]·ℓ_world,j. Returns false when the
+/// package is null, holds no radiance transfer, or `vertex` is past the last.
+///
+/// # Safety
+/// `package` is null or open; `out` is null or has 256 writable floats.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn mbpkg_prt_matrix(
+    package: *const MbpkgPackage,
+    vertex: u32,
+    out: *mut f32,
+) -> bool {
+    // SAFETY: null or open, by the caller's contract.
+    let Some(p) = (unsafe { package.as_ref() }) else {
+        return false;
+    };
+    let Some(matrix) = (p.transfer.as_ref()).and_then(|t| t.prt_matrix(vertex as usize)) else {
+        return false;
+    };
+    if !out.is_null() {
+        // SAFETY: out has 256 writable floats, by the caller's contract.
+        unsafe { std::ptr::copy_nonoverlapping(matrix.as_ptr(), out, matrix.len()) };
+    }
+    true
 }

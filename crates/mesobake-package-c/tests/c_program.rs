@@ -9,9 +9,21 @@ use std::process::Command;
 #[path = "../../mesobake-package/tests/support/mod.rs"]
 mod support;
 
-/// Two packages: pillars on a floor (occupancy) and pseudo-random u8 factors (paper-svd).
+/// Three packages: pillars on a floor (occupancy), pseudo-random u8 factors (paper-svd), and
+/// the pillars with a synthetic radiance transfer.
 fn packages() -> Vec<Vec<u8>> {
-    vec![support::pillars(), support::random_svd(3, Quantization::U8)]
+    let (info, transfer) = support::radiance_transfer(3);
+    vec![
+        support::pillars(),
+        support::random_svd(3, Quantization::U8),
+        support::pillars_with_gi(info, &transfer),
+    ]
+}
+
+/// Values as reader.c prints them: six decimals, space-separated, one line.
+fn line(values: &[f32]) -> String {
+    let values: Vec<String> = values.iter().map(|v| format!("{v:.6}")).collect();
+    values.join(" ") + "\n"
 }
 
 /// What reader.c must print for `bytes`, from the Rust reader.
@@ -77,6 +89,27 @@ fn expected(bytes: &[u8]) -> String {
                     };
                 }
             }
+        }
+    }
+    match pkg.radiance_transfer() {
+        None => out += "no radiance transfer\n",
+        Some(transfer) => {
+            let transfer = transfer.unwrap();
+            let view = [dirs.n_theta - 1, dirs.n_phi - 1];
+            for j in 0..dims.y {
+                for i in 0..dims.x {
+                    out += &match transfer.transfer_at_bin([i, j, k], view) {
+                        Some(t) => line(t.as_flattened()),
+                        None => "not a sample\n".into(),
+                    };
+                }
+            }
+            let mut v = 0;
+            while let Some(matrix) = transfer.prt_matrix(v) {
+                out += &line(matrix);
+                v += 1;
+            }
+            out += &format!("{v} vertices\n");
         }
     }
     out

@@ -1,6 +1,7 @@
 /* A C program that reads a mesobake package through the C ABI: its grids, its sections
- * (with a checksum of their bytes) and the GDM at every voxel of the middle layer along
- * every direction bin. tests/c_program.rs compiles it and compares its output with the Rust
+ * (with a checksum of their bytes), the GDM at every voxel of the middle layer along
+ * every direction bin, and where the package holds radiance transfer, the RTV's transfer at
+ * every voxel of that layer towards the last view bin and every vertex's PRT matrix. tests/c_program.rs compiles it and compares its output with the Rust
  * reader's. */
 #include <stdint.h>
 #include <stdio.h>
@@ -49,6 +50,28 @@ int main(int argc, char **argv) {
                 }
     float d;
     if (mbpkg_distance(package, grid.res[0], 0, 0, 0, 0, &d) != -1) return 6;
+    float t[48];
+    if (mbpkg_rtv_transfer(package, 0, 0, 0, 0, 0, t) == -1) {
+        printf("no radiance transfer\n");
+    } else {
+        uint32_t a = grid.dirs[0] - 1, b = grid.dirs[1] - 1;
+        for (uint32_t j = 0; j < grid.res[1]; j++)
+            for (uint32_t i = 0; i < grid.res[0]; i++) {
+                int sample = mbpkg_rtv_transfer(package, i, j, k, a, b, t);
+                if (sample == 0) {
+                    printf("not a sample\n");
+                    continue;
+                }
+                if (sample != 1) return 7;
+                for (int m = 0; m < 48; m++) printf("%.6f%c", t[m], m == 47 ? '\n' : ' ');
+            }
+        if (mbpkg_rtv_transfer(package, 0, 0, 0, grid.dirs[0], 0, t) != -1) return 8;
+        float prt[256];
+        uint32_t v = 0;
+        for (; mbpkg_prt_matrix(package, v, prt); v++)
+            for (int e = 0; e < 256; e++) printf("%.6f%c", prt[e], e == 255 ? '\n' : ' ');
+        printf("%u vertices\n", v);
+    }
     mbpkg_close(package);
     return 0;
 }

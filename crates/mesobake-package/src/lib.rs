@@ -31,6 +31,7 @@ pub mod vdm;
 pub use error::{Error, Result};
 
 use container::Contents;
+use gi::RadianceTransfer;
 use grid::{Dims, DirectionGrid};
 use manifest::{
     BakeInfo, FORMAT_NAME, FactorInfo, GdmCodec, GiInfo, InputInfo, Manifest, OccupancyInfo,
@@ -59,8 +60,8 @@ pub enum GdmContent<'a> {
     Occupancy(&'a OccupancyField),
 }
 
-/// The radiance-transfer sections as the writer takes them: the manifest entry and the bytes
-/// of the four sections in [`gi::textures`] order.
+/// The radiance-transfer sections as the writer takes them ([`RadianceTransfer::encode`]):
+/// the manifest entry and the bytes of the four sections in [`gi::textures`] order.
 #[derive(Clone, Debug)]
 pub struct GiContent {
     /// The manifest entry.
@@ -277,6 +278,7 @@ impl Package {
             dirs,
         };
         package.occupancy().transpose()?;
+        package.radiance_transfer().transpose()?;
         Ok(package)
     }
 
@@ -346,6 +348,24 @@ impl Package {
                 self.dirs,
             )),
         }
+    }
+
+    /// The radiance transfer, where the package holds one (validated: see
+    /// [`RadianceTransfer::decode`]).
+    pub fn radiance_transfer(&self) -> Option<Result<RadianceTransfer>> {
+        let info = self.manifest.gi.as_ref()?;
+        let section = |name| self.section(name).expect("validated");
+        let sections = [
+            section(gi::RTV_INDEX),
+            section(gi::RTV_WEIGHTS),
+            section(gi::RTV_EIGEN),
+            section(gi::PRT_TRANSFER),
+        ];
+        Some(RadianceTransfer::decode(
+            info,
+            (self.dims, self.dirs),
+            sections,
+        ))
     }
 
     /// The occupancy field, for [`GdmCodec::Occupancy`] (validated: its distances are those

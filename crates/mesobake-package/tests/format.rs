@@ -153,3 +153,76 @@ fn every_corrupted_byte_is_refused() {
     let e = Package::parse(bytes[..100].to_vec()).unwrap_err();
     assert!(e.to_string().starts_with("package: "), "{e}");
 }
+
+#[test]
+fn radiance_transfer_reads_back_and_answers_the_documented_sum() {
+    let (info, transfer) = support::radiance_transfer(3);
+    let package = Package::parse(support::pillars_with_gi(info, &transfer)).unwrap();
+    let read = package.radiance_transfer().unwrap().unwrap();
+    // Every value was chosen exactly representable in f16: the round trip is exact.
+    assert_eq!(read, transfer);
+    // docs/package-format.md: t_c,i(s, (a, b)) = Σ_k W[(s·48 + m)·r + k]·E[(m·Nθ·Nφ + a·Nφ + b)·r + k],
+    // m = 16·c + i, with the voxel's sample s from rtv.index (x fastest).
+    let index: Vec<u32> = (package.section("rtv.index").unwrap().chunks_exact(4))
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    let half = |name: &str, at: usize| {
+        let b = &package.section(name).unwrap()[2 * at..];
+        half::f16::from_le_bytes([b[0], b[1]]).to_f32()
+    };
+    let (mut samples, mut others) = (0, 0);
+    for (voxel, [i, j, k]) in [[0, 0, 0], [1, 0, 0], [5, 3, 2], [11, 9, 5], [6, 7, 4]]
+        .into_iter()
+        .map(|[i, j, k]| ((k * 10 + j) * 12 + i, [i, j, k]))
+    {
+        for (a, b) in [(0, 0), (3, 7), (1, 5)] {
+            let got = read.transfer_at_bin([i, j, k], [a, b]);
+            let s = index[voxel as usize];
+            if s == u32::MAX {
+                assert_eq!(got, None);
+                others += 1;
+                continue;
+            }
+            samples += 1;
+            let got = got.unwrap();
+            for m in 0..48usize {
+                let expected: f32 = (0..3)
+                    .map(|kk| {
+                        half("rtv.weights", (s as usize * 48 + m) * 3 + kk)
+                            * half("rtv.eigen", (m * 32 + (a * 8 + b) as usize) * 3 + kk)
+                    })
+                    .sum();
+                assert!((got[m / 16][m % 16] - expected).abs() < 1e-5, "m {m}");
+            }
+        }
+    }
+    assert!(
+        samples > 0 && others > 0,
+        "{samples} samples, {others} others"
+    );
+    assert_eq!(read.prt_matrix(4).unwrap(), &transfer.prt[4 * 256..]);
+    assert_eq!(read.prt_matrix(5), None);
+}
+
+#[test]
+fn radiance_transfer_with_a_bad_value_or_sample_index_is_refused_by_name() {
+    let (info, transfer) = support::radiance_transfer(2);
+    let mut cases: Vec<(mesobake_package::gi::RadianceTransfer, String)> = Vec::new();
+    let mut t = transfer.clone();
+    t.weights[17] = f32::NAN;
+    cases.push((t, "weight or eigenfunction value is not finite".into()));
+    let mut t = transfer.clone();
+    t.eigen[3] = f32::INFINITY;
+    cases.push((t, "weight or eigenfunction value is not finite".into()));
+    let mut t = transfer.clone();
+    t.prt[100] = f32::NEG_INFINITY;
+    cases.push((t, "a PRT value is not finite".into()));
+    let mut t = transfer.clone();
+    t.sample_of[9] = info.samples;
+    let n = info.samples;
+    cases.push((t, format!("the sample map names sample {n} of {n}")));
+    for (bad, expected) in cases {
+        let err = Package::parse(support::pillars_with_gi(info.clone(), &bad)).unwrap_err();
+        assert!(err.to_string().contains(&expected), "{err}");
+    }
+}

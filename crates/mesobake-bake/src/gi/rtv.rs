@@ -67,7 +67,7 @@ pub struct Rtv {
 }
 
 /// Marks a voxel that is not an RTV sample.
-pub const NO_SAMPLE: u32 = u32::MAX;
+pub use mesobake_package::gi::NO_SAMPLE;
 
 pub use mesobake_package::manifest::Glossy;
 

@@ -8,9 +8,9 @@ use crate::gi::compressed_rtv::CompressedRtv;
 use crate::gi::prt::geometry_hash;
 use crate::gi::sh::{COEFFS, ShMatrix};
 use crate::surface::base_mesh::BaseMesh;
-use half::f16;
 use mesobake_core::error::{Error, Result};
 use mesobake_package::GiContent;
+use mesobake_package::gi::RadianceTransfer;
 
 pub use mesobake_package::gi::{PRT_TRANSFER, RTV_EIGEN, RTV_INDEX, RTV_WEIGHTS};
 
@@ -26,30 +26,22 @@ pub struct GiPayload<'a> {
 
 /// The GI sections of `gi` as the format crate's writer takes them.
 pub(super) fn content(gi: &GiPayload) -> GiContent {
-    let halves = |values: &[f32]| -> Vec<u8> {
-        values
+    RadianceTransfer {
+        dims: gi.rtv.dims(),
+        dirs: gi.rtv.dirs(),
+        rank: gi.rtv.rank(),
+        sample_of: gi.rtv.sample_map().to_vec(),
+        weights: gi.rtv.weights().to_vec(),
+        eigen: gi.rtv.eigen().to_vec(),
+        prt: gi
+            .prt
             .iter()
-            .flat_map(|&v| f16::from_f32(v).to_le_bytes())
-            .collect()
-    };
-    GiContent {
-        info: gi.info.clone(),
-        sections: [
-            gi.rtv
-                .sample_map()
-                .iter()
-                .flat_map(|s| s.to_le_bytes())
-                .collect(),
-            halves(gi.rtv.weights()),
-            halves(gi.rtv.eigen()),
-            gi.prt
-                .iter()
-                .flatten()
-                .flatten()
-                .flat_map(|&v| (v as f32).to_le_bytes())
-                .collect(),
-        ],
+            .flatten()
+            .flatten()
+            .map(|&v| v as f32)
+            .collect(),
     }
+    .encode(gi.info.clone())
 }
 
 impl Package {
@@ -73,35 +65,19 @@ impl Package {
                 base.positions.len()
             )));
         }
-        let section = |name| self.section(name).expect("validated by parse");
-        let halves = |bytes: &[u8]| -> Vec<f32> {
-            bytes
-                .chunks_exact(2)
-                .map(|h| f16::from_le_bytes([h[0], h[1]]).to_f32())
-                .collect()
-        };
-        let sample_of = section(RTV_INDEX)
-            .chunks_exact(4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
+        let transfer = self.radiance_transfer().expect("checked above")?;
         let rtv = CompressedRtv::from_parts(
             self.dims(),
             self.dirs(),
-            info.compression.rank,
-            sample_of,
-            halves(section(RTV_WEIGHTS)),
-            halves(section(RTV_EIGEN)),
+            transfer.rank,
+            transfer.sample_of,
+            transfer.weights,
+            transfer.eigen,
         )?;
-        let values: Vec<f64> = section(PRT_TRANSFER)
-            .chunks_exact(4)
-            .map(|b| f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))
-            .collect();
-        if values.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Package("a PRT value is not finite".into()));
-        }
-        let prt = values
+        let prt = transfer
+            .prt
             .chunks_exact(COEFFS * COEFFS)
-            .map(|m| std::array::from_fn(|i| std::array::from_fn(|j| m[i * COEFFS + j])))
+            .map(|m| std::array::from_fn(|i| std::array::from_fn(|j| f64::from(m[i * COEFFS + j]))))
             .collect();
         Ok((rtv, prt))
     }

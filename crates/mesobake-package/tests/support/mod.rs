@@ -2,8 +2,11 @@
 //! the crates built on it (included with `#[path]`).
 #![allow(dead_code)]
 
+use mesobake_package::gi::{NO_SAMPLE, RTV_MATRICES, RadianceTransfer, SH_COEFFS};
 use mesobake_package::grid::{Dims, DirectionGrid};
-use mesobake_package::manifest::{Accuracy, BakeInfo, InputInfo, Method, RankChoice};
+use mesobake_package::manifest::{
+    Accuracy, BakeInfo, GiInfo, InputInfo, Method, RankChoice, RtvCompression,
+};
 use mesobake_package::occupancy::OccupancyField;
 use mesobake_package::quantize::{Quantization, QuantizedFactor};
 use mesobake_package::svd::SvdFactors;
@@ -78,4 +81,71 @@ pub fn random_svd(rank: usize, q: Quantization) -> Vec<u8> {
         svd_rmse: 0.0,
     };
     encode(dims, dirs, GdmContent::PaperSvd(svd))
+}
+
+/// A synthetic radiance transfer on `pillars`' grids (12×10×6 voxels, 4×8 directions) with
+/// `rank` components: every third voxel a sample, pseudo-random weights, eigenfunctions and
+/// PRT matrices for 5 vertices (all exactly representable in f16 except the PRT's f32).
+pub fn radiance_transfer(rank: usize) -> (GiInfo, RadianceTransfer) {
+    let (dims, dirs) = (
+        Dims::new(12, 10, 6).unwrap(),
+        DirectionGrid::new(4, 8).unwrap(),
+    );
+    let mut samples = 0;
+    let sample_of = (0..dims.voxel_count())
+        .map(|v| {
+            if v % 3 == 0 {
+                samples += 1;
+                samples - 1
+            } else {
+                NO_SAMPLE
+            }
+        })
+        .collect();
+    let quarter = |n: usize| (noise(n) * 64.0).round() / 16.0 - 2.0;
+    let transfer = RadianceTransfer {
+        dims,
+        dirs,
+        rank,
+        sample_of,
+        weights: (0..samples as usize * RTV_MATRICES * rank)
+            .map(quarter)
+            .collect(),
+        eigen: (0..RTV_MATRICES * 32 * rank)
+            .map(|n| quarter(n + 7))
+            .collect(),
+        prt: (0..5 * SH_COEFFS * SH_COEFFS)
+            .map(|n| noise(n + 3))
+            .collect(),
+    };
+    let info = GiInfo {
+        samples,
+        bounces: 1,
+        glossy: None,
+        compression: RtvCompression {
+            rank,
+            rmse: 0.0,
+            relative_rmse: 0.0,
+            svd_rmse: 0.0,
+            spectra: vec![vec![1.0; rank]; RTV_MATRICES],
+        },
+        vertices: 5,
+        macro_shadows: false,
+        base_mesh: "0".repeat(64),
+    };
+    (info, transfer)
+}
+
+/// `pillars` with the radiance transfer `transfer` (manifest entry `info`).
+pub fn pillars_with_gi(info: GiInfo, transfer: &RadianceTransfer) -> Vec<u8> {
+    let pkg = Package::parse(pillars()).unwrap();
+    let field = pkg.occupancy().unwrap().unwrap();
+    let m = pkg.manifest();
+    let gi = transfer.encode(info);
+    Package::encode(
+        m.input.clone(),
+        m.bake.clone(),
+        GdmContent::Occupancy(&field),
+        Some(gi),
+    )
 }
