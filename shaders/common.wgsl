@@ -51,7 +51,8 @@ struct Taps {
 // i modulo n, in [0, n). By the floor of an f32 quotient, not `%`: x86 has no vector
 // integer division, so Mesa's software rasterizer would divide lane by lane. Exact for
 // |i| < 2^24, where the f32 quotient's floor is exact, and by one correction either way a
-// little beyond; in [0, n) always (tests/preview.rs checks it against the integer remainder).
+// little beyond; in [0, n) always (tests/scene/preview.rs checks it against the integer
+// remainder).
 fn wrap(i: i32, n: u32) -> u32 {
     let m = i32(n);
     var r = i - i32(floor(f32(i) / f32(m))) * m;

@@ -7,13 +7,15 @@
 //! - [`gpu`]: adapter choice and device;
 //! - [`variant`]: the shader variants, chosen from the shot's effects and knobs;
 //! - [`resources`]: package, material and shell uploads, with the GPU memory they take;
-//! - [`pipeline`]: the render pipeline, frames, read-back and timing;
+//! - [`pipeline`]: the GDM pipeline;
+//! - [`frames`]: what every pipeline shares: a frame rendered and read back, frames timed;
 //! - [`target`]: the colour and depth target every pipeline draws into, and its read-back;
 //! - [`vdm_pipeline`]: the VDM pipeline (height fields), whose specification is
 //!   [`mesobake_render::vdm_renderer`];
 //! - [`medium_pipeline`]: the translucent-media pipeline (semi-transparent 3D textures),
 //!   whose specification is [`mesobake_render::medium_cells`].
 
+pub mod frames;
 pub mod gpu;
 pub mod medium_pipeline;
 pub mod pipeline;

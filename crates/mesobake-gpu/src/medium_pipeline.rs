@@ -8,13 +8,14 @@
 //! shadow rays. Its specification is [`mesobake_render::medium_cells`], which it is tested
 //! against.
 
+use super::frames::RealtimePipeline;
 use super::gpu::Gpu;
 use super::pipeline::{
     LightRecord, ViewBuffer, ViewUniform, bind_group, init_buffer, layout_entry, light_records,
     storage, storage_read_write, uniform, view_uniform,
 };
 use super::resources::{GpuMemory, upload_box_bvh};
-use super::target::{DrawState, Target, read_mapped, target_pipeline, time_frames};
+use super::target::{DrawState, Target, read_mapped, target_pipeline};
 use super::variant::COMMON;
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
@@ -22,9 +23,7 @@ use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::light::Light;
-use mesobake_core::observer::BakeObserver;
 use mesobake_render::cell_order::ViewSort;
-use mesobake_render::image::Image;
 use mesobake_render::medium_cells::{Cell, CellRenderer};
 use mesobake_render::medium_settings::{CellIntegration, ShadowMethod};
 use mesobake_render::medium_shadow_map::MapMedium;
@@ -33,14 +32,24 @@ use mesobake_render::medium_truth::{DEFAULT_LIGHT_STEP, MIN_TRANSMITTANCE, SHADO
 use mesobake_render::shot::Shot;
 use std::time::Instant;
 
-const SHADER: &str = include_str!("../../../shaders/medium_preview.wgsl");
+/// The pipeline's WGSL, in the order it is composed (after `common.wgsl`).
+const PARTS: [&str; 8] = [
+    include_str!("../../../shaders/medium_preview.wgsl"),
+    include_str!("../../../shaders/medium_cells.wgsl"),
+    include_str!("../../../shaders/medium_voxels.wgsl"),
+    include_str!("../../../shaders/medium_shadow_rays.wgsl"),
+    include_str!("../../../shaders/medium_compositing.wgsl"),
+    include_str!("../../../shaders/medium_pixel_list.wgsl"),
+    include_str!("../../../shaders/medium_cell_raster.wgsl"),
+    include_str!("../../../shaders/medium_shadow_maps.wgsl"),
+];
 
 /// Most mip levels the shader takes.
 const MAX_LEVELS: usize = 16;
 
 /// The complete WGSL source of the translucent-media pipeline.
 pub fn source() -> String {
-    format!("{COMMON}\n{SHADER}")
+    format!("{COMMON}\n{}", PARTS.join("\n"))
 }
 
 /// The shader's `Cell`.
@@ -532,6 +541,27 @@ impl<'g> MediumPreview<'g> {
         })
     }
 
+    /// CPU seconds to sort the cells for the view once (what each frame of a per-view
+    /// order spends before drawing); `None` for the per-pixel lists.
+    pub fn sort_seconds(&self) -> Option<f64> {
+        let MediaPipeline::PerView(_, sort) = self.pipeline else {
+            return None;
+        };
+        let start = Instant::now();
+        std::hint::black_box(self.cells.cells().view_order(&self.camera, sort));
+        Some(start.elapsed().as_secs_f64())
+    }
+}
+
+impl RealtimePipeline for MediumPreview<'_> {
+    fn gpu(&self) -> &Gpu {
+        self.gpu
+    }
+
+    fn target(&self) -> &Target {
+        &self.target
+    }
+
     /// Records one frame (for the per-view order: sorting the cells for the eye and
     /// uploading the order first; and, with `read_back`, the copy of the target into the
     /// read-back buffer) and submits it.
@@ -573,15 +603,9 @@ impl<'g> MediumPreview<'g> {
         self.gpu.queue.submit([encoder.finish()]);
     }
 
-    /// GPU memory per kind of resource: the medium (its levels' voxels and normals, as
-    /// `material`), the cells, their BVH and order (`geometry`) and the targets.
-    pub fn memory(&self) -> GpuMemory {
-        self.memory
-    }
-
     /// Moves the next frames' rays to `offset` in each pixel (from its top-left corner): the
     /// rasterized faces by the view's projection, the per-pixel rays by the camera basis.
-    pub fn set_subpixel(&self, offset: [f64; 2]) {
+    fn set_subpixel(&self, offset: [f64; 2]) {
         self.buffers.view.set_subpixel(self.gpu, offset);
         let shift = self
             .camera
@@ -599,11 +623,14 @@ impl<'g> MediumPreview<'g> {
         (self.gpu.queue).write_buffer(&self.buffers.medium, 0, bytemuck::bytes_of(&params));
     }
 
-    /// Renders one frame and reads it back; refused ([`Error::LoopBudget`]) where the
-    /// adapter cut some pixel's loops short.
-    pub fn render(&self) -> Result<Image> {
-        self.gpu.checked("rendering", || self.submit_frame(true))?;
-        let image = self.target.read(self.gpu)?;
+    /// GPU memory per kind of resource: the medium (its levels' voxels and normals, as
+    /// `material`), the cells, their BVH and order (`geometry`) and the targets.
+    fn memory(&self) -> GpuMemory {
+        self.memory
+    }
+
+    /// Refused ([`Error::LoopBudget`]) where the adapter cut some pixel's loops short.
+    fn check_frame(&self) -> Result<()> {
         let [pixels, texels] = read_mapped(self.gpu, &self.overflow_read, |d| {
             [0, 4].map(|i| u32::from_le_bytes([d[i], d[i + 1], d[i + 2], d[i + 3]]))
         })?;
@@ -617,24 +644,7 @@ impl<'g> MediumPreview<'g> {
                 ),
             });
         }
-        Ok(image)
-    }
-
-    /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
-    /// and waited for, reported to `observer` as it finishes.
-    pub fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
-        time_frames(self.gpu, frames, observer, || self.submit_frame(false))
-    }
-
-    /// CPU seconds to sort the cells for the view once (what each frame of a per-view
-    /// order spends before drawing); `None` for the per-pixel lists.
-    pub fn sort_seconds(&self) -> Option<f64> {
-        let MediaPipeline::PerView(_, sort) = self.pipeline else {
-            return None;
-        };
-        let start = Instant::now();
-        std::hint::black_box(self.cells.cells().view_order(&self.camera, sort));
-        Some(start.elapsed().as_secs_f64())
+        Ok(())
     }
 }
 

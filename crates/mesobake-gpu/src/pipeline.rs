@@ -3,14 +3,16 @@
 //! per fragment, writing the hit's depth so that mesostructure occludes across prisms
 //! (escapes discarded) and the nearest hit's data to [`HitTargets`]; the shading pass (one
 //! full-screen triangle) shades each pixel's hit once (step 6). Renders to a linear
-//! `rgba32float` target (alpha = hit mask) and reads it back as an [`Image`].
+//! `rgba32float` target (alpha = hit mask) and reads it back as an
+//! [`Image`](mesobake_render::image::Image).
 
+use super::frames::RealtimePipeline;
 use super::gpu::Gpu;
 use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
     upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
-use super::target::{DrawState, HitTargets, Target, target_pipeline, time_frames};
+use super::target::{DrawState, HitTargets, Target, target_pipeline};
 use super::variant::ShaderVariant;
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
@@ -22,10 +24,8 @@ use mesobake_bake::surface::shell::Shell;
 use mesobake_core::camera::Camera;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::light::Light;
-use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::ShadowMethod;
 use mesobake_render::gi_shading::GiShading;
-use mesobake_render::image::Image;
 use mesobake_render::prepared_prism::prepare_prisms;
 use mesobake_render::shot::Shot;
 use wgpu::util::DeviceExt;
@@ -544,14 +544,17 @@ impl<'g> Preview<'g> {
     pub fn variant(&self) -> ShaderVariant {
         self.variant
     }
+}
 
-    /// GPU memory taken by this preview's resources.
-    pub fn memory(&self) -> GpuMemory {
-        self.memory
+impl RealtimePipeline for Preview<'_> {
+    fn gpu(&self) -> &Gpu {
+        self.gpu
     }
 
-    /// Records one frame (and, with `read_back`, the copy of the target into the read-back
-    /// buffer) and submits it.
+    fn target(&self) -> &Target {
+        &self.target
+    }
+
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.nearest_hit, 0, None);
@@ -584,20 +587,13 @@ impl<'g> Preview<'g> {
     }
 
     /// Moves the next frames' rays to `offset` in each pixel ([`ViewBuffer::set_subpixel`]).
-    pub fn set_subpixel(&self, offset: [f64; 2]) {
+    fn set_subpixel(&self, offset: [f64; 2]) {
         self.view.set_subpixel(self.gpu, offset);
     }
 
-    /// Renders one frame and reads it back.
-    pub fn render(&self) -> Result<Image> {
-        self.gpu.checked("rendering", || self.submit_frame(true))?;
-        self.target.read(self.gpu)
-    }
-
-    /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
-    /// and waited for, reported to `observer` as it finishes.
-    pub fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
-        time_frames(self.gpu, frames, observer, || self.submit_frame(false))
+    /// GPU memory taken by this preview's resources.
+    fn memory(&self) -> GpuMemory {
+        self.memory
     }
 }
 

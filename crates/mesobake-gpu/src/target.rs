@@ -4,9 +4,7 @@
 
 use super::gpu::Gpu;
 use mesobake_core::error::{Error, Result};
-use mesobake_core::observer::BakeObserver;
 use mesobake_render::image::Image;
-use std::time::Instant;
 
 /// The colour target's format.
 const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -103,25 +101,6 @@ pub fn target_pipeline(
         multiview_mask: None,
         cache: None,
     })
-}
-
-/// Mean seconds per frame over `frames` frames recorded and submitted by `submit` (after one
-/// warm-up frame), each waited for and reported to `observer` as it finishes.
-pub fn time_frames(
-    gpu: &Gpu,
-    frames: u32,
-    observer: &dyn BakeObserver,
-    submit: impl Fn(),
-) -> Result<f64> {
-    submit();
-    gpu.wait()?;
-    let start = Instant::now();
-    for frame in 1..=frames {
-        submit();
-        gpu.wait()?;
-        observer.progress(frame.into(), frames.into());
-    }
-    Ok(start.elapsed().as_secs_f64() / frames.max(1) as f64)
 }
 
 /// A colour and depth target with its read-back buffer.

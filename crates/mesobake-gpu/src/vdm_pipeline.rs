@@ -3,13 +3,14 @@
 //! that the depth test keeps the nearest fragment that is not one. Its specification is
 //! [`mesobake_render::vdm_renderer`], which it is tested against.
 
+use super::frames::RealtimePipeline;
 use super::gpu::Gpu;
 use super::pipeline::{
     LightRecord, ViewBuffer, ViewUniform, bind_group, init_buffer, layout_entry, light_records,
     storage, uniform, view_uniform,
 };
 use super::resources::{GpuMemory, upload_box_bvh};
-use super::target::{Target, time_frames, triangle_pipeline};
+use super::target::{Target, triangle_pipeline};
 use super::variant::COMMON;
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
@@ -18,10 +19,8 @@ use mesobake_bake::surface::shell::Shell;
 use mesobake_bake::vdm::Relief;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::Result;
-use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::ShadowMethod;
 use mesobake_package::vdm::VdmQuery;
-use mesobake_render::image::Image;
 use mesobake_render::shot::Shot;
 use mesobake_render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 
@@ -271,9 +270,17 @@ impl<'g> VdmPreview<'g> {
             memory,
         })
     }
+}
 
-    /// Records one frame (and, with `read_back`, the copy of the target into the read-back
-    /// buffer) and submits it.
+impl RealtimePipeline for VdmPreview<'_> {
+    fn gpu(&self) -> &Gpu {
+        self.gpu
+    }
+
+    fn target(&self) -> &Target {
+        &self.target
+    }
+
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         {
@@ -289,27 +296,14 @@ impl<'g> VdmPreview<'g> {
         self.gpu.queue.submit([encoder.finish()]);
     }
 
-    /// GPU memory per kind of resource: the package (factors and heights), the geometry
-    /// (top faces, their vertices and BVH) and the targets.
-    pub fn memory(&self) -> GpuMemory {
-        self.memory
-    }
-
-    /// Moves the next frames' rays to `offset` in each pixel (from its top-left corner).
-    pub fn set_subpixel(&self, offset: [f64; 2]) {
+    fn set_subpixel(&self, offset: [f64; 2]) {
         self.view.set_subpixel(self.gpu, offset);
     }
 
-    /// Renders one frame and reads it back.
-    pub fn render(&self) -> Result<Image> {
-        self.gpu.checked("rendering", || self.submit_frame(true))?;
-        self.target.read(self.gpu)
-    }
-
-    /// Mean seconds per frame over `frames` frames (after one warm-up frame), each submitted
-    /// and waited for, reported to `observer` as it finishes.
-    pub fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
-        time_frames(self.gpu, frames, observer, || self.submit_frame(false))
+    /// GPU memory per kind of resource: the package (factors and heights), the geometry
+    /// (top faces, their vertices and BVH) and the targets.
+    fn memory(&self) -> GpuMemory {
+        self.memory
     }
 }
 

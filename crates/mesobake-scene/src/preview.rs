@@ -14,6 +14,7 @@ use mesobake_bake::vdm::Relief;
 use mesobake_core::camera::Camera;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
 use mesobake_gpu::medium_pipeline::MediumPreview;
 use mesobake_gpu::pipeline::Preview;
@@ -387,66 +388,13 @@ fn cells_preview(
     measure(gpu, camera, &preview, technique, setup, frames, observer)
 }
 
-/// What a preview measures of a real-time pipeline.
-trait Pipeline {
-    fn set_subpixel(&self, offset: [f64; 2]);
-    fn render(&self) -> Result<Image>;
-    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64>;
-    fn memory(&self) -> GpuMemory;
-}
-
-impl Pipeline for Preview<'_> {
-    fn set_subpixel(&self, offset: [f64; 2]) {
-        Preview::set_subpixel(self, offset)
-    }
-    fn render(&self) -> Result<Image> {
-        Preview::render(self)
-    }
-    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
-        Preview::time_frames(self, frames, observer)
-    }
-    fn memory(&self) -> GpuMemory {
-        Preview::memory(self)
-    }
-}
-
-impl Pipeline for MediumPreview<'_> {
-    fn set_subpixel(&self, offset: [f64; 2]) {
-        MediumPreview::set_subpixel(self, offset)
-    }
-    fn render(&self) -> Result<Image> {
-        MediumPreview::render(self)
-    }
-    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
-        MediumPreview::time_frames(self, frames, observer)
-    }
-    fn memory(&self) -> GpuMemory {
-        MediumPreview::memory(self)
-    }
-}
-
-impl Pipeline for VdmPreview<'_> {
-    fn set_subpixel(&self, offset: [f64; 2]) {
-        VdmPreview::set_subpixel(self, offset)
-    }
-    fn render(&self) -> Result<Image> {
-        VdmPreview::render(self)
-    }
-    fn time_frames(&self, frames: u32, observer: &dyn BakeObserver) -> Result<f64> {
-        VdmPreview::time_frames(self, frames, observer)
-    }
-    fn memory(&self) -> GpuMemory {
-        VdmPreview::memory(self)
-    }
-}
-
 /// Renders the first image of `pipeline`, a frame per sample of the camera's samples per
 /// pixel (timed, read-backs included) and, with `frames` > 0, times that many more frames
 /// of one sample; `setup` is the shader variant and the seconds setting it up took.
 fn measure(
     gpu: &Gpu,
     camera: &Camera,
-    pipeline: &dyn Pipeline,
+    pipeline: &dyn RealtimePipeline,
     technique: &'static str,
     (variant, setup_seconds): (Option<ShaderVariant>, f64),
     frames: u32,

@@ -6,6 +6,7 @@
 use crate::{LoadedScene, Scene};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::{AdapterDescription, Gpu};
 use mesobake_gpu::medium_pipeline::MediumPreview;
 use mesobake_render::image::{Comparison, compare};

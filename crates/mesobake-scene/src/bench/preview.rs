@@ -10,6 +10,7 @@ use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_core::quality::Preset;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::{AdapterDescription, Gpu};
 use mesobake_render::gdm_lookup::package_lookup;
 use mesobake_render::gdm_renderer::GdmRenderer;

@@ -8,6 +8,7 @@ use crate::preview::gdm_pipeline;
 use crate::render::load_scene;
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::{AdapterDescription, Gpu};
 use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::gdm_lookup::package_lookup;

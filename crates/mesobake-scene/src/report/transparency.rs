@@ -23,6 +23,7 @@ use mesobake_bake::package::medium::{self as medium_package, MediumPackage};
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::Gpu;
 use mesobake_gpu::medium_pipeline::MediumPreview;
 use mesobake_render::image::{Comparison, Image, compare};

@@ -24,6 +24,7 @@ use mesobake_bake::vdm::{self, Vdm, VdmMethod};
 use mesobake_core::error::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::Gpu;
 use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::gdm_lookup::package_lookup;
