@@ -1,9 +1,7 @@
 //! `mesobake explicit`: the tile mapped through the shell follows the exact mapping within the
 //! tolerance, closed tiles on closed bases give closed outward meshes, and the CLI end to end.
 
-mod common;
-
-use common::{each_fails_with, succeeds};
+use crate::common::{each_fails_with, succeeds};
 use glam::DVec3;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::trimesh::TriMesh;

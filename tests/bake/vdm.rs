@@ -14,8 +14,7 @@ use mesobake_bake::vdm::{self, NO_HIT, Relief, VdmGrid, VdmMethod, VdmParams, be
 use mesobake_core::limits::Limits;
 use mesobake_package::grid::Dims;
 
-mod common;
-use common::{each_fails_with, succeeds};
+use crate::common::{each_fails_with, succeeds};
 
 fn constant(h: f32) -> HeightField {
     HeightField::new(8, 8, vec![h; 64]).unwrap()

@@ -2,8 +2,7 @@
 
 use std::path::Path;
 
-mod common;
-use common::{each_fails_with, succeeds};
+use crate::common::{each_fails_with, succeeds};
 
 fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
     let bytes = std::fs::read(path).unwrap();
@@ -241,7 +240,7 @@ fn inputs_are_recognized_by_content_not_by_name() {
         .map(|(args, want)| (args.iter().map(String::as_str).collect(), *want))
         .collect();
     each_fails_with(&cases);
-    let out = common::mesobake(
+    let out = crate::common::mesobake(
         &gdm(path("notes.txt"))
             .iter()
             .map(String::as_str)
@@ -255,7 +254,7 @@ fn inputs_are_recognized_by_content_not_by_name() {
         b"{\"resolution\": [8, 8, 4], \"bogus\": 1}",
     )
     .unwrap();
-    let out = common::mesobake(&[
+    let out = crate::common::mesobake(&[
         "render",
         "--scene",
         &path("bad.json"),
@@ -293,7 +292,7 @@ fn on_a_terminal(dir: &Path, args: &[&str]) -> String {
 #[test]
 fn long_work_shows_progress_on_a_terminal_only() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = common::small_scene(dir.path());
+    let scene = crate::common::small_scene(dir.path());
     let scene = scene.to_str().unwrap();
     let volume = dir.path().join("weave.mbvol");
     succeeds(&[

@@ -4,8 +4,7 @@ use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
 use std::path::Path;
 
-mod common;
-use common::{each_fails_with, small_scene, succeeds};
+use crate::common::{each_fails_with, small_scene, succeeds};
 
 /// `mesobake bake --input VOL --out PKG` with `options`, returning its JSON summary.
 fn bake(vol: &str, pkg: &Path, options: &[&str]) -> serde_json::Value {

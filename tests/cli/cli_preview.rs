@@ -3,9 +3,7 @@
 //! Needs a GPU adapter (CI installs Mesa's software Vulkan driver); MESOBAKE_SKIP_GPU_TESTS=1
 //! skips these tests loudly.
 
-mod common;
-
-use common::{each_fails_with, succeeds};
+use crate::common::{each_fails_with, succeeds};
 use std::path::Path;
 
 fn skip() -> bool {
@@ -91,7 +89,7 @@ fn every_sample_scene_previews() {
         let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         if medium {
             // Translucent samples render in WGSL, shadows from deep maps, within the software
-            // driver's loop budget (tests/medium_preview.rs).
+            // driver's loop budget (tests/scene/medium_preview.rs).
             assert_eq!(json["renderer"], "gpu", "{name}: {json}");
             assert_eq!(json["technique"], "transparency", "{name}: {json}");
         }

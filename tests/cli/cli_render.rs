@@ -1,8 +1,6 @@
 //! `mesobake render` and `mesobake compare` end to end, and bad scenes.
 
-mod common;
-
-use common::{each_fails_with, mesobake, succeeds};
+use crate::common::{each_fails_with, mesobake, succeeds};
 
 const SCENE: &str = r#"{
   "base_mesh": { "builtin": { "torus": { "segments": [24, 12] } } },

@@ -14,10 +14,12 @@ pub async fn database_urls(dir: &std::path::Path, test: &str) -> Vec<String> {
     match sqlx::PgPool::connect(POSTGRES_ADMIN_URL).await {
         Ok(admin) => {
             let name = format!("mesobake_{test}_{}", std::process::id());
-            // Earlier runs' databases of this test go first.
+            // Earlier runs' databases of this test go first: exactly this test's name and a
+            // process id (a LIKE prefix would also take, and drop, a running test's whose
+            // name starts with this one's).
             let old: Vec<String> =
-                sqlx::query_scalar("SELECT datname FROM pg_database WHERE datname LIKE $1")
-                    .bind(format!("mesobake_{test}_%"))
+                sqlx::query_scalar("SELECT datname FROM pg_database WHERE datname ~ $1")
+                    .bind(format!("^mesobake_{test}_[0-9]+$"))
                     .fetch_all(&admin)
                     .await
                     .unwrap();

@@ -19,8 +19,7 @@ use mesobake_scene::render::load_scene;
 use mesobake_scene::report::codecs::{CodecSweep, codec_report};
 use std::path::Path;
 
-mod common;
-use common::{each_fails_with, small_scene, succeeds};
+use crate::common::{each_fails_with, small_scene, succeeds};
 
 #[test]
 fn the_default_package_renders_like_the_uncompressed_gdm_on_every_sample_scene() {
@@ -33,7 +32,7 @@ fn the_default_package_renders_like_the_uncompressed_gdm_on_every_sample_scene()
             continue;
         }
         let mut loaded = load_scene(&path, &limits).unwrap();
-        // Height-field scenes are the VDM's (tests/vdm_render.rs): their exact surface is not
+        // Height-field scenes are the VDM's (tests/scene/vdm_render.rs): their exact surface is not
         // the voxel grid an occupancy package stores. Translucent media have no GDM.
         if loaded.scene.wants(Effect::EnvironmentLighting)
             || loaded.height_field.is_some()

@@ -3,9 +3,7 @@
 //! with both codecs at every preset. The bar is the preview tests' (PSNR ≥ 35 dB over sRGB
 //! values, FLIP ≤ 0.02, hit/miss mask disagreement ≤ 0.5 %), at a reduced image size so that
 //! all of it runs in CI on Mesa's software driver; a scene added under `scenes/` is held to
-//! it without editing this file. Needs an adapter (see tests/preview.rs).
-
-mod common;
+//! it without editing this file. Needs an adapter (see tests/scene/preview.rs).
 
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::compress::svd::RankChoice;
@@ -87,7 +85,9 @@ fn assert_none(failures: &[String]) {
 
 #[test]
 fn every_scene_s_default_package_renders_alike_in_wgsl_and_on_the_cpu() {
-    let Some(gpu) = common::gpu() else { return };
+    let Some(gpu) = crate::common::gpu() else {
+        return;
+    };
     let mut failures = Vec::new();
     for path in scene_files() {
         let loaded = load_small(&path);
@@ -116,7 +116,9 @@ const LLVMPIPE_DEFECTS: [(&str, GdmCodec, Preset, f64); 1] =
 
 #[test]
 fn every_opaque_scene_s_gdm_renders_alike_with_both_codecs_at_every_preset() {
-    let Some(gpu) = common::gpu() else { return };
+    let Some(gpu) = crate::common::gpu() else {
+        return;
+    };
     let mut failures = Vec::new();
     for path in scene_files() {
         let mut loaded = load_small(&path);

@@ -17,8 +17,7 @@ use mesobake_render::truth::{TruthRenderer, TruthShading};
 use mesobake_scene::render::{MapSource, RenderMethod, load_scene, render};
 use std::path::Path;
 
-mod common;
-use common::each_fails_with;
+use crate::common::each_fails_with;
 
 /// `scenes/torus-chain.json` with the chain as an OBJ tile, at `side` pixels across, in `dir`.
 /// (With 12×5 tiles the agreement falls to 39.0–39.4 dB: the export leaves holes in a few

@@ -2,10 +2,10 @@
 //! packages carry the compressed RTV and the PRT deterministically, and shading from a package
 //! agrees with shading from the bake.
 
-mod common;
-
-use common::{each_fails_with, succeeds};
+use crate::common::{each_fails_with, succeeds};
 use glam::DVec3;
+use mesobake_bake::gi::compressed_rtv::CompressedRtv;
+use mesobake_bake::gi::rtv::NO_SAMPLE;
 use mesobake_bake::package::Package;
 use mesobake_core::limits::Limits;
 use mesobake_scene::gi;
@@ -183,6 +183,43 @@ fn gi_packages_are_deterministic_and_shade_like_the_bake() {
     let package = Package::parse(bytes).unwrap();
     let gi = package.manifest().gi.clone().unwrap();
     assert_eq!(gi.compression.rank, 16);
+
+    // The format crate's reading at view-bin centres (what the C ABI answers) against the
+    // renderers' (the compressed RTV with its bilinear view interpolation, in f64) on every
+    // sample voxel and every fourth bin: the two differ by f32 round-off alone.
+    let transfer = package.radiance_transfer().unwrap().unwrap();
+    let (dims, dirs) = (package.dims(), package.dirs());
+    let rtv = CompressedRtv::from_parts(
+        dims,
+        dirs,
+        16,
+        transfer.sample_of.clone(),
+        transfer.weights.clone(),
+        transfer.eigen.clone(),
+    )
+    .unwrap();
+    let (mut worst, mut compared) = (0.0f64, 0);
+    for (voxel, &s) in transfer.sample_of.iter().enumerate() {
+        if s == NO_SAMPLE {
+            continue;
+        }
+        let (i, j, k) = (
+            voxel as u32 % dims.x,
+            voxel as u32 / dims.x % dims.y,
+            voxel as u32 / dims.x / dims.y,
+        );
+        for bin in (0..dirs.count()).step_by(4) {
+            let [a, b] = [bin as u32 / dirs.n_phi, bin as u32 % dirs.n_phi];
+            let ours = transfer.transfer_at_bin([i, j, k], [a, b]).unwrap();
+            let theirs = rtv.transfer(s as usize, DVec3::from(dirs.vector(a, b)));
+            for (x, y) in ours.as_flattened().iter().zip(theirs.as_flattened()) {
+                worst = worst.max((f64::from(*x) - y).abs() / (1.0 + y.abs()));
+            }
+            compared += 1;
+        }
+    }
+    assert!(compared > 10_000, "{compared}");
+    assert!(worst < 1e-5, "{worst}");
 
     // Shading from the package against shading from the exact bake, at texture points all
     // over the tile and views above the surface.

@@ -179,7 +179,7 @@ fn an_animated_surface_renders_from_the_same_package_bit_for_bit() {
 /// centres are inside (a volume, a mesh tile and a relief), and the media's ground truth of
 /// the package's medium matches the opaque ground truth of the same voxels (a renderer that
 /// shares no code with the media), unshadowed and with the same normals, to 0.1 % of the
-/// mask and 30 dB (as the opaque sample in tests/medium_render.rs).
+/// mask and 30 dB (as the opaque sample in tests/scene/medium_render.rs).
 #[test]
 fn an_opaque_mesostructure_as_a_medium_is_its_solid_voxels() {
     // The shipped torus-chain scene, shrunk to 96² pixels and a 32 × 32 × 16 grid.

@@ -8,9 +8,7 @@
 //! rays are checked on the flat scenes); without one these tests fail unless
 //! MESOBAKE_SKIP_GPU_TESTS=1.
 
-mod common;
-
-use common::{gpu, succeeds};
+use crate::common::{gpu, succeeds};
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::Error;
@@ -83,7 +81,7 @@ fn the_media_shader_passes_nagas_validation() {
     // Without an adapter too: the WGSL the pipeline compiles is valid.
     let source = mesobake_gpu::medium_pipeline::source();
     assert_eq!(
-        common::naga_entry_points(&source),
+        crate::common::naga_entry_points(&source),
         ["cs_pixels", "vs_cell", "fs_cell", "cs_shadow_map"]
     );
 }
@@ -356,7 +354,7 @@ fn the_preview_command_renders_translucent_scenes() {
         c.psnr_db >= 60.0 && c.mask_disagreement == 0.0,
         "the same package, the same image: {c:?}"
     );
-    common::each_fails_with(&[(
+    crate::common::each_fails_with(&[(
         vec![
             "preview",
             "--scene",

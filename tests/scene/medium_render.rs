@@ -1,8 +1,6 @@
 //! The ground truth of translucent media against closed forms and against the opaque truth.
 
-mod common;
-
-use common::{each_fails_with, succeeds};
+use crate::common::{each_fails_with, succeeds};
 use glam::DVec3;
 use mesobake_bake::compress::quantize::Quantization;
 use mesobake_bake::mesostructure::media::ABSORBING_OPACITY;
@@ -262,7 +260,7 @@ fn a_translucent_scene_renders_by_its_cells_and_from_its_medium_package() {
     )
     .unwrap();
     // The f16 package against the scene's own medium (measured on a larger scene in
-    // tests/medium_package.rs).
+    // tests/scene/medium_package.rs).
     assert!(c.psnr_db >= 50.0 && c.mask_disagreement == 0.0, "{c:?}");
     each_fails_with(&[
         (

@@ -10,6 +10,7 @@ use mesobake_bake::package::Package;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::Gpu;
 use mesobake_render::image::{Image, compare};
 use mesobake_scene::package::{ScenePackageParams, gdm_scene_package};

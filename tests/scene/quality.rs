@@ -11,8 +11,7 @@ use mesobake_scene::render::load_scene;
 use mesobake_scene::report::quality::{QualityRow, default_settings, quality_report};
 use std::path::Path;
 
-mod common;
-use common::{each_fails_with, small_scene, succeeds};
+use crate::common::{each_fails_with, small_scene, succeeds};
 
 fn report(scene: &str) -> Vec<QualityRow> {
     let limits = Limits::default();

@@ -2,8 +2,6 @@
 //! real-time pipeline moves its rays to a sample's sub-pixel position as its CPU
 //! specification does, so that the two stay comparable at any count.
 
-mod common;
-
 use mesobake_bake::package::AnyPackage;
 use mesobake_core::limits::Limits;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
@@ -72,7 +70,9 @@ fn the_supersampled_truth_converges() {
 /// further from the centred one than the bar.
 #[test]
 fn every_pipeline_moves_its_rays_to_the_sample_positions_as_its_cpu_twin_does() {
-    let Some(gpu) = common::gpu() else { return };
+    let Some(gpu) = crate::common::gpu() else {
+        return;
+    };
     for name in ["torus-chain.json", "torus-bumps.json", "torus-fur.json"] {
         let mut loaded = load(name, 96, 96);
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");

@@ -2,12 +2,11 @@
 //! shell), its curved shadow geometry against the bending it inverts, and `render --method
 //! vdm` from a package.
 
-mod common;
-
-use common::{each_fails_with, gpu, succeeds};
+use crate::common::{each_fails_with, gpu, succeeds};
 use mesobake_bake::vdm::bend::Bend;
 use mesobake_core::effect::Effect;
 use mesobake_core::limits::Limits;
+use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::vdm_pipeline::VdmPreview;
 use mesobake_render::image::{Comparison, Image, compare};
 use mesobake_render::render_image;
@@ -443,7 +442,10 @@ fn a_closed_height_field_scene_bakes_and_renders_by_vdm_and_an_open_one_by_gdm()
 fn the_vdm_shader_passes_nagas_validation() {
     // Without an adapter too: the WGSL the pipeline compiles is valid.
     let source = mesobake_gpu::vdm_pipeline::source();
-    assert_eq!(common::naga_entry_points(&source), ["vs_main", "fs_main"]);
+    assert_eq!(
+        crate::common::naga_entry_points(&source),
+        ["vs_main", "fs_main"]
+    );
 }
 
 #[test]

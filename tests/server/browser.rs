@@ -4,10 +4,7 @@
 //! configuration. Skipped loudly when chromedriver is
 //! missing, unless MESOBAKE_REQUIRE_BROWSER=1 (set by `.ci/run`, which installs it).
 
-#[path = "common/binary_server.rs"]
-mod binary_server;
-
-use binary_server::BinaryServer;
+use crate::binary_server::BinaryServer;
 use fantoccini::{ClientBuilder, Locator};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_core::limits::Limits;

@@ -4,12 +4,7 @@
 //! running job back and exits within the grace period. Also the key commands and the
 //! redaction of database passwords.
 
-#[path = "common/binary_server.rs"]
-mod binary_server;
-#[path = "common/server.rs"]
-mod server;
-
-use binary_server::BinaryServer;
+use crate::binary_server::BinaryServer;
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::package::Package;
@@ -349,7 +344,7 @@ fn keys_are_listed_and_revoked_and_say_where_they_live() {
 #[tokio::test]
 async fn database_passwords_are_redacted_in_what_the_worker_prints() {
     let dir = tempfile::tempdir().unwrap();
-    let urls = server::database_urls(dir.path(), "redact").await;
+    let urls = crate::server_harness::database_urls(dir.path(), "redact").await;
     let Some(postgres) = urls.iter().find(|u| u.starts_with("postgres://")) else {
         return; // skipped loudly by database_urls
     };

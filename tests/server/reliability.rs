@@ -2,9 +2,7 @@
 //! SIGKILL mid-bake on PostgreSQL, a server process killed and restarted mid-job, and a blob
 //! store that refuses writes.
 
-#[path = "common/server.rs"]
-mod server;
-
+use crate::server_harness::{TestServer, database_urls};
 use futures_util::future::join_all;
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
@@ -14,7 +12,6 @@ use mesobake_package::grid::Dims;
 use mesobake_server::jobs::JobSpec;
 use mesobake_server::spawn_workers;
 use serde_json::json;
-use server::{TestServer, database_urls};
 use std::process::{Child, Command};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;

@@ -2,15 +2,12 @@
 //! when present, skipped loudly otherwise): uploads with validation and deduplication,
 //! package downloads with ETags and ranges, health, metrics, OpenAPI, bad requests.
 
-#[path = "common/server.rs"]
-mod server;
-
+use crate::server_harness::{TestServer, database_urls};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
 use mesobake_package::grid::Dims;
 use mesobake_server::db::{PackageRow, now_ms};
-use server::{TestServer, database_urls};
 
 fn volume_bytes(kind: SampleKind, res: u32) -> Vec<u8> {
     let v = samples::volume(

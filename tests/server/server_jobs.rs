@@ -1,9 +1,7 @@
 //! Bake jobs through the API on both database backends: planning, deduplication, progress
 //! events, cancellation mid-bake, and a dead worker's job taken over after its lease.
 
-#[path = "common/server.rs"]
-mod server;
-
+use crate::server_harness::{TestServer, database_urls};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::package::Package;
@@ -12,7 +10,6 @@ use mesobake_package::grid::Dims;
 use mesobake_server::spawn_workers;
 use object_store::ObjectStoreExt;
 use serde_json::{Value, json};
-use server::{TestServer, database_urls};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};

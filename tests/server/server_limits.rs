@@ -4,9 +4,7 @@
 //! and idle clients, readiness of a store that refuses writes, HTTP validators and ranges,
 //! keys on HEAD and /metrics, and JSON error bodies for every rejection.
 
-#[path = "common/server.rs"]
-mod server;
-
+use crate::server_harness::{TestServer, database_urls};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_core::limits::Limits;
@@ -14,7 +12,6 @@ use mesobake_package::grid::Dims;
 use mesobake_server::config::ServerConfig;
 use mesobake_server::db::{PackageRow, now_ms};
 use serde_json::{Value, json};
-use server::{TestServer, database_urls};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;

@@ -1,0 +1,15 @@
+//! Bakes and packages (`mesobake-bake` over the format crate): the GDM, VDM and samples against
+//! analytic references, the truncated SVD, packages, explicit geometry, bad input. One test binary
+//! per crate under test, so that the suite links few; one module per subject.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod bad_input;
+mod explicit;
+mod gdm_exact;
+mod gdm_fast;
+mod package;
+mod samples;
+mod svd;
+mod vdm;

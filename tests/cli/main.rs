@@ -1,0 +1,10 @@
+//! The command line (the `mesobake` binary) end to end. One test binary per crate under test, so
+//! that the suite links few; one module per subject.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod cli;
+mod cli_package;
+mod cli_preview;
+mod cli_render;
