@@ -114,7 +114,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Vdm(args) => vdm::vdm(args, &limits),
         Command::Relief(args) => vdm::relief(args, &limits),
         Command::Bake(args) => package::bake(args, &limits),
-        Command::Fetch(args) => package::fetch(args),
+        Command::Fetch(args) => package::fetch(args, &limits),
         Command::Unpack(args) => package::unpack(args, &limits),
         Command::Demo(args) => sample::demo(args, &limits),
         Command::Render(args) => render::render(args, &limits),

@@ -66,7 +66,7 @@ pub fn bake(args: BakeArgs, limits: &Limits) -> Result<()> {
         return bake_scene(scene, &args, limits);
     }
     if let Some(server) = &args.server {
-        return bake_on_server(server, args.api_key.clone(), &args);
+        return bake_on_server(server, args.api_key.clone(), &args, limits);
     }
     bake_input(&args, limits)
 }
@@ -136,7 +136,12 @@ fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
 }
 
 /// `bake --server`: upload, follow the job, download and verify.
-fn bake_on_server(server: &str, api_key: Option<String>, args: &BakeArgs) -> Result<()> {
+fn bake_on_server(
+    server: &str,
+    api_key: Option<String>,
+    args: &BakeArgs,
+    limits: &Limits,
+) -> Result<()> {
     let (bake, out) = (&args.bake, &args.out);
     if args.max_rmse.is_some() || bake.method != Method::Exact || bake.allow_open {
         return Err(Error::InvalidParameter(
@@ -174,7 +179,7 @@ fn bake_on_server(server: &str, api_key: Option<String>, args: &BakeArgs) -> Res
     })?;
     bar.finish();
     let digest = done["package_digest"].as_str().unwrap_or_default();
-    let bytes = client.fetch(digest)?;
+    let bytes = client.fetch(digest, limits)?;
     write_atomic(out, &bytes)?;
     eprintln!(
         "wrote {} ({} bytes, package {digest}) from job {id}",
@@ -293,9 +298,9 @@ pub struct FetchArgs {
 }
 
 /// Downloads, verifies and writes a package.
-pub fn fetch(args: FetchArgs) -> Result<()> {
+pub fn fetch(args: FetchArgs, limits: &Limits) -> Result<()> {
     let client = client(&args.server, args.api_key)?;
-    let bytes = client.fetch(&args.digest)?;
+    let bytes = client.fetch(&args.digest, limits)?;
     write_atomic(&args.out, &bytes)?;
     eprintln!(
         "wrote {} ({} bytes, verified)",
@@ -327,7 +332,7 @@ pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
     let bytes = read_bounded(&args.package, "package", limits.memory_bytes)?;
     let context = |e: mesobake_package::Error| Error::from(e).context(args.package.display());
     if container::format(&bytes).map_err(context)? == VDM_FORMAT_NAME {
-        let pkg = VdmPackage::parse(bytes).map_err(context)?;
+        let pkg = VdmPackage::parse_within(bytes, limits.memory_bytes).map_err(context)?;
         if args.exr.is_some() {
             return Err(Error::InvalidParameter(
                 "--exr writes a GDM package's factor maps; this is a VDM package".into(),
@@ -348,7 +353,7 @@ pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
             pkg.section(name)
         });
     }
-    let pkg = Package::parse(bytes).map_err(|e| e.context(args.package.display()))?;
+    let pkg = Package::parse_within(bytes, limits).map_err(|e| e.context(args.package.display()))?;
     if let Some(out) = &args.out {
         write_gdm(&pkg.reconstruct(limits)?, out)?;
     }

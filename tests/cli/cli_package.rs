@@ -343,3 +343,40 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
         "a failed bake keeps the old package"
     );
 }
+
+/// A small package that reads into far more memory than its size (an empty 256³ occupancy
+/// field, stored supercompressed: 16 MiB of texels, 64 MiB decoded) is refused by every command
+/// that reads packages under a 64 MiB limit, before it allocates, naming the limit; nothing is
+/// written.
+#[test]
+fn a_package_that_reads_into_more_than_the_memory_limit_is_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let bomb = dir.path().join("bomb.mbpkg");
+    let bytes = crate::package_support::empty_occupancy(256);
+    assert!(bytes.len() < 1 << 20, "{} bytes", bytes.len());
+    std::fs::write(&bomb, &bytes).unwrap();
+    let (npy, png) = (dir.path().join("x.npy"), dir.path().join("x.png"));
+    let scene = small_scene(dir.path());
+    let limit = ["--memory-limit", "64MiB"];
+    let unpack = [&limit[..], &["unpack", bomb.to_str().unwrap(), "--out", npy.to_str().unwrap()]];
+    let render = [
+        &limit[..],
+        &["render", "--scene", scene.to_str().unwrap(), "--package", bomb.to_str().unwrap()],
+        &["--out", png.to_str().unwrap()],
+    ];
+    for args in [unpack.concat(), render.concat()] {
+        let out = crate::common::mesobake(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains("over the memory limit of 67108864 bytes"),
+            "{args:?}: {stderr}"
+        );
+    }
+    assert!(!npy.exists() && !png.exists());
+    // Under the default limit it reads, and is then refused for what it is: another grid.
+    let out = crate::common::mesobake(&render.concat()[2..]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("256x256x256 grid"), "{stderr}");
+}

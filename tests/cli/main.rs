@@ -3,6 +3,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../../crates/mesobake-package/tests/support/mod.rs"]
+mod package_support;
 
 mod cli;
 mod cli_package;

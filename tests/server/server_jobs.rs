@@ -724,6 +724,35 @@ async fn the_ci_client_bakes_on_the_server_and_verifies_downloads() {
     .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(std::fs::read(&fetched).unwrap(), bytes);
+    // Under a memory limit below the download (refused from its Content-Length) or below
+    // what reading it takes (the file fits, its decoded sections do not): refused by name,
+    // and the file already there is left as it was.
+    for limit in [bytes.len() as u64 - 1, bytes.len() as u64] {
+        let o = run(
+            [
+                "--memory-limit",
+                &limit.to_string(),
+                "fetch",
+                "--server",
+                &server,
+                &digest,
+                "--out",
+                fetched.to_str().unwrap(),
+            ]
+            .map(String::from)
+            .to_vec(),
+            Some(key.clone()),
+        )
+        .await
+        .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains(&format!("over the memory limit of {limit} bytes")),
+            "{stderr}"
+        );
+        assert_eq!(std::fs::read(&fetched).unwrap(), bytes);
+    }
     let missing = "1".repeat(64);
     let o = run(
         [

@@ -75,6 +75,15 @@ impl From<mesobake_package::Error> for Error {
         match e {
             mesobake_package::Error::InvalidParameter(m) => Error::InvalidParameter(m),
             mesobake_package::Error::Package(m) => Error::Package(m),
+            mesobake_package::Error::MemoryLimit {
+                what,
+                needed,
+                limit,
+            } => Error::MemoryLimit {
+                what,
+                needed,
+                limit,
+            },
             mesobake_package::Error::Io { path, source } => Error::Io { path, source },
         }
     }

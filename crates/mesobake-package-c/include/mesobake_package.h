@@ -124,8 +124,10 @@ typedef struct MbpkgSection {
 extern "C" {
 #endif // __cplusplus
 
-// Opens and validates the package at `path`, refusing files over `max_bytes`. Returns null
-// on failure, with the reason in `error` (truncated to `error_len` bytes, NUL-terminated).
+// Opens and validates the package at `path`, refusing before allocating a file over
+// `max_bytes` or a package whose reading (the file, its sections inflated and decoded) would
+// take more memory than that. Returns null on failure, with the reason in `error` (truncated
+// to `error_len` bytes, NUL-terminated).
 //
 // # Safety
 // `path` is a NUL-terminated string; `error` is null or has `error_len` writable bytes.
@@ -134,12 +136,16 @@ struct MbpkgPackage *mbpkg_open(const char *path,
                                 char *error,
                                 size_t error_len);
 
-// Validates the `len` bytes at `bytes` as a package (copying them). Returns null on failure,
-// with the reason in `error`.
+// Validates the `len` bytes at `bytes` as a package (copying them), within `max_bytes` of
+// memory as for [`mbpkg_open`]. Returns null on failure, with the reason in `error`.
 //
 // # Safety
 // `bytes` points to `len` readable bytes; `error` is null or has `error_len` writable bytes.
-struct MbpkgPackage *mbpkg_parse(const uint8_t *bytes, size_t len, char *error, size_t error_len);
+struct MbpkgPackage *mbpkg_parse(const uint8_t *bytes,
+                                 size_t len,
+                                 uint64_t max_bytes,
+                                 char *error,
+                                 size_t error_len);
 
 // Closes a package opened by [`mbpkg_open`] or [`mbpkg_parse`] (null is ignored).
 //

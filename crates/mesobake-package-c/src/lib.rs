@@ -156,8 +156,10 @@ fn finish(
     }
 }
 
-/// Opens and validates the package at `path`, refusing files over `max_bytes`. Returns null
-/// on failure, with the reason in `error` (truncated to `error_len` bytes, NUL-terminated).
+/// Opens and validates the package at `path`, refusing before allocating a file over
+/// `max_bytes` or a package whose reading (the file, its sections inflated and decoded) would
+/// take more memory than that. Returns null on failure, with the reason in `error` (truncated
+/// to `error_len` bytes, NUL-terminated).
 ///
 /// # Safety
 /// `path` is a NUL-terminated string; `error` is null or has `error_len` writable bytes.
@@ -180,8 +182,8 @@ pub unsafe extern "C" fn mbpkg_open(
     finish(result, error, error_len)
 }
 
-/// Validates the `len` bytes at `bytes` as a package (copying them). Returns null on failure,
-/// with the reason in `error`.
+/// Validates the `len` bytes at `bytes` as a package (copying them), within `max_bytes` of
+/// memory as for [`mbpkg_open`]. Returns null on failure, with the reason in `error`.
 ///
 /// # Safety
 /// `bytes` points to `len` readable bytes; `error` is null or has `error_len` writable bytes.
@@ -189,15 +191,20 @@ pub unsafe extern "C" fn mbpkg_open(
 pub unsafe extern "C" fn mbpkg_parse(
     bytes: *const u8,
     len: usize,
+    max_bytes: u64,
     error: *mut c_char,
     error_len: usize,
 ) -> *mut MbpkgPackage {
     if bytes.is_null() {
         return finish(Err("the bytes are null".into()), error, error_len);
     }
+    if len as u64 > max_bytes {
+        let message = format!("the package's {len} bytes are over the limit of {max_bytes}");
+        return finish(Err(message), error, error_len);
+    }
     // SAFETY: the caller passes len readable bytes.
     let bytes = unsafe { std::slice::from_raw_parts(bytes, len) }.to_vec();
-    finish(open(Package::parse(bytes)), error, error_len)
+    finish(open(Package::parse_within(bytes, max_bytes)), error, error_len)
 }
 
 /// Closes a package opened by [`mbpkg_open`] or [`mbpkg_parse`] (null is ignored).

@@ -174,4 +174,20 @@ fn a_c_program_reads_packages_like_the_rust_reader() {
         assert!(printed.starts_with("error: package: "), "{printed}");
     }
     assert!(hits > 500, "both codecs report hits ({hits})");
+
+    // A small file that reads into far more memory (an empty 256³ occupancy field, stored
+    // supercompressed): refused by its memory needs, under a limit the file itself is far below.
+    let bytes = support::empty_occupancy(256);
+    assert!(bytes.len() < 1 << 20, "{} bytes", bytes.len());
+    let path = dir.path().join("bomb.mbpkg");
+    std::fs::write(&path, &bytes).unwrap();
+    let out = Command::new(&program)
+        .args([path.as_os_str(), "67108864".as_ref()])
+        .output()
+        .unwrap();
+    let printed = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(out.status.code(), Some(1), "{printed}");
+    assert!(printed.contains("over the memory limit of 67108864 bytes"), "{printed}");
+    let out = Command::new(&program).arg(&path).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
 }

@@ -5,21 +5,38 @@
  * reader's. */
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "mesobake_package.h"
 
 int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: reader PACKAGE\n");
+    if (argc != 2 && argc != 3) {
+        fprintf(stderr, "usage: reader PACKAGE [MAX_BYTES]\n");
         return 2;
     }
+    uint64_t max_bytes = argc == 3 ? strtoull(argv[2], NULL, 10) : (uint64_t)1 << 30;
     char error[256];
-    MbpkgPackage *package = mbpkg_open(argv[1], (uint64_t)1 << 30, error, sizeof error);
+    MbpkgPackage *package = mbpkg_open(argv[1], max_bytes, error, sizeof error);
     if (package == NULL) {
         printf("error: %s\n", error);
         return 1;
     }
+    /* The same bytes in memory: mbpkg_parse gives the same package, and refuses them under a
+       limit below their size. */
+    FILE *file = fopen(argv[1], "rb");
+    if (file == NULL) return 9;
+    fseek(file, 0, SEEK_END);
+    size_t len = (size_t)ftell(file);
+    fseek(file, 0, SEEK_SET);
+    uint8_t *data = malloc(len);
+    if (data == NULL || fread(data, 1, len, file) != len) return 9;
+    fclose(file);
+    MbpkgPackage *copy = mbpkg_parse(data, len, max_bytes, error, sizeof error);
+    if (copy == NULL || mbpkg_section_count(copy) != mbpkg_section_count(package)) return 10;
+    mbpkg_close(copy);
+    if (mbpkg_parse(data, len, len - 1, error, sizeof error) != NULL) return 11;
+    free(data);
     MbpkgGrid grid = mbpkg_grid(package);
     printf("codec %u\n", (unsigned)mbpkg_codec(package));
     printf("grid %ux%ux%u dirs %ux%u\n", grid.res[0], grid.res[1], grid.res[2], grid.dirs[0],

@@ -307,11 +307,42 @@ pub struct Contents {
     inflated: Vec<Option<Vec<u8>>>,
 }
 
+/// The most memory reading a package of `file_len` bytes with `sections` takes, from its
+/// manifest alone: the file, its supercompressed sections inflated, and every section's texels
+/// decoded to f32 per channel (no reader of the format decodes a texel to more) — saturating,
+/// so that a manifest claiming absurd sizes gives `u64::MAX`.
+pub fn memory_needed(file_len: u64, sections: &[Section]) -> u64 {
+    sections.iter().fold(file_len, |sum, s| {
+        let t = &s.texture;
+        let texels = (t.width as u64)
+            .saturating_mul(t.height as u64)
+            .saturating_mul(t.depth as u64);
+        let decoded = texels.saturating_mul(4 * t.format.channels() as u64);
+        let inflated = match s.supercompression {
+            Some(_) => texels.saturating_mul(t.format.texel_bytes() as u64),
+            None => 0,
+        };
+        sum.saturating_add(decoded).saturating_add(inflated)
+    })
+}
+
 impl Contents {
     /// Inflates the supercompressed ones among `sections` (the manifest's, as [`parse`]
     /// returned it from `file`), refusing a stream that is not valid or does not hold exactly
-    /// its texture.
-    pub fn inflate(file: Vec<u8>, sections: &[Section]) -> Result<Contents> {
+    /// its texture, and first refusing a package whose reading would take more than
+    /// `max_memory` bytes ([`memory_needed`]).
+    pub fn inflate(file: Vec<u8>, sections: &[Section], max_memory: u64) -> Result<Contents> {
+        let needed = memory_needed(file.len() as u64, sections);
+        if needed > max_memory {
+            return Err(Error::MemoryLimit {
+                what: format!(
+                    "reading this package (its {} bytes, its sections inflated and decoded)",
+                    file.len()
+                ),
+                needed,
+                limit: max_memory,
+            });
+        }
         let mut inflated_bytes = 0u64;
         for s in sections.iter().filter(|s| s.supercompression.is_some()) {
             let texels = s.texture.byte_len();

@@ -9,6 +9,17 @@ pub enum Error {
     /// A parameter (resolution, direction grid, option value) is out of its valid range.
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),
+    /// Reading a package would take more memory than the caller allows; refused before
+    /// allocating.
+    #[error("{what} would need {needed} bytes, over the memory limit of {limit} bytes")]
+    MemoryLimit {
+        /// What was about to be allocated.
+        what: String,
+        /// Bytes it would take.
+        needed: u64,
+        /// The caller's limit.
+        limit: u64,
+    },
     /// A package is malformed, corrupt or of an unsupported version.
     #[error("package: {0}")]
     Package(String),

@@ -42,6 +42,10 @@ use quantize::QuantizedFactor;
 use std::path::Path;
 use svd::{SvdFactors, SvdGdm};
 
+/// The memory limit of `parse` (every kind's): 4 GiB, mesobake's default `--memory-limit`;
+/// `parse_within` takes the caller's.
+pub const DEFAULT_MAX_MEMORY: u64 = 4 << 30;
+
 /// A validated package in memory.
 #[derive(Debug)]
 pub struct Package {
@@ -226,8 +230,14 @@ impl Package {
     /// it describes (grids, the codec's entry, ranks, decode parameters, every section's
     /// texture shape, an occupancy field's distances, the radiance transfer's sections).
     pub fn parse(bytes: Vec<u8>) -> Result<Package> {
+        Package::parse_within(bytes, DEFAULT_MAX_MEMORY)
+    }
+
+    /// [`Package::parse`], refusing before allocating a package whose reading would take more
+    /// than `max_memory` bytes ([`container::memory_needed`]).
+    pub fn parse_within(bytes: Vec<u8>, max_memory: u64) -> Result<Package> {
         let manifest: Manifest = container::parse(&bytes)?;
-        let contents = Contents::inflate(bytes, &manifest.sections)?;
+        let contents = Contents::inflate(bytes, &manifest.sections, max_memory)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
         let [x, y, z] = manifest.bake.res;
         let dims = Dims::new(x, y, z).map_err(|e| bad(e.to_string()))?;
@@ -282,10 +292,10 @@ impl Package {
         Ok(package)
     }
 
-    /// Reads and validates the package at `path`, refusing files over `max_bytes` before
-    /// reading them.
+    /// Reads and validates the package at `path`, refusing before reading a file over
+    /// `max_bytes` and before decoding one whose reading would take more memory than that.
     pub fn read(path: &Path, max_bytes: u64) -> Result<Package> {
-        Package::parse(read_limited(path, max_bytes)?)
+        Package::parse_within(read_limited(path, max_bytes)?, max_bytes)
     }
 
     /// The manifest.

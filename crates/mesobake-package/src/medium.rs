@@ -240,8 +240,14 @@ impl MediumPackage {
     /// section's texture and decode parameters, and every decoded value (opacity in [0, 1],
     /// colour finite and ≥ 0, normals finite).
     pub fn parse(bytes: Vec<u8>) -> Result<MediumPackage> {
+        MediumPackage::parse_within(bytes, crate::DEFAULT_MAX_MEMORY)
+    }
+
+    /// `parse`, refusing before allocating a package whose reading would take more than
+    /// `max_memory` bytes ([`container::memory_needed`]).
+    pub fn parse_within(bytes: Vec<u8>, max_memory: u64) -> Result<MediumPackage> {
         let manifest: MediumManifest = container::parse(&bytes)?;
-        let contents = Contents::inflate(bytes, &manifest.sections)?;
+        let contents = Contents::inflate(bytes, &manifest.sections, max_memory)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
         manifest.input.check().map_err(bad)?;
         let info = &manifest.medium;
@@ -339,10 +345,10 @@ impl MediumPackage {
         })
     }
 
-    /// Reads and validates the medium package at `path`, refusing files over `max_bytes`
-    /// before reading them.
+    /// Reads and validates the medium package at `path`, refusing before reading a file over
+    /// `max_bytes` and before decoding one whose reading would take more memory than that.
     pub fn read(path: &Path, max_bytes: u64) -> Result<MediumPackage> {
-        MediumPackage::parse(crate::read_limited(path, max_bytes)?)
+        MediumPackage::parse_within(crate::read_limited(path, max_bytes)?, max_bytes)
     }
 
     /// The manifest.
@@ -437,7 +443,7 @@ mod tests {
         let manifest: MediumManifest = container::parse(&bytes).unwrap();
         let rewrite = |edit: &dyn Fn(&mut MediumManifest, &mut Vec<Vec<u8>>)| {
             let mut m = manifest.clone();
-            let contents = Contents::inflate(bytes.clone(), &m.sections).unwrap();
+            let contents = Contents::inflate(bytes.clone(), &m.sections, u64::MAX).unwrap();
             let mut payloads: Vec<Vec<u8>> = m
                 .sections
                 .iter()

@@ -447,8 +447,14 @@ impl VdmPackage {
     /// parameters, the ranks, the spectrum, the decode parameters, the accuracy and every
     /// section's texture.
     pub fn parse(bytes: Vec<u8>) -> Result<VdmPackage> {
+        VdmPackage::parse_within(bytes, crate::DEFAULT_MAX_MEMORY)
+    }
+
+    /// `parse`, refusing before allocating a package whose reading would take more than
+    /// `max_memory` bytes ([`container::memory_needed`]).
+    pub fn parse_within(bytes: Vec<u8>, max_memory: u64) -> Result<VdmPackage> {
         let manifest: VdmManifest = container::parse(&bytes)?;
-        let contents = Contents::inflate(bytes, &manifest.sections)?;
+        let contents = Contents::inflate(bytes, &manifest.sections, max_memory)?;
         let bad = |what: String| Error::Package(format!("manifest: {what}"));
         manifest.input.check().map_err(bad)?;
         let ReliefInfo { size, depth } = manifest.relief;
@@ -546,10 +552,10 @@ impl VdmPackage {
             .collect()
     }
 
-    /// Reads and validates the VDM package at `path`, refusing files over `max_bytes` before
-    /// reading them.
+    /// Reads and validates the VDM package at `path`, refusing before reading a file over
+    /// `max_bytes` and before decoding one whose reading would take more memory than that.
     pub fn read(path: &Path, max_bytes: u64) -> Result<VdmPackage> {
-        VdmPackage::parse(crate::read_limited(path, max_bytes)?)
+        VdmPackage::parse_within(crate::read_limited(path, max_bytes)?, max_bytes)
     }
 
     /// The manifest.

@@ -226,3 +226,23 @@ fn radiance_transfer_with_a_bad_value_or_sample_index_is_refused_by_name() {
         assert!(err.to_string().contains(&expected), "{err}");
     }
 }
+
+#[test]
+fn a_package_is_refused_before_allocating_more_than_the_callers_limit() {
+    // An empty 128³ field: 2 MiB of texels stored supercompressed in a small file, decoded to
+    // f32 at most: file + 2 MiB + 8 MiB.
+    let bytes = support::empty_occupancy(128);
+    let file = bytes.len() as u64;
+    assert!(file < 64 << 10, "{file} bytes");
+    let package = Package::parse(bytes.clone()).unwrap();
+    let needed = mesobake_package::container::memory_needed(file, &package.manifest().sections);
+    assert_eq!(needed, file + (2 << 20) + (8 << 20));
+    let err = Package::parse_within(bytes.clone(), needed - 1).unwrap_err();
+    assert!(
+        matches!(err, mesobake_package::Error::MemoryLimit { needed: n, limit, .. }
+            if n == needed && limit == needed - 1),
+        "{err}"
+    );
+    assert!(err.to_string().contains("over the memory limit"), "{err}");
+    assert!(Package::parse_within(bytes, needed).is_ok());
+}

@@ -299,7 +299,8 @@ fn with_section_edited(
 
 /// A supercompressed section whose stream is damaged, with every checksum redone, is refused
 /// naming the section: the stream's own Adler-32 or its length catches what the CRC no longer
-/// can. One that claims a texture larger than a reader inflates is refused before inflating.
+/// can. One that claims a texture larger than a reader inflates is refused before inflating:
+/// by the caller's memory limit, and past it by the format's cap on inflated sections.
 #[test]
 fn damaged_or_oversized_supercompressed_sections_are_refused_by_name() {
     let (w, e) = factors_of(Quantization::U8, true);
@@ -320,6 +321,9 @@ fn damaged_or_oversized_supercompressed_sections_are_refused_by_name() {
     let bad = with_section_edited(&bytes, "vdm.weights.0", |s, _| {
         s["texture"]["depth"] = (1u64 << 28).into();
     });
-    let e = VdmPackage::parse(bad).unwrap_err().to_string();
+    let e = VdmPackage::parse(bad.clone()).unwrap_err().to_string();
+    assert!(e.contains("over the memory limit of 4294967296"), "{e}");
+    // Past any caller's limit, the format's own cap on inflated sections still holds.
+    let e = VdmPackage::parse_within(bad, u64::MAX).unwrap_err().to_string();
     assert!(e.contains("over the limit of 4294967296"), "{e}");
 }

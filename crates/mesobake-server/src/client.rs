@@ -3,11 +3,13 @@
 //! its bytes hash to the digest the server names and that it parses as a package.
 
 use mesobake_bake::compress::quantize::Quantization;
-use mesobake_bake::package::Package;
+use mesobake_bake::package::AnyPackage;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use mesobake_package::grid::{Dims, DirectionGrid};
 use serde_json::{Value, json};
+use std::io::Read;
 use std::path::Path;
 use std::time::Duration;
 
@@ -146,13 +148,30 @@ impl Client {
     }
 
     /// Downloads package `digest`, checks that its bytes hash to the digest and parse as a
-    /// package, and returns them.
-    pub fn fetch(&self, digest: &str) -> Result<Vec<u8>> {
+    /// package of any kind, and returns them; the body and the parse are held to the memory
+    /// limit (a larger `Content-Length` is refused before the body is read).
+    pub fn fetch(&self, digest: &str, limits: &Limits) -> Result<Vec<u8>> {
         let r = self
             .request(reqwest::Method::GET, &format!("/packages/{digest}"))
             .send()
             .map_err(http_error)?;
-        let bytes = answer(r)?.bytes().map_err(http_error)?.to_vec();
+        let r = answer(r)?;
+        let limit = limits.memory_bytes;
+        let too_large = |needed| Error::MemoryLimit {
+            what: format!("downloading package {digest}"),
+            needed,
+            limit,
+        };
+        if let Some(length) = r.content_length().filter(|&n| n > limit) {
+            return Err(too_large(length));
+        }
+        let mut bytes = Vec::new();
+        r.take(limit.saturating_add(1))
+            .read_to_end(&mut bytes)
+            .map_err(|e| Error::InvalidParameter(format!("downloading package {digest}: {e}")))?;
+        if bytes.len() as u64 > limit {
+            return Err(too_large(bytes.len() as u64));
+        }
         let actual = blake3::hash(&bytes).to_hex().to_string();
         if actual != digest {
             return Err(Error::Package(format!(
@@ -160,7 +179,7 @@ impl Client {
                 bytes.len()
             )));
         }
-        Package::parse(bytes.clone())?;
+        AnyPackage::parse_within(bytes.clone(), limits)?;
         Ok(bytes)
     }
 }

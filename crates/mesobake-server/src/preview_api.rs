@@ -59,7 +59,7 @@ fn render_png(
     package: Vec<u8>,
     state: &AppState,
 ) -> Result<(Vec<u8>, &'static str)> {
-    let package = AnyPackage::parse(package)?;
+    let package = AnyPackage::parse_within(package, &state.limits)?;
     let mut scene = scene.clone();
     resolve_assets(&mut scene, &state.blobs)?;
     let loaded = LoadedScene::load(scene, Path::new("/"), &state.limits)?;

@@ -165,7 +165,7 @@ async fn run(state: &AppState, worker: &str, job: Claimed, stop: &AtomicBool) ->
             let (bytes, mut seconds) = bake(&spec, &blobs, &limits, &shared)?;
             shared.stage("store");
             let start = Instant::now();
-            let package = AnyPackage::parse(bytes.clone())?;
+            let package = AnyPackage::parse_within(bytes.clone(), &limits)?;
             let digest = blobs.put(&bytes)?;
             seconds.push(("store".into(), start.elapsed().as_secs_f64()));
             let manifest = package.manifest_json();

@@ -52,23 +52,32 @@ pub enum AnyPackage {
 }
 
 impl AnyPackage {
-    /// Validates `bytes` as the kind of package its manifest names.
+    /// Validates `bytes` as the kind of package its manifest names, within the default
+    /// memory limit.
     pub fn parse(bytes: Vec<u8>) -> Result<AnyPackage> {
+        AnyPackage::parse_within(bytes, &Limits::default())
+    }
+
+    /// Validates `bytes` as the kind of package its manifest names, refusing before
+    /// allocating one whose reading would take more than the memory limit.
+    pub fn parse_within(bytes: Vec<u8>, limits: &Limits) -> Result<AnyPackage> {
+        let max = limits.memory_bytes;
         match container::format(&bytes)?.as_str() {
-            mesobake_package::vdm::VDM_FORMAT_NAME => {
-                Ok(AnyPackage::Vdm(vdm::VdmPackage::parse(bytes)?))
-            }
-            mesobake_package::medium::MEDIUM_FORMAT_NAME => {
-                Ok(AnyPackage::Medium(medium::MediumPackage::parse(bytes)?))
-            }
-            _ => Ok(AnyPackage::Gdm(Package::parse(bytes)?)),
+            mesobake_package::vdm::VDM_FORMAT_NAME => Ok(AnyPackage::Vdm(
+                vdm::VdmPackage::parse_within(bytes, max)?,
+            )),
+            mesobake_package::medium::MEDIUM_FORMAT_NAME => Ok(AnyPackage::Medium(
+                medium::MediumPackage::parse_within(bytes, max)?,
+            )),
+            _ => Ok(AnyPackage::Gdm(Package::parse_within(bytes, limits)?)),
         }
     }
 
-    /// Reads and validates the package at `path`, refusing files over the memory limit.
+    /// Reads and validates the package at `path` within the memory limit (the file, and
+    /// everything reading it allocates).
     pub fn read(path: &Path, limits: &Limits) -> Result<AnyPackage> {
         let bytes = mesobake_core::fs::read_bounded(path, "package", limits.memory_bytes)?;
-        AnyPackage::parse(bytes).map_err(|e| e.context(path.display()))
+        AnyPackage::parse_within(bytes, limits).map_err(|e| e.context(path.display()))
     }
 
     /// The manifest as JSON.
@@ -154,9 +163,16 @@ impl Package {
         Ok(Package(mesobake_package::Package::parse(bytes)?))
     }
 
-    /// Reads and validates the package at `path`, refusing files over the memory limit.
+    /// [`Package::parse`] within the memory limit (the file, and everything reading it
+    /// allocates; [`mesobake_package::Package::parse_within`]).
+    pub fn parse_within(bytes: Vec<u8>, limits: &Limits) -> Result<Package> {
+        let package = mesobake_package::Package::parse_within(bytes, limits.memory_bytes)?;
+        Ok(Package(package))
+    }
+
+    /// Reads and validates the package at `path` within the memory limit.
     pub fn read(path: &Path, limits: &Limits) -> Result<Package> {
-        Package::parse(read_bounded(path, "package", limits.memory_bytes)?)
+        Package::parse_within(read_bounded(path, "package", limits.memory_bytes)?, limits)
     }
 
     /// Refuses a package whose voxel grid is not a scene's `resolution`.

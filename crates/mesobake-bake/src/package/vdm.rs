@@ -61,5 +61,6 @@ pub fn height_field(package: &VdmPackage) -> Result<HeightField> {
 /// Reads and validates the VDM package at `path` within the memory limit.
 pub fn read(path: &Path, limits: &Limits) -> Result<VdmPackage> {
     let bytes = read_bounded(path, "package", limits.memory_bytes)?;
-    VdmPackage::parse(bytes).map_err(|e| Error::from(e).context(path.display()))
+    VdmPackage::parse_within(bytes, limits.memory_bytes)
+        .map_err(|e| Error::from(e).context(path.display()))
 }

@@ -57,6 +57,17 @@ pub fn pillars() -> Vec<u8> {
     encode(dims, dirs, GdmContent::Occupancy(&field))
 }
 
+/// An occupancy package of an empty `side`³ field: a small file (its section is stored
+/// supercompressed) that reads into side³ bytes and decodes to four times that.
+pub fn empty_occupancy(side: u32) -> Vec<u8> {
+    let (dims, dirs) = (
+        Dims::new(side, side, side).unwrap(),
+        DirectionGrid::new(2, 4).unwrap(),
+    );
+    let field = OccupancyField::from_solid(dims, |_, _, _| false);
+    encode(dims, dirs, GdmContent::Occupancy(&field))
+}
+
 /// A paper-svd package on 12×10×6 voxels and 4×8 directions whose factors (rank `rank`,
 /// quantized with `q`) are pseudo-random, W in [0, 4) and E in [0, 1), escape margin 0.1.
 pub fn random_svd(rank: usize, q: Quantization) -> Vec<u8> {
