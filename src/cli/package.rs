@@ -151,7 +151,7 @@ fn bake_on_server(
         ));
     }
     let client = client(server, api_key)?;
-    let asset = client.upload(bake.input()?)?;
+    let asset = client.upload(bake.input()?, limits)?;
     let res = match bake.res {
         Some(r) => r,
         None => {
@@ -353,7 +353,8 @@ pub fn unpack(args: UnpackArgs, limits: &Limits) -> Result<()> {
             pkg.section(name)
         });
     }
-    let pkg = Package::parse_within(bytes, limits).map_err(|e| e.context(args.package.display()))?;
+    let pkg =
+        Package::parse_within(bytes, limits).map_err(|e| e.context(args.package.display()))?;
     if let Some(out) = &args.out {
         write_gdm(&pkg.reconstruct(limits)?, out)?;
     }

@@ -9,7 +9,7 @@ use mesobake_bake::gdm::npy;
 use mesobake_bake::mesostructure::raw_medium::{self, RawFormat};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
-use mesobake_core::fs::write_atomic;
+use mesobake_core::fs::{read_bounded, write_atomic};
 use mesobake_core::limits::Limits;
 use mesobake_core::{Error, Result};
 use mesobake_package::grid::{Dims, DirectionGrid};
@@ -116,7 +116,7 @@ pub fn import(args: ImportArgs, limits: &Limits) -> Result<()> {
         .map_err(|e| Error::io(&input, e))?
         .len();
     raw_medium::check_size(len, res, raw, limits)?;
-    let bytes = std::fs::read(&input).map_err(|e| Error::io(&input, e))?;
+    let bytes = read_bounded(&input, "raw medium", limits.memory_bytes)?;
     let volume = raw_medium::medium_from_raw(&bytes, res, raw, limits)?;
     volume_format::write(&volume, &out)
 }

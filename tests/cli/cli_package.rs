@@ -358,10 +358,24 @@ fn a_package_that_reads_into_more_than_the_memory_limit_is_refused_before_alloca
     let (npy, png) = (dir.path().join("x.npy"), dir.path().join("x.png"));
     let scene = small_scene(dir.path());
     let limit = ["--memory-limit", "64MiB"];
-    let unpack = [&limit[..], &["unpack", bomb.to_str().unwrap(), "--out", npy.to_str().unwrap()]];
+    let unpack = [
+        &limit[..],
+        &[
+            "unpack",
+            bomb.to_str().unwrap(),
+            "--out",
+            npy.to_str().unwrap(),
+        ],
+    ];
     let render = [
         &limit[..],
-        &["render", "--scene", scene.to_str().unwrap(), "--package", bomb.to_str().unwrap()],
+        &[
+            "render",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--package",
+            bomb.to_str().unwrap(),
+        ],
         &["--out", png.to_str().unwrap()],
     ];
     for args in [unpack.concat(), render.concat()] {

@@ -1,6 +1,6 @@
 //! `mesobake render` and `mesobake compare` end to end, and bad scenes.
 
-use crate::common::{each_fails_with, mesobake, succeeds};
+use crate::common::{each_fails_with, mesobake, small_scene, succeeds};
 
 const SCENE: &str = r#"{
   "base_mesh": { "builtin": { "torus": { "segments": [24, 12] } } },
@@ -569,4 +569,80 @@ fn a_scene_path_to_an_endless_device_fails_at_the_limit() {
         vec!["render", "--scene", "/dev/zero", "--out", "x.png"],
         "limit for scene files",
     )]);
+}
+
+/// Every file a command reads goes through the byte limit while reading, not only by the length
+/// the file reports: /dev/zero (length 0, endless) as a scene, each kind of scene input, a
+/// package and a raw medium is refused at once, naming the limit or what is wrong, never read
+/// to the end (which would not come).
+#[test]
+fn endless_files_are_read_only_up_to_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let small = small_scene(dir.path());
+    let scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&small).unwrap()).unwrap();
+    let out = dir.path().join("x.png");
+    let mut cases: Vec<(Vec<String>, &str)> = Vec::new();
+    for (key, value, expected) in [
+        (
+            "mesostructure",
+            serde_json::json!({ "tile": "/dev/zero" }),
+            "over the memory limit",
+        ),
+        (
+            "mesostructure",
+            serde_json::json!({ "height_field": "/dev/zero" }),
+            "over the memory limit",
+        ),
+        (
+            "mesostructure",
+            serde_json::json!({ "volume": "/dev/zero" }),
+            "shorter than the",
+        ),
+        (
+            "base_mesh",
+            serde_json::json!({ "obj": "/dev/zero" }),
+            "over the memory limit",
+        ),
+    ] {
+        let mut s = scene.clone();
+        s[key] = value;
+        let path = dir.path().join(format!("scene{}.json", cases.len()));
+        std::fs::write(&path, s.to_string()).unwrap();
+        let args = [
+            "render",
+            "--scene",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        cases.push((args.map(String::from).to_vec(), expected));
+    }
+    let render = |extra: &[&str]| {
+        let mut args = vec![
+            "render".to_string(),
+            "--out".into(),
+            out.to_str().unwrap().into(),
+        ];
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args
+    };
+    cases.push((
+        render(&["--scene", "/dev/zero"]),
+        "over the 1048576-byte limit",
+    ));
+    let package = ["--scene", small.to_str().unwrap(), "--package", "/dev/zero"];
+    cases.push((render(&package), "over the memory limit"));
+    let unpack = ["unpack", "/dev/zero", "--out", "x.npy"];
+    cases.push((unpack.map(String::from).to_vec(), "over the memory limit"));
+    for (args, expected) in cases {
+        let mut all = vec!["--memory-limit".to_string(), "16MiB".into()];
+        all.extend(args);
+        let all: Vec<&str> = all.iter().map(String::as_str).collect();
+        let o = mesobake(&all);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{all:?}: {stderr}");
+        assert!(stderr.contains(expected), "{all:?}: {stderr}");
+    }
+    assert!(!out.exists());
 }

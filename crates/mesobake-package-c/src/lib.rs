@@ -204,7 +204,11 @@ pub unsafe extern "C" fn mbpkg_parse(
     }
     // SAFETY: the caller passes len readable bytes.
     let bytes = unsafe { std::slice::from_raw_parts(bytes, len) }.to_vec();
-    finish(open(Package::parse_within(bytes, max_bytes)), error, error_len)
+    finish(
+        open(Package::parse_within(bytes, max_bytes)),
+        error,
+        error_len,
+    )
 }
 
 /// Closes a package opened by [`mbpkg_open`] or [`mbpkg_parse`] (null is ignored).

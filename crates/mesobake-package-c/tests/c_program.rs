@@ -187,7 +187,14 @@ fn a_c_program_reads_packages_like_the_rust_reader() {
         .unwrap();
     let printed = String::from_utf8(out.stdout).unwrap();
     assert_eq!(out.status.code(), Some(1), "{printed}");
-    assert!(printed.contains("over the memory limit of 67108864 bytes"), "{printed}");
+    assert!(
+        printed.contains("over the memory limit of 67108864 bytes"),
+        "{printed}"
+    );
     let out = Command::new(&program).arg(&path).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
 }

@@ -39,6 +39,7 @@ use manifest::{
 };
 use occupancy::OccupancyField;
 use quantize::QuantizedFactor;
+use std::io::Read;
 use std::path::Path;
 use svd::{SvdFactors, SvdGdm};
 
@@ -112,20 +113,33 @@ fn occupancy_texture(dims: Dims) -> Texture {
     }
 }
 
-/// The bytes of the file at `path`, refused before reading when over `max_bytes`.
+/// The bytes of the file at `path`, refused when over `max_bytes`: by its length before
+/// reading, and by what it yields while reading (a device such as /dev/zero reports a length
+/// that bounds nothing).
 fn read_limited(path: &Path, max_bytes: u64) -> Result<Vec<u8>> {
     let io = |source| Error::Io {
         path: path.into(),
         source,
     };
-    let len = std::fs::metadata(path).map_err(io)?.len();
-    if len > max_bytes {
-        return Err(Error::Package(format!(
-            "{}: {len} bytes, over the limit of {max_bytes}",
+    let too_large = |len| {
+        Error::Package(format!(
+            "{}: {len} bytes or more, over the limit of {max_bytes}",
             path.display()
-        )));
+        ))
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let len = file.metadata().map_err(io)?.len();
+    if len > max_bytes {
+        return Err(too_large(len));
     }
-    std::fs::read(path).map_err(io)
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(max_bytes.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large(bytes.len() as u64));
+    }
+    Ok(bytes)
 }
 
 /// The texels and texel format of each named section of a validated package, for

@@ -324,6 +324,8 @@ fn damaged_or_oversized_supercompressed_sections_are_refused_by_name() {
     let e = VdmPackage::parse(bad.clone()).unwrap_err().to_string();
     assert!(e.contains("over the memory limit of 4294967296"), "{e}");
     // Past any caller's limit, the format's own cap on inflated sections still holds.
-    let e = VdmPackage::parse_within(bad, u64::MAX).unwrap_err().to_string();
+    let e = VdmPackage::parse_within(bad, u64::MAX)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("over the limit of 4294967296"), "{e}");
 }

@@ -520,24 +520,30 @@ pub fn check_input(found: &InputInfo, scene: &Scene, scene_dir: &Path) -> Result
     )))
 }
 
-/// The identity of `scene`'s mesostructure input, as a manifest records it.
+/// The identity of `scene`'s mesostructure input, as a manifest records it: a file's bytes
+/// (hashed as they stream, never held), or the description of a generated input.
 pub fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
-    let identity = match &scene.mesostructure {
+    let generated = |identity: Vec<u8>| (identity.len() as u64, blake3::hash(&identity));
+    let (bytes, hash) = match &scene.mesostructure {
         MesostructureSource::Sample(_)
         | MesostructureSource::SampleTile(_)
-        | MesostructureSource::Medium(_) => {
+        | MesostructureSource::Medium(_) => generated(
             serde_json::to_vec(&(&scene.mesostructure, scene.resolution))
-                .map_err(|e| Error::Scene(e.to_string()))?
-        }
+                .map_err(|e| Error::Scene(e.to_string()))?,
+        ),
         MesostructureSource::Volume(p)
         | MesostructureSource::Tile(p)
         | MesostructureSource::HeightField(p) => {
             let path = scene_dir.join(p);
-            std::fs::read(&path).map_err(|e| Error::io(path, e))?
+            let io = |e| Error::io(&path, e);
+            let mut hasher = blake3::Hasher::new();
+            let bytes = std::io::copy(&mut std::fs::File::open(&path).map_err(io)?, &mut hasher)
+                .map_err(io)?;
+            (bytes, hasher.finalize())
         }
-        MesostructureSource::Relief(kind) => {
-            reliefs::height_field(*kind, scene.resolution[0], &Limits::default())?.to_png()
-        }
+        MesostructureSource::Relief(kind) => generated(
+            reliefs::height_field(*kind, scene.resolution[0], &Limits::default())?.to_png(),
+        ),
     };
     Ok(InputInfo {
         kind: match scene.mesostructure {
@@ -548,7 +554,7 @@ pub fn input_identity(scene: &Scene, scene_dir: &Path) -> Result<InputInfo> {
             MesostructureSource::Medium(_) => "medium",
         }
         .into(),
-        bytes: identity.len() as u64,
-        blake3: blake3::hash(&identity).to_hex().to_string(),
+        bytes,
+        blake3: hash.to_hex().to_string(),
     })
 }

@@ -64,10 +64,10 @@ impl Client {
         }
     }
 
-    /// Uploads the file at `path` (`.obj`: a mesh tile; otherwise a volume); returns the
-    /// asset's record.
-    pub fn upload(&self, path: &Path) -> Result<Value> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    /// Uploads the file at `path` (`.obj`: a mesh tile; otherwise a volume), read within the
+    /// memory limit; returns the asset's record.
+    pub fn upload(&self, path: &Path, limits: &Limits) -> Result<Value> {
+        let bytes = mesobake_core::fs::read_bounded(path, "upload", limits.memory_bytes)?;
         let is_obj = path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("obj"));

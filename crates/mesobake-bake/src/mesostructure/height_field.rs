@@ -119,7 +119,7 @@ impl HeightField {
 
     /// Reads and decodes the PNG at `path`.
     pub fn read(path: &Path, limits: &Limits) -> Result<HeightField> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bytes = mesobake_core::fs::read_bounded(path, "height field", limits.memory_bytes)?;
         Self::decode_png(&bytes, limits).map_err(|e| e.context(path.display()))
     }
 

@@ -63,9 +63,9 @@ impl AnyPackage {
     pub fn parse_within(bytes: Vec<u8>, limits: &Limits) -> Result<AnyPackage> {
         let max = limits.memory_bytes;
         match container::format(&bytes)?.as_str() {
-            mesobake_package::vdm::VDM_FORMAT_NAME => Ok(AnyPackage::Vdm(
-                vdm::VdmPackage::parse_within(bytes, max)?,
-            )),
+            mesobake_package::vdm::VDM_FORMAT_NAME => {
+                Ok(AnyPackage::Vdm(vdm::VdmPackage::parse_within(bytes, max)?))
+            }
             mesobake_package::medium::MEDIUM_FORMAT_NAME => Ok(AnyPackage::Medium(
                 medium::MediumPackage::parse_within(bytes, max)?,
             )),

@@ -185,11 +185,18 @@ impl BaseMesh {
             self.positions[i].to_array().into_iter().any(too_far)
                 || self.uvs[i].to_array().into_iter().any(too_far)
         });
+        let list = |c: &[f64]| {
+            c.iter()
+                .map(|c| format!("{c:e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
         match far {
             Some(i) => Err(Error::BaseMesh(format!(
-                "vertex {i} lies at {} with UV {}: coordinates beyond ±{MAX_COORDINATE:e} are \
+                "vertex {i} lies at [{}] with UV [{}]: coordinates beyond ±{MAX_COORDINATE:e} are \
                  refused",
-                self.positions[i], self.uvs[i]
+                list(&self.positions[i].to_array()),
+                list(&self.uvs[i].to_array())
             ))),
             None => Ok(()),
         }
@@ -531,6 +538,7 @@ mod tests {
                 e.contains("vertex 2 lies at") && e.contains("beyond ±1e9"),
                 "{e}"
             );
+            assert!(e.contains(&format!("{far}")) && e.len() < 200, "{e}");
         }
         let near = SQUARE.replace("v 1 0 -1", "v 1e9 0 -1e9");
         assert!(BaseMesh::from_obj(&near).is_ok());
