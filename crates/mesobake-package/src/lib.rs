@@ -34,8 +34,8 @@ use container::Contents;
 use gi::RadianceTransfer;
 use grid::{Dims, DirectionGrid};
 use manifest::{
-    BakeInfo, FORMAT_NAME, FactorInfo, GdmCodec, GiInfo, InputInfo, Manifest, OccupancyInfo,
-    Section, TexelFormat, Texture, TextureDimension,
+    BakeInfo, FORMAT_NAME, FactorInfo, GdmCodec, GiInfo, InputInfo, Manifest, Method,
+    OccupancyInfo, Section, TexelFormat, Texture, TextureDimension,
 };
 use occupancy::OccupancyField;
 use quantize::QuantizedFactor;
@@ -258,6 +258,13 @@ impl Package {
         let [n_theta, n_phi] = manifest.bake.dirs;
         let dirs = DirectionGrid::new(n_theta, n_phi).map_err(|e| bad(e.to_string()))?;
         manifest.input.check().map_err(bad)?;
+        if (manifest.bake.method == Method::Fast) != manifest.bake.fast.is_some() {
+            return Err(bad(format!(
+                "bake method {:?} with fast parameters {:?}: the fast method has them, the \
+                 exact one not",
+                manifest.bake.method, manifest.bake.fast
+            )));
+        }
         if let Some(f) = manifest.bake.fast
             && !(f.stride >= 1 && f.max_spread.is_finite() && f.max_spread >= 0.0)
         {
@@ -301,7 +308,17 @@ impl Package {
             dims,
             dirs,
         };
-        package.occupancy().transpose()?;
+        if let Some(field) = package.occupancy().transpose()? {
+            let claimed = package.manifest.occupancy.as_ref().map(|o| o.solid_voxels);
+            if claimed != Some(field.solid_voxels()) {
+                return Err(bad(format!(
+                    "occupancy solid_voxels {} but the field holds {} solid voxels",
+                    claimed.unwrap_or(0),
+                    field.solid_voxels()
+                )));
+            }
+        }
+        package.check_factors_finite()?;
         package.radiance_transfer().transpose()?;
         Ok(package)
     }
@@ -354,6 +371,31 @@ impl Package {
             )
         };
         Some((unpack(&g.weights, rows_w), unpack(&g.eigen, rows_e)))
+    }
+
+    /// Refuses a `paper-svd` factor holding a value that is not finite (a NaN or ±Inf stored
+    /// as f16 or f32; u8 codes are finite by construction).
+    fn check_factors_finite(&self) -> Result<()> {
+        let Some(g) = &self.manifest.gdm else {
+            return Ok(());
+        };
+        for (factor, info) in [("weights", &g.weights), ("eigen", &g.eigen)] {
+            for (bytes, format) in groups(&self.manifest.sections, &self.contents, &info.sections) {
+                let finite = match format.texel_bytes() / format.channels() {
+                    2 => (bytes.chunks_exact(2))
+                        .all(|h| half::f16::from_le_bytes([h[0], h[1]]).is_finite()),
+                    4 => (bytes.chunks_exact(4))
+                        .all(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite()),
+                    _ => true,
+                };
+                if !finite {
+                    return Err(Error::Package(format!(
+                        "the {factor} factor holds a value that is not finite (NaN or ±Inf)"
+                    )));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The decoded `paper-svd` GDM, for queries or a whole reconstruction.

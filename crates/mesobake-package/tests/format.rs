@@ -2,7 +2,7 @@
 //! match closed forms, and corruption is refused.
 
 use mesobake_package::grid::{Dims, DirectionGrid, boundary_distance};
-use mesobake_package::manifest::{GdmCodec, RankChoice};
+use mesobake_package::manifest::{FastParams, GdmCodec, Method, RankChoice};
 use mesobake_package::occupancy::OccupancyField;
 use mesobake_package::quantize::{Quantization, QuantizedFactor};
 use mesobake_package::svd::SvdFactors;
@@ -245,4 +245,65 @@ fn a_package_is_refused_before_allocating_more_than_the_callers_limit() {
     );
     assert!(err.to_string().contains("over the memory limit"), "{err}");
     assert!(Package::parse_within(bytes, needed).is_ok());
+}
+
+#[test]
+fn non_finite_factors_are_refused_in_either_float_format() {
+    for q in [Quantization::F16, Quantization::F32] {
+        assert!(Package::parse(support::random_svd(3, q)).is_ok());
+        let cases: [(fn(&mut Vec<f32>, &mut Vec<f32>), &str); 3] = [
+            (|w, _| w[7] = f32::NAN, "weights"),
+            (|w, _| w[100] = f32::NEG_INFINITY, "weights"),
+            (|_, e| e[5] = f32::INFINITY, "eigen"),
+        ];
+        for (edit, factor) in cases {
+            let e = Package::parse(support::random_svd_with(3, q, edit)).unwrap_err();
+            let e = e.to_string();
+            assert!(
+                e.contains(&format!(
+                    "the {factor} factor holds a value that is not finite"
+                )),
+                "{q:?}: {e}"
+            );
+        }
+    }
+}
+
+#[test]
+fn an_occupancy_count_or_a_bake_method_that_disagrees_with_the_package_is_refused() {
+    let package = Package::parse(support::pillars()).unwrap();
+    let (m, field) = (package.manifest(), package.occupancy().unwrap().unwrap());
+    let encode = |solid_voxels: u64, method: Method, fast: Option<FastParams>| {
+        let mut manifest = m.clone();
+        manifest.occupancy.as_mut().unwrap().solid_voxels = solid_voxels;
+        manifest.bake.method = method;
+        manifest.bake.fast = fast;
+        let payloads = vec![field.bytes().to_vec()];
+        mesobake_package::container::assemble(&mut manifest, &payloads)
+    };
+    let (solid, fast) = (
+        field.solid_voxels(),
+        Some(FastParams {
+            stride: 2,
+            max_spread: 1.0,
+        }),
+    );
+    assert!(Package::parse(encode(solid, Method::Exact, None)).is_ok());
+    assert!(Package::parse(encode(solid, Method::Fast, fast)).is_ok());
+    let e = Package::parse(encode(solid + 1, Method::Exact, None)).unwrap_err();
+    assert!(
+        e.to_string().contains(&format!(
+            "solid_voxels {} but the field holds {solid}",
+            solid + 1
+        )),
+        "{e}"
+    );
+    for (method, fast) in [(Method::Fast, None), (Method::Exact, fast)] {
+        let e = Package::parse(encode(solid, method, fast)).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("the fast method has them, the exact one not"),
+            "{e}"
+        );
+    }
 }

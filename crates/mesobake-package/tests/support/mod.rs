@@ -71,13 +71,24 @@ pub fn empty_occupancy(side: u32) -> Vec<u8> {
 /// A paper-svd package on 12×10×6 voxels and 4×8 directions whose factors (rank `rank`,
 /// quantized with `q`) are pseudo-random, W in [0, 4) and E in [0, 1), escape margin 0.1.
 pub fn random_svd(rank: usize, q: Quantization) -> Vec<u8> {
+    random_svd_with(rank, q, |_, _| {})
+}
+
+/// [`random_svd`] with its factors' values edited by `edit` (weights, eigenmaps) before they
+/// are quantized.
+pub fn random_svd_with(
+    rank: usize,
+    q: Quantization,
+    edit: impl FnOnce(&mut Vec<f32>, &mut Vec<f32>),
+) -> Vec<u8> {
     let (dims, dirs) = (
         Dims::new(12, 10, 6).unwrap(),
         DirectionGrid::new(4, 8).unwrap(),
     );
     let rows = [(12 * 10 * 8) as usize, (6 * 4) as usize];
-    let w: Vec<f32> = (0..rows[0] * rank).map(|n| 4.0 * noise(n)).collect();
-    let e: Vec<f32> = (0..rows[1] * rank).map(|n| noise(n + 99)).collect();
+    let mut w: Vec<f32> = (0..rows[0] * rank).map(|n| 4.0 * noise(n)).collect();
+    let mut e: Vec<f32> = (0..rows[1] * rank).map(|n| noise(n + 99)).collect();
+    edit(&mut w, &mut e);
     let (w, e) = (
         QuantizedFactor::new(&w, rank, q),
         QuantizedFactor::new(&e, rank, q),
