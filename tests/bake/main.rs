@@ -4,6 +4,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../../crates/mesobake-package/tests/support/mod.rs"]
+mod package_support;
 
 mod bad_input;
 mod explicit;

@@ -293,7 +293,7 @@ fn reseal_header(bytes: &mut [u8]) {
 }
 
 /// Replaces the manifest with `edit(manifest)`, keeping every checksum valid.
-fn with_manifest(bytes: &[u8], edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
+pub(crate) fn with_manifest(bytes: &[u8], edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
     let offset = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
     let mut json: serde_json::Value = serde_json::from_slice(&bytes[offset..]).unwrap();
     edit(&mut json);
