@@ -298,7 +298,7 @@ mod tests {
                 for periodic in [false, true] {
                     let mut out = vec![0; n];
                     min_max_pass(&f, &mut out, periodic);
-                    for c in 0..n {
+                    for (c, &got) in out.iter().enumerate() {
                         let expected = (0..n)
                             .map(|p| {
                                 let d = c.abs_diff(p);
@@ -307,7 +307,7 @@ mod tests {
                             })
                             .min()
                             .unwrap();
-                        assert_eq!(out[c], expected, "n {n}, {periodic}, {f:?} at {c}");
+                        assert_eq!(got, expected, "n {n}, {periodic}, {f:?} at {c}");
                     }
                 }
             }

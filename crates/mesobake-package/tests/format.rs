@@ -251,7 +251,8 @@ fn a_package_is_refused_before_allocating_more_than_the_callers_limit() {
 fn non_finite_factors_are_refused_in_either_float_format() {
     for q in [Quantization::F16, Quantization::F32] {
         assert!(Package::parse(support::random_svd(3, q)).is_ok());
-        let cases: [(fn(&mut Vec<f32>, &mut Vec<f32>), &str); 3] = [
+        type Edit = fn(&mut Vec<f32>, &mut Vec<f32>);
+        let cases: [(Edit, &str); 3] = [
             (|w, _| w[7] = f32::NAN, "weights"),
             (|w, _| w[100] = f32::NEG_INFINITY, "weights"),
             (|_, e| e[5] = f32::INFINITY, "eigen"),
