@@ -201,9 +201,9 @@ int32_t mbpkg_distance(const struct MbpkgPackage *package,
 // The RTV's transfer vector at voxel centre (i, j, k) towards the centre of view bin (a, b):
 // writes 48 floats to `out`, per colour channel c the weights t of the 16 SH coefficients l
 // of the light arriving in the vertex's local frame at `out[16·c + l]` (the radiance towards
-// the view is L_c = Σ_l t[16·c + l]·ℓ_local,c,l; see the package format). Returns 1 for an RTV sample voxel, 0 for a voxel that is not one
-// (nothing written), −1 when the package is null, holds no radiance transfer, or a
-// coordinate is off the grids.
+// the view is L_c = Σ_l t[16·c + l]·ℓ_local,c,l; see the package format). Returns 1 for an
+// RTV sample voxel, 0 for a voxel that is not one (nothing written), −1 when the package is
+// null, holds no radiance transfer, or a coordinate is off the grids.
 //
 // # Safety
 // `package` is null or open; `out` is null or has 48 writable floats.

@@ -123,6 +123,14 @@ unsafe fn write_error(message: &str, error: *mut c_char, error_len: usize) {
     }
 }
 
+impl MbpkgPackage {
+    /// Whether voxel (i, j, k) and direction bin (a, b) lie on the package's grids.
+    fn on_grids(&self, [i, j, k]: [u32; 3], [a, b]: [u32; 2]) -> bool {
+        let (d, g) = (self.package.dims(), self.package.dirs());
+        i < d.x && j < d.y && k < d.z && a < g.n_theta && b < g.n_phi
+    }
+}
+
 fn open(package: mesobake_package::Result<Package>) -> Result<Box<MbpkgPackage>, String> {
     let package = package.map_err(|e| e.to_string())?;
     let query = package.query().map_err(|e| e.to_string())?;
@@ -343,13 +351,9 @@ pub unsafe extern "C" fn mbpkg_distance(
     distance: *mut f32,
 ) -> i32 {
     // SAFETY: null or open, by the caller's contract.
-    let Some(p) = (unsafe { package.as_ref() }) else {
+    let Some(p) = (unsafe { package.as_ref() }).filter(|p| p.on_grids([i, j, k], [a, b])) else {
         return -1;
     };
-    let (d, g) = (p.package.dims(), p.package.dirs());
-    if i >= d.x || j >= d.y || k >= d.z || a >= g.n_theta || b >= g.n_phi {
-        return -1;
-    }
     match p.query.distance(i, j, k, a, b) {
         Some(value) => {
             // SAFETY: null or writable, by the caller's contract.
@@ -365,9 +369,9 @@ pub unsafe extern "C" fn mbpkg_distance(
 /// The RTV's transfer vector at voxel centre (i, j, k) towards the centre of view bin (a, b):
 /// writes 48 floats to `out`, per colour channel c the weights t of the 16 SH coefficients l
 /// of the light arriving in the vertex's local frame at `out[16·c + l]` (the radiance towards
-/// the view is L_c = Σ_l t[16·c + l]·ℓ_local,c,l; see the package format). Returns 1 for an RTV sample voxel, 0 for a voxel that is not one
-/// (nothing written), −1 when the package is null, holds no radiance transfer, or a
-/// coordinate is off the grids.
+/// the view is L_c = Σ_l t[16·c + l]·ℓ_local,c,l; see the package format). Returns 1 for an
+/// RTV sample voxel, 0 for a voxel that is not one (nothing written), −1 when the package is
+/// null, holds no radiance transfer, or a coordinate is off the grids.
 ///
 /// # Safety
 /// `package` is null or open; `out` is null or has 48 writable floats.
@@ -382,16 +386,12 @@ pub unsafe extern "C" fn mbpkg_rtv_transfer(
     out: *mut f32,
 ) -> i32 {
     // SAFETY: null or open, by the caller's contract.
-    let Some(p) = (unsafe { package.as_ref() }) else {
+    let Some(p) = (unsafe { package.as_ref() }).filter(|p| p.on_grids([i, j, k], [a, b])) else {
         return -1;
     };
-    let (d, g) = (p.package.dims(), p.package.dirs());
     let Some(transfer) = &p.transfer else {
         return -1;
     };
-    if i >= d.x || j >= d.y || k >= d.z || a >= g.n_theta || b >= g.n_phi {
-        return -1;
-    }
     match transfer.transfer_at_bin([i, j, k], [a, b]) {
         Some(vector) => {
             if !out.is_null() {

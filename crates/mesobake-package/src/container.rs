@@ -312,18 +312,22 @@ pub struct Contents {
 /// decoded to f32 per channel (no reader of the format decodes a texel to more) — saturating,
 /// so that a manifest claiming absurd sizes gives `u64::MAX`.
 pub fn memory_needed(file_len: u64, sections: &[Section]) -> u64 {
-    sections.iter().fold(file_len, |sum, s| {
-        let t = &s.texture;
-        let texels = (t.width as u64)
-            .saturating_mul(t.height as u64)
-            .saturating_mul(t.depth as u64);
-        let decoded = texels.saturating_mul(4 * t.format.channels() as u64);
-        let inflated = match s.supercompression {
-            Some(_) => texels.saturating_mul(t.format.texel_bytes() as u64),
-            None => 0,
-        };
-        sum.saturating_add(decoded).saturating_add(inflated)
-    })
+    (sections.iter()).fold(file_len, |sum, s| sum.saturating_add(section_memory(s)))
+}
+
+/// What reading section `s` takes beyond the file: its texels inflated (when supercompressed)
+/// and decoded to f32 per channel, saturating.
+fn section_memory(s: &Section) -> u64 {
+    let t = &s.texture;
+    let texels = (t.width as u64)
+        .saturating_mul(t.height as u64)
+        .saturating_mul(t.depth as u64);
+    let decoded = texels.saturating_mul(4 * t.format.channels() as u64);
+    let inflated = match s.supercompression {
+        Some(_) => texels.saturating_mul(t.format.texel_bytes() as u64),
+        None => 0,
+    };
+    decoded.saturating_add(inflated)
 }
 
 impl Contents {
@@ -334,10 +338,14 @@ impl Contents {
     pub fn inflate(file: Vec<u8>, sections: &[Section], max_memory: u64) -> Result<Contents> {
         let needed = memory_needed(file.len() as u64, sections);
         if needed > max_memory {
+            let largest = sections.iter().max_by_key(|s| section_memory(s));
             return Err(Error::MemoryLimit {
                 what: format!(
-                    "reading this package (its {} bytes, its sections inflated and decoded)",
-                    file.len()
+                    "reading this package (its {} bytes, its sections inflated and decoded; \
+                     the largest, section {:?}, {} bytes)",
+                    file.len(),
+                    largest.map_or("", |s| &s.name),
+                    largest.map_or(0, section_memory)
                 ),
                 needed,
                 limit: max_memory,
