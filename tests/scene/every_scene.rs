@@ -53,7 +53,7 @@ fn disagreement(
     label: &str,
 ) -> Option<String> {
     let (wgsl, _) = preview(gpu, loaded, package, 0, &()).unwrap();
-    let cpu: Image = render_on_cpu(loaded, package).unwrap();
+    let cpu: Image = render_on_cpu(loaded, package, &()).unwrap();
     let c = compare(&wgsl, &cpu).unwrap();
     eprintln!(
         "{label}: PSNR {:.2} dB, FLIP {:.4}, mask {:.4} %, {} hit pixels (CPU {})",
@@ -146,7 +146,7 @@ fn every_opaque_scene_s_gdm_renders_alike_with_both_codecs_at_every_preset() {
                 match known {
                     Some(&(.., floor)) => {
                         let (wgsl, _) = preview(&gpu, &loaded, &package, 0, &()).unwrap();
-                        let cpu = render_on_cpu(&loaded, &package).unwrap();
+                        let cpu = render_on_cpu(&loaded, &package, &()).unwrap();
                         let psnr = compare(&wgsl, &cpu).unwrap().psnr_db;
                         eprintln!("{label}: {psnr:.2} dB (a known llvmpipe defect)");
                         if psnr < floor {
@@ -195,7 +195,7 @@ fn every_preset_is_at_least_as_close_to_the_truth_as_the_paper_s_algorithm() {
             .iter()
             .map(|preset| {
                 loaded.scene.quality = preset.quality();
-                let image = render_on_cpu(&loaded, &package).unwrap();
+                let image = render_on_cpu(&loaded, &package, &()).unwrap();
                 compare(&truth, &image).unwrap().psnr_db
             })
             .collect();

@@ -46,7 +46,7 @@ fn package(loaded: &LoadedScene) -> AnyPackage {
 
 /// The cells renderer on `loaded`'s package against the cells renderer on its own medium.
 fn package_vs_scene(loaded: &LoadedScene) -> Comparison {
-    let from_package = render_on_cpu(loaded, &package(loaded)).unwrap();
+    let from_package = render_on_cpu(loaded, &package(loaded), &()).unwrap();
     compare(&medium_render_on_cpu(loaded).unwrap(), &from_package).unwrap()
 }
 
@@ -161,7 +161,7 @@ fn an_animated_surface_renders_from_the_same_package_bit_for_bit() {
     // The moved surface renders from it as from its own medium (f16: ≥ 60 dB, as above).
     let c = compare(
         &medium_render_on_cpu(&moved).unwrap(),
-        &render_on_cpu(&moved, &package).unwrap(),
+        &render_on_cpu(&moved, &package, &()).unwrap(),
     )
     .unwrap();
     assert!(c.psnr_db >= 60.0 && c.mask_disagreement == 0.0, "{c:?}");
@@ -301,7 +301,7 @@ fn scenes_and_packages_that_do_not_fit_are_refused_by_name() {
     let flat = package(&load(&fur()));
     let mut filtered = fur();
     filtered["transparency"] = json!({ "mipmap": true });
-    let e = render_on_cpu(&load(&filtered), &flat)
+    let e = render_on_cpu(&load(&filtered), &flat, &())
         .unwrap_err()
         .to_string();
     assert!(e.contains("holds level 0 only"), "{e}");

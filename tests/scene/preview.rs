@@ -59,7 +59,7 @@ fn default_package(loaded: &LoadedScene) -> Package {
 /// The CPU twin: the GDM software renderer on the package (with its RTV and PRT when the
 /// scene calls for environment lighting).
 fn cpu_image(loaded: &LoadedScene, package: &Package) -> Image {
-    gdm_render_on_cpu(loaded, package).unwrap()
+    gdm_render_on_cpu(loaded, package, &()).unwrap()
 }
 
 /// Renders on both and checks the agreement; returns (PSNR, mask disagreement).

@@ -91,7 +91,7 @@ fn every_pipeline_moves_its_rays_to_the_sample_positions_as_its_cpu_twin_does() 
         ] {
             loaded.scene.camera = camera;
             let wgsl = preview(&gpu, &loaded, &package, 0, &()).unwrap().0;
-            let cpu = render_on_cpu(&loaded, &package).unwrap();
+            let cpu = render_on_cpu(&loaded, &package, &()).unwrap();
             let c = compare(&wgsl, &cpu).unwrap();
             let moved = compare(&wgsl, &centred).unwrap();
             eprintln!(

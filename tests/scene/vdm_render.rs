@@ -637,7 +637,7 @@ fn the_compressed_vdm_shadows_no_lit_bump_the_truth_lights() {
     // 0.15 with the top triangles' own frames.
     let (mut loaded, package) = torus_bumps(192, 1, |_| {});
     let images = |loaded: &LoadedScene| {
-        let vdm = mesobake_scene::preview::render_on_cpu(loaded, &package).unwrap();
+        let vdm = mesobake_scene::preview::render_on_cpu(loaded, &package, &()).unwrap();
         (truth_image(loaded), vdm)
     };
     let (truth, vdm) = images(&loaded);
@@ -668,7 +668,7 @@ fn the_refinement_settles_hits_and_silhouettes_on_the_height_field() {
     let truth = truth_image(&loaded);
     let mut at = |texels| {
         loaded.scene.vdm.refine_texels = texels;
-        let image = mesobake_scene::preview::render_on_cpu(&loaded, &package).unwrap();
+        let image = mesobake_scene::preview::render_on_cpu(&loaded, &package, &()).unwrap();
         compare(&truth, &image).unwrap()
     };
     let (lookup, refined) = (at(0), at(16));
@@ -701,7 +701,7 @@ fn shadows_traced_through_the_top_surface_find_the_far_sides_shadows() {
     let shadowed_truth = truth_image(&loaded);
     let vdm = |loaded: &mut LoadedScene, shadows| {
         loaded.scene.vdm.shadows = shadows;
-        mesobake_scene::preview::render_on_cpu(loaded, &package).unwrap()
+        mesobake_scene::preview::render_on_cpu(loaded, &package, &()).unwrap()
     };
     let (local, shell) = (
         vdm(&mut loaded, ShadowMethod::Local),

@@ -147,7 +147,7 @@ fn assert_previews_as_its_cpu_twin(
     let shown = Image::read(&shown).unwrap();
     let scene = Scene::from_json(&scene.to_string()).unwrap();
     let loaded = LoadedScene::load(scene, dir, &Limits::default()).unwrap();
-    let expected = render_on_cpu(&loaded, package).unwrap();
+    let expected = render_on_cpu(&loaded, package, &()).unwrap();
     let c = compare(&expected, &shown).unwrap();
     assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
     assert!(expected.hits() > 48 * 48 / 10 && shown.hits() > 48 * 48 / 10);
@@ -351,12 +351,16 @@ async fn cancellation_stops_a_running_bake() {
         let s = TestServer::start(&url, data.path(), 1 << 26).await;
         let stop = Arc::new(AtomicBool::new(false));
         spawn_workers(&s.state, 1, &stop);
-        // A bake of a few seconds (the GDM dominates; the SVD is checked for a
-        // cancellation only before it starts).
+        // A bake of a few seconds: the paper-svd codec bakes the GDM, which dominates (the
+        // default occupancy codec bakes no GDM, and is done in a quarter of a second).
         let volume = upload(&s, SampleKind::Chain, [128, 128, 32]).await;
         let (_, queued) = submit(
             &s,
-            &json!({ "scene": scene(&volume, [128, 128, 32], [16, 32]) }),
+            &json!({
+                "scene": scene(&volume, [128, 128, 32], [16, 32]),
+                "codec": "paper-svd",
+                "rank": 8
+            }),
         )
         .await;
         let id = queued["id"].as_str().unwrap().to_owned();
@@ -618,6 +622,79 @@ async fn a_preview_past_its_deadline_is_abandoned_with_503() {
     assert!(
         metrics.contains("mesobake_preview_cache_misses_total 2"),
         "{metrics}"
+    );
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_abandoned_preview_is_cancelled_and_frees_the_gpu_at_once() {
+    // A 2048² preview at 16 samples per pixel renders for tens of seconds on a software
+    // driver or the CPU twin. Whether its client goes away or its deadline passes, it must
+    // stop within a frame (a tile), so that the next preview gets the GPU before its
+    // busy_wait_ms runs out; an abandoned render used to keep the GPU to its end.
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "preview_cancel").await.remove(0);
+    let data = tempfile::tempdir().unwrap();
+    let (deadline_ms, busy_wait_ms) = (3_000, 4_000);
+    let s = TestServer::start_with(&url, data.path(), 1 << 24, |c| {
+        c.preview_timeout_ms = deadline_ms;
+        c.busy_wait_ms = busy_wait_ms;
+        c.max_image_side = 8192;
+    })
+    .await;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&s.state, 1, &stop);
+    let volume = upload(&s, SampleKind::Weave, [16, 16, 8]).await;
+    let light = json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]) });
+    let (_, queued) = submit(&s, &light).await;
+    wait_for(&s, queued["id"].as_str().unwrap(), |j| {
+        j["state"] == "succeeded"
+    })
+    .await;
+    let client = reqwest::Client::new();
+    let preview = |spec: &Value, side: u32| {
+        let mut spec = spec.clone();
+        spec["scene"]["camera"]["width"] = side.into();
+        spec["scene"]["camera"]["height"] = side.into();
+        client.post(s.url("/api/v1/preview")).json(&spec)
+    };
+    // Warm up the device, so that opening it is not part of what is timed below.
+    assert_eq!(preview(&light, 8).send().await.unwrap().status(), 200);
+    let mut heavy = light.clone();
+    heavy["scene"]["camera"]["samples_per_pixel"] = 16.into();
+
+    // The client gives up after a second: the render is cancelled with it.
+    let cut = preview(&heavy, 2048)
+        .timeout(Duration::from_secs(1))
+        .send()
+        .await;
+    assert!(cut.is_err_and(|e| e.is_timeout()));
+    let start = Instant::now();
+    let r = preview(&light, 32).send().await.unwrap();
+    assert_eq!(r.status(), 200, "{:?}", r.text().await);
+    let after_disconnect = start.elapsed();
+
+    // The deadline passes: 503, and the render is cancelled.
+    let r = preview(&heavy, 2047).send().await.unwrap();
+    assert_eq!(r.status(), 503);
+    let answer: Value = r.json().await.unwrap();
+    assert!(
+        answer["error"]
+            .as_str()
+            .unwrap()
+            .contains("preview_timeout_ms"),
+        "{answer}"
+    );
+    let start = Instant::now();
+    let r = preview(&light, 33).send().await.unwrap();
+    assert_eq!(r.status(), 200, "{:?}", r.text().await);
+    let after_deadline = start.elapsed();
+    eprintln!(
+        "next preview after a disconnect {after_disconnect:?}, after a deadline {after_deadline:?}"
     );
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }

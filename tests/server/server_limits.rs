@@ -11,6 +11,7 @@ use mesobake_core::limits::Limits;
 use mesobake_package::grid::Dims;
 use mesobake_server::config::ServerConfig;
 use mesobake_server::db::{PackageRow, now_ms};
+use mesobake_server::storage_reserve::free_bytes;
 use serde_json::{Value, json};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -251,24 +252,102 @@ async fn image_headers_are_checked_before_decoding_and_uploads_wait_for_a_slot()
         "refused from the header"
     );
 
-    // One upload holds the only slot (its body never ends); the next waits, then gets 503.
-    let mut slow = TcpStream::connect(s.addr).await.unwrap();
-    slow.write_all(
-        b"POST /api/v1/assets?kind=volume&name=slow.mbvol HTTP/1.1\r\nHost: x\r\n\
+    // The only validation slot is held; the next upload waits for it, then gets 503.
+    let held = s.state.uploads.clone().acquire_owned().await.unwrap();
+    let volume = volume_bytes(SampleKind::Grid, 8);
+    let r = upload(&s, volume.clone()).await;
+    assert_eq!(r.status(), 503);
+    assert_eq!(r.headers()["retry-after"], "1");
+    drop(held);
+    // A body cut short leaves no file; once the slot is free, the same upload goes through.
+    let mut cut = TcpStream::connect(s.addr).await.unwrap();
+    cut.write_all(
+        b"POST /api/v1/assets?kind=volume&name=cut.mbvol HTTP/1.1\r\nHost: x\r\n\
           Content-Length: 100000\r\n\r\npartial",
     )
     .await
     .unwrap();
     tokio::time::sleep(Duration::from_millis(200)).await;
-    let volume = volume_bytes(SampleKind::Grid, 8);
-    let r = upload(&s, volume.clone()).await;
-    assert_eq!(r.status(), 503);
-    assert_eq!(r.headers()["retry-after"], "1");
-    drop(slow);
-    // Once the slot is free, the same upload goes through, and the cut upload left no file.
+    drop(cut);
     tokio::time::sleep(Duration::from_millis(200)).await;
     let r = upload(&s, volume).await;
     assert_eq!(r.status(), 201);
+    let tmp = dir.path().join("data/blobs/tmp");
+    let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().collect();
+    assert!(left.is_empty(), "temporary upload files left: {left:?}");
+}
+
+/// Opens an upload of `len` bytes and sends its body a byte every `every` until the server
+/// answers or closes (or 10 s pass); returns the answer.
+async fn drip_upload(addr: std::net::SocketAddr, len: u32, every: Duration) -> String {
+    let mut tcp = TcpStream::connect(addr).await.unwrap();
+    let head = format!(
+        "POST /api/v1/assets?kind=volume&name=slow.mbvol HTTP/1.1\r\nHost: x\r\n\
+         Content-Length: {len}\r\n\r\n"
+    );
+    tcp.write_all(head.as_bytes()).await.unwrap();
+    let mut got = Vec::new();
+    let mut buf = [0u8; 4096];
+    let give_up = tokio::time::sleep(Duration::from_secs(10));
+    tokio::pin!(give_up);
+    loop {
+        tokio::select! {
+            () = &mut give_up => break,
+            read = tcp.read(&mut buf) => match read {
+                Ok(0) | Err(_) => break,
+                Ok(n) => got.extend_from_slice(&buf[..n]),
+            },
+            () = tokio::time::sleep(every) => {
+                if tcp.write_all(b"x").await.is_err() {
+                    break;
+                }
+            }
+        }
+    }
+    String::from_utf8_lossy(&got).into_owned()
+}
+
+#[tokio::test]
+async fn slow_upload_bodies_hold_no_slot_and_are_cut_at_the_minimum_rate() {
+    // Four clients dripping a byte every 200 ms (each part within body_read_timeout_ms) once
+    // held every upload slot indefinitely. Now the slot is taken once the body is there, and
+    // a body behind `min_upload_bytes_per_s` after its first `body_read_timeout_ms` gets 408.
+    let dir = tempfile::tempdir().unwrap();
+    let s = start(dir.path(), |c| {
+        c.max_concurrent_uploads = 1;
+        c.busy_wait_ms = 300;
+        c.body_read_timeout_ms = 1_500;
+        c.min_upload_bytes_per_s = 100;
+    })
+    .await;
+    let started = Instant::now();
+    let drips: Vec<_> = (0..4)
+        .map(|_| tokio::spawn(drip_upload(s.addr, 100_000, Duration::from_millis(200))))
+        .collect();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let r = upload(&s, volume_bytes(SampleKind::Grid, 8)).await;
+    assert_eq!(r.status(), 201, "an upload beside four slow ones");
+    for drip in drips {
+        let answer = drip.await.unwrap();
+        assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+        assert!(answer.contains("min_upload_bytes_per_s"), "{answer}");
+    }
+    let cut_after = started.elapsed();
+    assert!(
+        cut_after < Duration::from_secs(6),
+        "the slow bodies were cut after {cut_after:?}"
+    );
+
+    // A body that keeps the pace but not the whole-request deadline: 408 too.
+    let dir = tempfile::tempdir().unwrap();
+    let s = start(dir.path(), |c| {
+        c.min_upload_bytes_per_s = 0;
+        c.upload_timeout_ms = 1_000;
+    })
+    .await;
+    let answer = drip_upload(s.addr, 100_000, Duration::from_millis(100)).await;
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    assert!(answer.contains("upload_timeout_ms"), "{answer}");
     let tmp = dir.path().join("data/blobs/tmp");
     let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().collect();
     assert!(left.is_empty(), "temporary upload files left: {left:?}");
@@ -383,6 +462,69 @@ async fn a_blob_store_that_refuses_writes_is_not_ready() {
         !body.contains(&*data.to_string_lossy()),
         "no server paths: {body}"
     );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_disk_short_of_its_reserve_answers_507_and_recovers_by_itself() {
+    // The reserve is set 256 MiB under what is free now; a file of 768 MiB (allocated, not
+    // sparse) then takes the disk below it, as a filling disk would.
+    let dir = tempfile::tempdir().unwrap();
+    let free = free_bytes(dir.path()).unwrap();
+    let s = start(dir.path(), |c| c.min_free_bytes = free - (256 << 20)).await;
+    let ready = || async {
+        let r = reqwest::get(s.url("/readyz")).await.unwrap();
+        (r.status().as_u16(), r.text().await.unwrap())
+    };
+    assert_eq!(ready().await.0, 200);
+    // A job queued before the disk fills, for the worker started below.
+    let job = json!({ "scene": scene() });
+    let (status, queued, _) = post_json(&s, "/api/v1/jobs", &job).await;
+    assert_eq!(status, 202, "{queued}");
+
+    let filler = dir.path().join("filler");
+    let file = std::fs::File::create(&filler).unwrap();
+    rustix::fs::fallocate(&file, rustix::fs::FallocateFlags::empty(), 0, 768 << 20).unwrap();
+    drop(file);
+    let (status, body) = ready().await;
+    assert_eq!(status, 503, "{body}");
+    assert!(body.contains("min_free_bytes"), "{body}");
+    let r = upload(&s, volume_bytes(SampleKind::Grid, 8)).await;
+    assert_eq!(r.status(), 507);
+    let answer = r.text().await.unwrap();
+    assert!(answer.contains("min_free_bytes"), "{answer}");
+    let other = json!({ "scene": scene(), "codec": "paper-svd", "rank": 4 });
+    let (status, answer, _) = post_json(&s, "/api/v1/jobs", &other).await;
+    assert_eq!(status, 507, "{answer}");
+    // The worker claims nothing while the disk is short.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    mesobake_server::spawn_workers(&s.state, 1, &stop);
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let job_state = || async {
+        let url = s.url(&format!("/api/v1/jobs/{}", queued["id"].as_str().unwrap()));
+        let job: Value = reqwest::get(url).await.unwrap().json().await.unwrap();
+        job["state"].as_str().unwrap().to_owned()
+    };
+    assert_eq!(job_state().await, "queued");
+
+    // Space freed: everything works again, with nothing restarted.
+    std::fs::remove_file(&filler).unwrap();
+    assert_eq!(ready().await.0, 200);
+    assert_eq!(
+        upload(&s, volume_bytes(SampleKind::Grid, 8)).await.status(),
+        201
+    );
+    let (status, answer, _) = post_json(&s, "/api/v1/jobs", &other).await;
+    assert_eq!(status, 202, "{answer}");
+    let waited = Instant::now();
+    while job_state().await != "succeeded" {
+        assert!(
+            waited.elapsed() < Duration::from_secs(60),
+            "{}",
+            job_state().await
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
 #[tokio::test]

@@ -48,7 +48,6 @@ pub enum Error {
     /// No GPU adapter, or the GPU refused a resource or a pipeline.
     #[error("GPU: {0}")]
     Gpu(String),
-    /// The database refused or failed a query.
     /// The adapter cuts loops short (see `Gpu::loop_budget`), and the render needed or
     /// may need more.
     #[error(
@@ -63,8 +62,12 @@ pub enum Error {
         /// What needed more: "150 pixels needed more (…)".
         what: String,
     },
+    /// The database refused or failed a query.
     #[error("database: {0}")]
     Database(String),
+    /// The storage of the database or the files is full (or below the reserve kept free).
+    #[error("storage full: {0}")]
+    StorageFull(String),
     /// The caller asked the operation to stop.
     #[error("cancelled")]
     Cancelled,
@@ -107,6 +110,7 @@ impl Error {
             Error::Package(m) => Error::Package(with(m)),
             Error::Gpu(m) => Error::Gpu(with(m)),
             Error::Database(m) => Error::Database(with(m)),
+            Error::StorageFull(m) => Error::StorageFull(with(m)),
             e @ (Error::MemoryLimit { .. }
             | Error::Io { .. }
             | Error::LoopBudget { .. }

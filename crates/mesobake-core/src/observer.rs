@@ -15,3 +15,20 @@ pub trait BakeObserver: Sync {
 
 /// The observer that ignores everything.
 impl BakeObserver for () {}
+
+/// Another observer's cancellation alone: for work inside a stage whose progress that
+/// observer counts in other units (a preview's frames, not the tiles of each).
+pub struct CancellationOf<'a>(pub &'a dyn BakeObserver);
+
+impl BakeObserver for CancellationOf<'_> {
+    fn cancelled(&self) -> bool {
+        self.0.cancelled()
+    }
+}
+
+/// A flag as an observer: cancelled once it is set.
+impl BakeObserver for std::sync::atomic::AtomicBool {
+    fn cancelled(&self) -> bool {
+        self.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}

@@ -13,7 +13,7 @@ use mesobake_bake::package::{AnyPackage, Package};
 use mesobake_bake::vdm::Relief;
 use mesobake_core::camera::Camera;
 use mesobake_core::error::{Error, Result};
-use mesobake_core::observer::BakeObserver;
+use mesobake_core::observer::{BakeObserver, CancellationOf};
 use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
 use mesobake_gpu::medium_pipeline::MediumPreview;
@@ -25,7 +25,7 @@ use mesobake_render::gdm_lookup::package_lookup;
 use mesobake_render::gdm_renderer::GdmRenderer;
 use mesobake_render::image::Image;
 use mesobake_render::medium_cells::CellRenderer;
-use mesobake_render::render_image;
+use mesobake_render::render_image_observed;
 use mesobake_render::sampling::supersample;
 use mesobake_render::vdm_renderer::VdmRenderer;
 use serde::{Deserialize, Serialize};
@@ -102,7 +102,7 @@ impl PreviewDevice {
     ) -> Result<(Image, PreviewOutcome)> {
         self.run(
             |gpu| preview(gpu, loaded, package, frames, observer),
-            || render_on_cpu(loaded, package),
+            || render_on_cpu(loaded, package, &CancellationOf(observer)),
             frames,
             observer,
         )
@@ -167,16 +167,21 @@ pub struct PreviewOutcome {
 
 /// The real-time pipeline's CPU twin, the specification the WGSL follows: the GDM software
 /// renderer on a GDM package ([`gdm_render_on_cpu`]), the VDM software renderer on a VDM
-/// package, the cells renderer on a medium package's levels.
-pub fn render_on_cpu(loaded: &LoadedScene, package: &AnyPackage) -> Result<Image> {
+/// package, the cells renderer on a medium package's levels. Stops with
+/// [`Error::Cancelled`] within a tile of `observer` asking it to.
+pub fn render_on_cpu(
+    loaded: &LoadedScene,
+    package: &AnyPackage,
+    observer: &dyn BakeObserver,
+) -> Result<Image> {
     match package {
         AnyPackage::Medium(p) => {
             let settings = loaded.scene.transparency;
             let levels = medium_package::levels(p, settings.mipmap)?;
             let cells = CellRenderer::with_levels(&loaded.shell, &levels, settings);
-            Ok(cells_image(loaded, &cells))
+            cells_image(loaded, &cells, observer)
         }
-        AnyPackage::Gdm(p) => gdm_render_on_cpu(loaded, p),
+        AnyPackage::Gdm(p) => gdm_render_on_cpu(loaded, p, observer),
         AnyPackage::Vdm(p) => {
             let field = height_field(p)?;
             let relief = Relief {
@@ -186,14 +191,18 @@ pub fn render_on_cpu(loaded: &LoadedScene, package: &AnyPackage) -> Result<Image
             let query = p.query();
             let r = VdmRenderer::new(&loaded.shell, &query, relief)?;
             let shot = loaded.scene.shot();
-            Ok(render_image(&shot.camera, |o, d| r.radiance(&shot, o, d)))
+            render_image_observed(&shot.camera, observer, |o, d| r.radiance(&shot, o, d))
         }
     }
 }
 
 /// The GDM pipeline's CPU twin: the GDM software renderer on `package`, with its RTV and PRT
-/// when the scene calls for environment lighting.
-pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Image> {
+/// when the scene calls for environment lighting; cancelled as [`render_on_cpu`] is.
+pub fn gdm_render_on_cpu(
+    loaded: &LoadedScene,
+    package: &Package,
+    observer: &dyn BakeObserver,
+) -> Result<Image> {
     package.check_grid(loaded.material.dims())?;
     let scene = &loaded.scene;
     let lookup = package_lookup(package)?;
@@ -209,7 +218,7 @@ pub fn gdm_render_on_cpu(loaded: &LoadedScene, package: &Package) -> Result<Imag
         r = r.with_gi(gi);
     }
     let shot = scene.shot();
-    Ok(render_image(&shot.camera, |o, d| r.radiance(&shot, o, d)))
+    render_image_observed(&shot.camera, observer, |o, d| r.radiance(&shot, o, d))
 }
 
 /// What a preview ran on, chose and measured.
@@ -348,16 +357,20 @@ fn scene_cells(loaded: &LoadedScene) -> Result<CellRenderer<'_>> {
     ))
 }
 
-/// The image `cells` renders of `loaded`'s scene.
-fn cells_image(loaded: &LoadedScene, cells: &CellRenderer) -> Image {
+/// The image `cells` renders of `loaded`'s scene, cancelled as [`render_on_cpu`] is.
+fn cells_image(
+    loaded: &LoadedScene,
+    cells: &CellRenderer,
+    observer: &dyn BakeObserver,
+) -> Result<Image> {
     let shot = loaded.scene.shot();
-    render_image(&shot.camera, |o, d| cells.radiance(&shot, o, d))
+    render_image_observed(&shot.camera, observer, |o, d| cells.radiance(&shot, o, d))
 }
 
 /// The translucent-media pipeline's CPU twin on `loaded`'s own medium (no package):
 /// [`CellRenderer`] with the scene's transparency settings.
 pub fn medium_render_on_cpu(loaded: &LoadedScene) -> Result<Image> {
-    Ok(cells_image(loaded, &scene_cells(loaded)?))
+    cells_image(loaded, &scene_cells(loaded)?, &())
 }
 
 /// Renders `loaded`'s own translucent medium (no package) with the translucent-media
@@ -402,6 +415,9 @@ fn measure(
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
     let image = supersample(camera, |offset| {
+        if observer.cancelled() {
+            return Err(Error::Cancelled);
+        }
         pipeline.set_subpixel(offset);
         pipeline.render()
     })?;

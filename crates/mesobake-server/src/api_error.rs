@@ -55,6 +55,14 @@ impl From<Error> for ApiError {
             Error::Gpu(_) | Error::LoopBudget { .. } | Error::Database(_) => {
                 StatusCode::SERVICE_UNAVAILABLE
             }
+            Error::StorageFull(_) => StatusCode::INSUFFICIENT_STORAGE,
+            Error::Io { source, .. } if is_storage_full(source) => {
+                tracing::error!("{e}");
+                return ApiError::new(
+                    StatusCode::INSUFFICIENT_STORAGE,
+                    format!("storage full: {source}; try again once space is freed"),
+                );
+            }
             Error::Io { source, .. } => {
                 // The path is the server's business: logged, not answered.
                 tracing::error!("{e}");
@@ -66,6 +74,14 @@ impl From<Error> for ApiError {
         };
         ApiError::new(status, e.to_string())
     }
+}
+
+/// Whether `e` says the disk (or the writer's quota) is full.
+pub fn is_storage_full(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::StorageFull | std::io::ErrorKind::QuotaExceeded
+    )
 }
 
 impl From<tokio::task::JoinError> for ApiError {
@@ -99,3 +115,26 @@ impl IntoResponse for ApiError {
 
 /// Result of a handler.
 pub type ApiResult<T> = std::result::Result<T, ApiError>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_device_is_507_without_the_path() {
+        // /dev/full: every write fails with ENOSPC, as on a full disk.
+        let path = std::path::Path::new("/dev/full");
+        let write = std::fs::write(path, b"x").unwrap_err();
+        let answer = ApiError::from(Error::io(path, write));
+        assert_eq!(answer.status, StatusCode::INSUFFICIENT_STORAGE);
+        assert!(
+            answer.message.starts_with("storage full"),
+            "{}",
+            answer.message
+        );
+        assert!(!answer.message.contains("/dev"), "{}", answer.message);
+        let other = std::fs::read("/nonexistent/x").unwrap_err();
+        let answer = ApiError::from(Error::io("/nonexistent/x", other));
+        assert_eq!(answer.status, StatusCode::INTERNAL_SERVER_ERROR);
+    }
+}

@@ -4,13 +4,14 @@
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
 use super::blobs::{BlobStore, is_key};
-use super::config::millis;
+use super::config::{ServerConfig, millis};
 use super::db::{AssetRow, now_ms};
 use super::json_body::body_error;
+use super::storage_reserve;
 use axum::Json;
 use axum::body::Body;
 use axum::extract::{Path, Query, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode, header};
 use futures_util::StreamExt;
 use mesobake_bake::mesostructure::height_field::HeightField;
 use mesobake_bake::mesostructure::mesh_tile::MeshTile;
@@ -21,7 +22,9 @@ use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_scene::{BaseMeshSource, MesostructureSource, Scene};
 use serde::Deserialize;
+use std::time::Duration;
 use tokio::io::AsyncWriteExt;
+use tokio::time::Instant;
 
 /// What an upload is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, utoipa::ToSchema)]
@@ -112,16 +115,85 @@ impl Drop for TempFile {
     }
 }
 
-/// Streams `body` into the temporary file `path`, returning the BLAKE3 key and length of
-/// its bytes.
-async fn stream_to_file(body: Body, path: &std::path::Path) -> ApiResult<(String, u64)> {
+/// A deadline beyond any upload (for configured times too long to add to an instant).
+const FAR: Duration = Duration::from_secs(365 * 24 * 3600);
+
+/// How fast an upload's body must arrive: `received` bytes by `min_bytes_per_s` after a
+/// grace period, and all of it within `whole`, both counted from the start of the body.
+struct UploadPace {
+    start: Instant,
+    grace: Duration,
+    min_bytes_per_s: u64,
+    whole: Duration,
+}
+
+impl UploadPace {
+    fn new(config: &ServerConfig) -> UploadPace {
+        UploadPace {
+            start: Instant::now(),
+            grace: millis(config.body_read_timeout_ms),
+            min_bytes_per_s: config.min_upload_bytes_per_s,
+            whole: millis(config.upload_timeout_ms),
+        }
+    }
+
+    /// When the bytes after the first `received` must have begun to arrive, and the
+    /// configuration key that says so.
+    fn deadline(&self, received: u64) -> (Instant, &'static str) {
+        let after = |d: Duration| self.start.checked_add(d).unwrap_or(self.start + FAR);
+        let whole = after(self.whole);
+        let paced = (self.min_bytes_per_s > 0)
+            .then(|| Duration::try_from_secs_f64(received as f64 / self.min_bytes_per_s as f64))
+            .and_then(Result::ok)
+            .map(|d| after(self.grace.saturating_add(d)))
+            .filter(|&paced| paced < whole);
+        match paced {
+            Some(paced) => (paced, "min_upload_bytes_per_s"),
+            None => (whole, "upload_timeout_ms"),
+        }
+    }
+
+    /// The 408 for a body that fell behind its deadline after `received` bytes.
+    fn too_slow(&self, received: u64, key: &str) -> ApiError {
+        let seconds = self.start.elapsed().as_secs_f64();
+        let why = match key {
+            "upload_timeout_ms" => format!(
+                "the upload took longer than {} ms (upload_timeout_ms)",
+                self.whole.as_millis()
+            ),
+            _ => format!(
+                "the upload arrived slower than {} bytes/s after its first {} ms \
+                 (min_upload_bytes_per_s)",
+                self.min_bytes_per_s,
+                self.grace.as_millis()
+            ),
+        };
+        ApiError::new(
+            StatusCode::REQUEST_TIMEOUT,
+            format!("{why}: {received} bytes in {seconds:.1} s"),
+        )
+    }
+}
+
+/// Streams `body` into the temporary file `path` at `pace`, returning the BLAKE3 key and
+/// length of its bytes.
+async fn stream_to_file(
+    body: Body,
+    path: &std::path::Path,
+    pace: &UploadPace,
+) -> ApiResult<(String, u64)> {
     let io = |e: std::io::Error| ApiError::from(Error::io(path, e));
     let mut file = tokio::fs::File::create(path).await.map_err(io)?;
     let mut hasher = blake3::Hasher::new();
     let mut len = 0u64;
     let mut stream = body.into_data_stream();
-    while let Some(chunk) = stream.next().await {
-        let chunk = chunk.map_err(|e| body_error(&e))?;
+    loop {
+        let (deadline, key) = pace.deadline(len);
+        let chunk = match tokio::time::timeout_at(deadline, stream.next()).await {
+            Err(_) => return Err(pace.too_slow(len, key)),
+            Ok(None) => break,
+            Ok(Some(chunk)) => chunk.map_err(|e| body_error(&e))?,
+        };
         hasher.update(&chunk);
         len += chunk.len() as u64;
         file.write_all(&chunk).await.map_err(io)?;
@@ -131,8 +203,9 @@ async fn stream_to_file(body: Body, path: &std::path::Path) -> ApiResult<(String
 }
 
 /// Uploads an asset. The body streams to a temporary file in the blob store (hashed on the
-/// way), is validated from there and moved into place; at most `max_concurrent_uploads`
-/// run at once, others wait up to `busy_wait_ms` and then get 503.
+/// way) at the pace the configuration asks for (408 when it falls behind), is validated from
+/// there and moved into place. At most `max_concurrent_uploads` are validated at once (a
+/// slot is taken once the body is there): others wait up to `busy_wait_ms`, then get 503.
 #[utoipa::path(
     post,
     path = "/api/v1/assets",
@@ -142,26 +215,27 @@ async fn stream_to_file(body: Body, path: &std::path::Path) -> ApiResult<(String
         (status = 201, description = "Stored", body = AssetRow),
         (status = 200, description = "The same bytes were uploaded before", body = AssetRow),
         (status = 409, description = "The same bytes were uploaded before as another kind"),
+        (status = 408, description = "Body slower than min_upload_bytes_per_s, or longer than upload_timeout_ms"),
         (status = 413, description = "Body over max_upload_bytes"),
         (status = 422, description = "Not a valid asset of that kind"),
         (status = 503, description = "Too many uploads at once; Retry-After says when to retry"),
+        (status = 507, description = "The body would leave less than the reserve free (min_free_bytes), or the storage is full"),
     )
 )]
 pub async fn upload(
     State(state): State<AppState>,
     Query(params): Query<UploadParams>,
+    headers: HeaderMap,
     body: Body,
 ) -> ApiResult<(StatusCode, Json<AssetRow>)> {
     check_name(&params.name)?;
-    let _permit = tokio::time::timeout(
-        millis(state.config.busy_wait_ms),
-        state.uploads.clone().acquire_owned(),
-    )
-    .await
-    .map_err(|_| ApiError::busy("too many uploads at once; try again shortly"))?
-    .map_err(|_| ApiError::busy("uploads are closed"))?;
+    let announced = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok()?.parse().ok())
+        .unwrap_or(0);
+    storage_reserve::check(&state.config, announced)?;
     let tmp = TempFile(state.blobs.temp_path()?);
-    let (id, len) = stream_to_file(body, &tmp.0).await?;
+    let (id, len) = stream_to_file(body, &tmp.0, &UploadPace::new(&state.config)).await?;
     if len == 0 {
         return Err(ApiError::new(
             StatusCode::UNPROCESSABLE_ENTITY,
@@ -180,6 +254,13 @@ pub async fn upload(
         }
         return Ok((StatusCode::OK, Json(existing)));
     }
+    let _permit = tokio::time::timeout(
+        millis(state.config.busy_wait_ms),
+        state.uploads.clone().acquire_owned(),
+    )
+    .await
+    .map_err(|_| ApiError::busy("too many uploads at once; try again shortly"))?
+    .map_err(|_| ApiError::busy("uploads are closed"))?;
     let (limits, blobs, kind, key) = (state.limits, state.blobs.clone(), params.kind, id.clone());
     let summary = tokio::task::spawn_blocking(move || -> Result<serde_json::Value> {
         let bytes = std::fs::read(&tmp.0).map_err(|e| Error::io(&tmp.0, e))?;

@@ -54,6 +54,11 @@ pub struct ServerConfig {
     pub max_base_triangles: u64,
     /// Uploads validated at once.
     pub max_concurrent_uploads: u32,
+    /// Least average rate of an upload's body in bytes per second, after its first
+    /// `body_read_timeout_ms` (0: none).
+    pub min_upload_bytes_per_s: u64,
+    /// Longest time an upload's body may take.
+    pub upload_timeout_ms: u64,
     /// How long a request waits for an upload slot or the GPU before 503.
     pub busy_wait_ms: u64,
     /// How long a preview render may take before it is abandoned (503).
@@ -64,6 +69,9 @@ pub struct ServerConfig {
     pub max_queued_jobs: u64,
     /// Bytes of preview images kept (least recently used evicted beyond).
     pub preview_cache_bytes: u64,
+    /// Bytes kept free on the data directory's file system: below them the server is not
+    /// ready and refuses uploads and new jobs (507).
+    pub min_free_bytes: u64,
     /// Time for a request's headers to arrive; also the idle keep-alive timeout.
     pub header_read_timeout_ms: u64,
     /// Time for each part of a request body to arrive.
@@ -121,6 +129,7 @@ impl ServerConfig {
                 u64::from(self.max_concurrent_uploads),
             ),
             ("preview_timeout_ms", self.preview_timeout_ms),
+            ("upload_timeout_ms", self.upload_timeout_ms),
             ("header_read_timeout_ms", self.header_read_timeout_ms),
             ("body_read_timeout_ms", self.body_read_timeout_ms),
         ] {
@@ -180,11 +189,14 @@ const KEYS: &[&str] = &[
     "max_path_samples",
     "max_base_triangles",
     "max_concurrent_uploads",
+    "min_upload_bytes_per_s",
+    "upload_timeout_ms",
     "busy_wait_ms",
     "preview_timeout_ms",
     "preview_fallback",
     "max_queued_jobs",
     "preview_cache_bytes",
+    "min_free_bytes",
     "header_read_timeout_ms",
     "body_read_timeout_ms",
     "shutdown_grace_ms",

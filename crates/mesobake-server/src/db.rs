@@ -16,8 +16,13 @@ pub struct Db {
     pub pool: AnyPool,
 }
 
-/// Wraps a database error.
+/// Wraps a database error (a full disk as [`Error::StorageFull`]).
 pub fn db_error(e: sqlx::Error) -> Error {
+    // SQLITE_FULL, and PostgreSQL's disk_full.
+    let code = e.as_database_error().and_then(|d| d.code());
+    if matches!(code.as_deref(), Some("13" | "53100")) {
+        return Error::StorageFull(format!("the database: {e}"));
+    }
     Error::Database(e.to_string())
 }
 
@@ -191,5 +196,41 @@ impl Db {
             })
         })
         .transpose()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test]
+    async fn a_full_sqlite_database_is_storage_full() {
+        // SQLite answers SQLITE_FULL once a database reaches its page limit, as on a full
+        // disk.
+        sqlx::any::install_default_drivers();
+        let pool = sqlx::any::AnyPoolOptions::new()
+            .max_connections(1)
+            .connect("sqlite::memory:")
+            .await
+            .unwrap();
+        sqlx::query("CREATE TABLE t (b BLOB)")
+            .execute(&pool)
+            .await
+            .unwrap();
+        sqlx::query("PRAGMA max_page_count = 8")
+            .execute(&pool)
+            .await
+            .unwrap();
+        let full = sqlx::query("INSERT INTO t VALUES (zeroblob(100000))")
+            .execute(&pool)
+            .await
+            .unwrap_err();
+        let e = db_error(full);
+        assert!(matches!(e, Error::StorageFull(_)), "{e}");
+        let other = sqlx::query("SELECT * FROM missing")
+            .execute(&pool)
+            .await
+            .unwrap_err();
+        assert!(matches!(db_error(other), Error::Database(_)));
     }
 }

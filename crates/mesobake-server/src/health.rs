@@ -59,14 +59,17 @@ pub async fn healthz() -> &'static str {
     "ok\n"
 }
 
-/// Readiness: the database answers, and a fresh probe file can be written to the blob
-/// store, read back and removed.
+/// Readiness: the free-space reserve holds, the database answers, and a fresh probe file
+/// can be written to the blob store, read back and removed.
 #[utoipa::path(
     get,
     path = "/readyz",
     responses((status = 200, description = "Ready"), (status = 503, description = "Not ready"))
 )]
 pub async fn readyz(State(state): State<AppState>) -> (StatusCode, String) {
+    if let Err(e) = super::storage_reserve::check(&state.config, 0) {
+        return (StatusCode::SERVICE_UNAVAILABLE, format!("{e}\n"));
+    }
     if let Err(e) = state.db.ping().await {
         return (StatusCode::SERVICE_UNAVAILABLE, format!("{e}\n"));
     }

@@ -91,6 +91,7 @@ pub async fn enqueue(state: &AppState, spec: &JobSpec, plan: &Plan) -> ApiResult
         .await?
         .is_none_or(|j| matches!(j.state.as_str(), "failed" | "cancelled"));
     if adds_a_job {
+        super::storage_reserve::check(&state.config, 0)?;
         let active = state.db.active_job_count().await?;
         if active >= state.config.max_queued_jobs {
             return Err(ApiError::new(
@@ -120,6 +121,7 @@ pub async fn enqueue(state: &AppState, spec: &JobSpec, plan: &Plan) -> ApiResult
         (status = 413, description = "Body over max_json_bytes"),
         (status = 422, description = "Invalid scene or parameters, a cost over the server's limits, or unknown assets"),
         (status = 429, description = "The queue is full (max_queued_jobs)"),
+        (status = 507, description = "The server's storage is below its reserve (min_free_bytes) or full"),
     )
 )]
 pub async fn submit(

@@ -30,6 +30,7 @@ pub mod preview_cache;
 pub mod reports;
 pub mod request_limits;
 pub mod scenes;
+pub mod storage_reserve;
 pub mod worker;
 
 use axum::Router;

@@ -16,10 +16,11 @@ use axum::response::{IntoResponse, Response};
 use mesobake_bake::package::AnyPackage;
 use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
+use mesobake_core::observer::BakeObserver;
 use mesobake_scene::preview::PreviewDevice;
 use mesobake_scene::{EnvironmentSource, LoadedScene, Scene};
 use std::path::Path;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 use tokio::sync::Semaphore;
@@ -53,16 +54,22 @@ impl Default for PreviewGpu {
 }
 
 /// Renders the PNG, opening the device on first use; returns it with the renderer's name.
+/// Stops with [`Error::Cancelled`] once `cancel` is set: before rendering, between the
+/// GPU's frames, within a tile of the CPU twin's.
 fn render_png(
     gpu: &PreviewGpu,
     scene: &Scene,
     package: Vec<u8>,
     state: &AppState,
+    cancel: &AtomicBool,
 ) -> Result<(Vec<u8>, &'static str)> {
     let package = AnyPackage::parse_within(package, &state.limits)?;
     let mut scene = scene.clone();
     resolve_assets(&mut scene, &state.blobs)?;
     let loaded = LoadedScene::load(scene, Path::new("/"), &state.limits)?;
+    if cancel.cancelled() {
+        return Err(Error::Cancelled);
+    }
     let mut guard = gpu
         .device
         .lock()
@@ -79,13 +86,24 @@ fn render_png(
         *guard = Some(device);
     }
     let device = guard.as_ref().expect("opened above");
-    let (image, _) = device.render(&loaded, &package, 0, &())?;
+    let (image, _) = device.render(&loaded, &package, 0, cancel)?;
     Ok((image.to_png()?, device.renderer()))
 }
 
+/// Sets a flag when dropped: a preview's render is cancelled when its request ends, answered,
+/// timed out or dropped because the client went away.
+struct CancelOnDrop(Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
 /// Renders `spec`'s scene from `package` on the GPU: waits at most `busy_wait_ms` for the
-/// GPU and `preview_timeout_ms` for the render (503 beyond either; an abandoned render keeps
-/// the GPU until it ends, and the next waits for it at most `busy_wait_ms`).
+/// GPU and `preview_timeout_ms` for the render (503 beyond either). A render past its
+/// deadline, or whose client went away, is cancelled and frees the GPU within a frame (a
+/// tile of the CPU twin's).
 async fn render_on_gpu(
     state: &AppState,
     spec: &JobSpec,
@@ -99,10 +117,13 @@ async fn render_on_gpu(
     .await
     .map_err(|_| ApiError::busy("the GPU is busy with other previews; try again shortly"))?
     .map_err(|_| ApiError::busy("the GPU is closed"))?;
+    let cancel = Arc::new(AtomicBool::new(false));
+    let _cancel_on_drop = CancelOnDrop(cancel.clone());
     let (st, scene) = (state.clone(), spec.scene.clone());
     let render = tokio::task::spawn_blocking(move || {
         let _permit = permit;
-        render_png(&st.gpu, &scene, package, &st).map_err(|e| ApiError::scrubbed(e, &st.blobs))
+        render_png(&st.gpu, &scene, package, &st, &cancel)
+            .map_err(|e| ApiError::scrubbed(e, &st.blobs))
     });
     match tokio::time::timeout(millis(config.preview_timeout_ms), render).await {
         Ok(result) => Ok(result??),
@@ -125,7 +146,8 @@ async fn render_on_gpu(
         (status = 413, description = "Body over max_json_bytes"),
         (status = 422, description = "Invalid scene, or a cost over the server's limits"),
         (status = 429, description = "The scene's package is not baked and the queue is full"),
-        (status = 503, description = "No GPU adapter (with preview_fallback = \"none\"), the GPU busy, or the render past preview_timeout_ms"),
+        (status = 507, description = "The scene's package is not baked and the server's storage is below its reserve"),
+        (status = 503, description = "No GPU adapter (with preview_fallback = \"none\"), the GPU busy, or the render past preview_timeout_ms (then cancelled)"),
     )
 )]
 pub async fn render(
@@ -195,7 +217,10 @@ pub async fn render(
                 )
             })?;
             let (png, renderer) = render_on_gpu(&state, &spec, package).await?;
-            preview_cache::store(&state, &cache_key(renderer), png.clone()).await?;
+            // An image the cache cannot keep (a full disk, say) is still answered.
+            if let Err(e) = preview_cache::store(&state, &cache_key(renderer), png.clone()).await {
+                tracing::warn!("preview not cached: {e}");
+            }
             (png, renderer)
         }
     };

@@ -41,6 +41,7 @@ pub async fn lookup(state: &AppState, key: &str) -> Result<Option<Vec<u8>>> {
 /// its byte budget.
 pub async fn store(state: &AppState, key: &str, png: Vec<u8>) -> Result<()> {
     let bytes = png.len() as i64;
+    super::storage_reserve::check(&state.config, png.len() as u64)?;
     let blobs = state.blobs.clone();
     let digest = tokio::task::spawn_blocking(move || blobs.put(&png))
         .await

@@ -8,6 +8,7 @@ use super::assets::resolve_assets;
 use super::blobs::BlobStore;
 use super::db::{PackageRow, now_ms};
 use super::jobs::{Claimed, JobSpec, MAX_ATTEMPTS};
+use super::storage_reserve;
 use mesobake_bake::package::AnyPackage;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
@@ -121,7 +122,10 @@ fn bake(
 /// Whether a failure may go away on retry (storage, database, GPU) rather than being the
 /// input's fault.
 fn is_transient(e: &Error) -> bool {
-    matches!(e, Error::Io { .. } | Error::Database(_) | Error::Gpu(_))
+    matches!(
+        e,
+        Error::Io { .. } | Error::Database(_) | Error::Gpu(_) | Error::StorageFull(_)
+    )
 }
 
 /// What a bake task hands back: the package's digest, size, manifest and stage seconds.
@@ -263,9 +267,20 @@ async fn run(state: &AppState, worker: &str, job: Claimed, stop: &AtomicBool) ->
     Ok(())
 }
 
-/// Claims and runs jobs as `worker` until `stop` is set.
+/// Claims and runs jobs as `worker` until `stop` is set; claims none while the storage is
+/// below its reserve ([`storage_reserve`]).
 pub async fn work(state: AppState, worker: String, stop: Arc<AtomicBool>) {
+    let mut short_of_space = false;
     while !stop.load(Ordering::Relaxed) {
+        if let Err(e) = storage_reserve::check(&state.config, 0) {
+            if !short_of_space {
+                tracing::warn!("worker {worker} claims no job: {e}");
+            }
+            short_of_space = true;
+            tokio::time::sleep(POLL * 5).await;
+            continue;
+        }
+        short_of_space = false;
         let claimed = match state.db.reap_cancelled_jobs().await {
             Ok(_) => state.db.claim_job(&worker, LEASE_MS).await,
             Err(e) => Err(e),

@@ -292,10 +292,10 @@ fn measure(
 ) -> Result<(ConformanceRow, Image)> {
     let package = &candidate.package;
     loaded.scene.camera = camera;
-    let cpu_1 = render_on_cpu(loaded, package)?;
+    let cpu_1 = render_on_cpu(loaded, package, &())?;
     loaded.scene.camera.set_samples_per_pixel(spp)?;
     let start = Instant::now();
-    let cpu_n = render_on_cpu(loaded, package)?;
+    let cpu_n = render_on_cpu(loaded, package, &())?;
     let cpu_s = start.elapsed().as_secs_f64();
     let (mut gpu_n, mut frame_ms, mut refused) = (None, None, None);
     if let Some(gpu) = gpu {
