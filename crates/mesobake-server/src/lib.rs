@@ -365,3 +365,40 @@ pub async fn shutdown_signal() {
     let _ = ctrl_c.await;
     tracing::info!("shutting down: no new connections or jobs");
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[tokio::test(start_paused = true)]
+    async fn a_quick_restart_sweeps_the_killed_uploads_files_a_minute_later() {
+        // A process killed mid-upload just before this one started: its temporary file is
+        // too young at start to be taken for a leftover, and used to stay for good.
+        let dir = tempfile::tempdir().unwrap();
+        let blobs = BlobStore::open(dir.path(), "", &Default::default()).unwrap();
+        // No process has a pid this large (Linux caps them at 2^22).
+        let name = format!(".upload.tmp{}-0123456789ab-0", 1u32 << 30);
+        let left = blobs.temp_path().unwrap().with_file_name(name);
+        std::fs::write(&left, b"half an upload").unwrap();
+        assert_eq!(blobs.remove_leftovers().unwrap(), 0, "too young at start");
+        let sweeps = spawn_leftover_sweeps(&blobs);
+        tokio::task::yield_now().await;
+        // A minute passes: the file ages with it.
+        let aged = std::time::SystemTime::now() - LEFTOVER_AGE;
+        let file = std::fs::File::options().write(true).open(&left).unwrap();
+        file.set_modified(aged).unwrap();
+        tokio::time::advance(LEFTOVER_AGE).await;
+        for _ in 0..500 {
+            if !left.exists() {
+                break;
+            }
+            tokio::task::yield_now().await;
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        assert!(
+            !left.exists(),
+            "a killed upload's file outlived the first sweep"
+        );
+        sweeps.abort();
+    }
+}
