@@ -20,7 +20,7 @@ static ALLOCATOR: CountingAlloc = CountingAlloc::new();
     about = "Bake mesostructure: generalized displacement maps and more"
 )]
 struct Cli {
-    /// Largest allocation that input may ask for (e.g. 4GiB); default from
+    /// Most memory a bake, or any allocation sized by input, may take (e.g. 4GiB); default from
     /// MESOBAKE_MEMORY_LIMIT, else 4GiB.
     #[arg(long, global = true)]
     memory_limit: Option<String>,

@@ -20,8 +20,8 @@ use mesobake_core::npy::write_array;
 use mesobake_core::{Error, Result};
 use mesobake_package::grid::Dims;
 use mesobake_package::vdm::{VDM_FORMAT_NAME, VdmQuery};
-use mesobake_scene::package::{ScenePayload, bake_scene_package};
-use mesobake_scene::render::load_scene;
+use mesobake_scene::package::{ScenePayload, bake_scene_package, plan_package};
+use mesobake_scene::{LoadedScene, Scene};
 use mesobake_server::client::Client;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -75,10 +75,13 @@ pub fn bake(args: BakeArgs, limits: &Limits) -> Result<()> {
 fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
     let out = &args.out;
     let start = Instant::now();
-    let loaded = load_scene(scene, limits)?;
-    let load_s = start.elapsed().as_secs_f64();
     let params = args.codec.scene_params();
     let dir = scene.parent().unwrap_or(Path::new("."));
+    // Planned first: a bake the memory limit cannot hold is refused before loading.
+    let read = Scene::read(scene)?;
+    plan_package(&read, dir, params, limits)?;
+    let loaded = LoadedScene::load(read, dir, limits)?;
+    let load_s = start.elapsed().as_secs_f64();
     let progress = Progress::new("baking");
     let baked = bake_scene_package(&loaded, dir, params, limits, &progress)?;
     progress.finish();

@@ -4,6 +4,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../common/package_edit.rs"]
+mod package_edit;
 #[path = "../../crates/mesobake-package/tests/support/mod.rs"]
 mod package_support;
 

@@ -1,5 +1,6 @@
 //! GDM packages: round trips, determinism, and rejection of every kind of corrupt file.
 
+use crate::package_edit::{reseal_header, with_manifest};
 use mesobake_bake::compress::gdm::{CompressedGdm, compress};
 use mesobake_bake::compress::layout::GdmRows;
 use mesobake_bake::compress::quantize::Quantization;
@@ -284,28 +285,6 @@ fn every_truncation_and_extension_is_rejected() {
     let mut longer = bytes.clone();
     longer.push(0);
     assert!(Package::parse(longer).is_err());
-}
-
-/// Rewrites the header's checksum after an edit, as a malicious or buggy writer would.
-fn reseal_header(bytes: &mut [u8]) {
-    let crc = crc32fast::hash(&bytes[..60]);
-    bytes[60..64].copy_from_slice(&crc.to_le_bytes());
-}
-
-/// Replaces the manifest with `edit(manifest)`, keeping every checksum valid.
-pub(crate) fn with_manifest(bytes: &[u8], edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
-    let offset = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
-    let mut json: serde_json::Value = serde_json::from_slice(&bytes[offset..]).unwrap();
-    edit(&mut json);
-    let text = serde_json::to_vec(&json).unwrap();
-    let mut out = bytes[..offset].to_vec();
-    out.extend_from_slice(&text);
-    let total = out.len() as u64;
-    out[24..32].copy_from_slice(&(text.len() as u64).to_le_bytes());
-    out[32..36].copy_from_slice(&crc32fast::hash(&text).to_le_bytes());
-    out[40..48].copy_from_slice(&total.to_le_bytes());
-    reseal_header(&mut out);
-    out
 }
 
 fn error_of(bytes: Vec<u8>) -> String {

@@ -344,6 +344,66 @@ fn bad_packages_and_options_exit_non_zero_with_a_message() {
     );
 }
 
+/// A VDM bake whose view-dependent map alone is exactly the memory limit (the issue's
+/// 4096² height field at 4 GiB, here 64² texels at 16 MiB) passed the one-buffer check and
+/// then allocated the map's copy, its MVM and the SVD's blocks beyond the limit: the bake's
+/// whole peak is checked before anything is loaded, and named. Twice the limit is not
+/// enough either (the copy alone takes it); at the bound the plan states, it bakes.
+#[test]
+fn a_bake_whose_largest_buffer_is_exactly_the_limit_is_refused_before_loading() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("relief.json");
+    let text = r#"{
+        "base_mesh": { "builtin": { "torus": { "major_radius": 1.0, "minor_radius": 0.4, "segments": [24, 12] } } },
+        "mesostructure": { "relief": "bumps" },
+        "technique": "vdm",
+        "resolution": [64, 64, 16],
+        "shell": { "thickness": 0.04, "tiles_per_uv": [6, 3] },
+        "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 32, "height": 32 },
+        "vdm": { "directions": [8, 16], "curvatures": 8 }
+    }"#;
+    std::fs::write(&scene, text).unwrap();
+    // Texels × view directions × curvatures × 4 bytes: the VDM's one buffer.
+    let vdm = 64 * 64 * 8 * 16 * 8 * 4;
+    let out = dir.path().join("relief.mbpkg");
+    let bake = |limit: u64| {
+        let limit = limit.to_string();
+        crate::common::mesobake(&[
+            "--memory-limit",
+            &limit,
+            "bake",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    for limit in [vdm, 2 * vdm] {
+        let run = bake(limit);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{limit}: {stderr}");
+        assert!(
+            stderr.contains("the bake (largest parts: VDM")
+                && stderr.contains(&format!("over the memory limit of {limit} bytes")),
+            "{stderr}"
+        );
+        assert!(!out.exists());
+    }
+    let read = mesobake_scene::Scene::read(&scene).unwrap();
+    let technique = mesobake_scene::technique::Technique::Vdm;
+    let params = mesobake_scene::package::ScenePackageParams::default();
+    let gdm = (params.codec, params.rank);
+    let bound = mesobake_scene::memory::bake_memory(&read, dir.path(), technique, gdm)
+        .unwrap()
+        .total();
+    let run = bake(bound);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
 /// A small package that reads into far more memory than its size (an empty 256³ occupancy
 /// field, stored supercompressed: 16 MiB of texels, 64 MiB decoded) is refused by every command
 /// that reads packages under a 64 MiB limit, before it allocates, naming the limit; nothing is

@@ -129,11 +129,8 @@ async fn scenes_over_the_cost_limits_are_refused_naming_the_limit() {
             "max_base_triangles",
         ),
         (
-            // 512×512×64 voxels × 16×32 directions × 4 bytes = 32 GiB.
-            with(&|sc| {
-                sc["resolution"] = json!([512, 512, 64]);
-                sc["directions"] = json!([16, 32]);
-            }),
+            // 1024×1024×64 voxels of material and caster (64 bytes each) alone: 4 GiB.
+            with(&|sc| sc["resolution"] = json!([1024, 1024, 64])),
             "memory limit",
         ),
     ];

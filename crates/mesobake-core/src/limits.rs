@@ -2,7 +2,7 @@
 
 use crate::error::{Error, Result};
 
-/// Default memory limit for one allocation decided by input: 4 GiB.
+/// Default memory limit for a bake's peak and for any allocation decided by input: 4 GiB.
 pub const DEFAULT_MEMORY_LIMIT: u64 = 4 << 30;
 
 /// Default limit on the pixels of an input image: 2²⁸ (16384 × 16384).
@@ -14,7 +14,7 @@ pub const MAX_IMAGE_SIDE: u32 = 8192;
 /// Limits that protect the process from input that asks for absurd sizes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Limits {
-    /// Largest number of bytes a single input-sized buffer may take.
+    /// Most bytes a single input-sized buffer, or a bake's whole peak, may take.
     pub memory_bytes: u64,
     /// Most pixels an input image (PNG height field, EXR environment) may have, checked
     /// from its header before it is decoded.

@@ -9,6 +9,7 @@
 pub mod bench;
 pub mod explicit;
 pub mod gi;
+pub mod memory;
 pub mod package;
 pub mod plan;
 pub mod preview;

@@ -10,6 +10,7 @@
 //! environment itself is not baked in: packages hold transfer, which any environment lights.
 
 use crate::gi::{prt_matrices, rtv_params};
+use crate::memory::bake_memory;
 use crate::plan::{Plan, plan};
 use crate::technique::{self, Technique, TechniqueChoice};
 use crate::{LoadedScene, MesostructureSource, Scene, load_base_mesh};
@@ -114,8 +115,9 @@ pub struct ScenePackage {
 
 /// The plan of `scene`'s package made with `params` (its files relative to `base_dir`),
 /// without loading its mesostructure: the technique chosen on its base mesh and shell (a
-/// volume probed for an opacity channel) and checked, then the stages it calls for
-/// ([`plan`]). Parameters that do not apply to the technique are an error.
+/// volume probed for an opacity channel) and checked, its peak memory ([`bake_memory`])
+/// checked against `limits`, then the stages it calls for ([`plan`]). Parameters that do
+/// not apply to the technique are an error.
 pub fn plan_package(
     scene: &Scene,
     base_dir: &Path,
@@ -134,6 +136,8 @@ pub fn plan_package(
     let choice = technique::choose(scene, &surface);
     technique::check(scene, &choice, &surface)?;
     check_params(&choice, params)?;
+    let gdm_params = (params.codec, params.rank);
+    bake_memory(scene, base_dir, choice.technique, gdm_params)?.check(limits)?;
     Ok(plan(scene, params.codec, choice))
 }
 

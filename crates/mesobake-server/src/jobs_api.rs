@@ -11,6 +11,7 @@ use axum::http::StatusCode;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures_util::stream::{self, Stream};
 use mesobake_bake::package::bake::check_codec_options;
+use mesobake_core::error::Error;
 use mesobake_scene::plan::Plan;
 use mesobake_scene::{BaseMeshSource, MesostructureSource, Scene};
 use std::convert::Infallible;
@@ -75,11 +76,17 @@ pub async fn check_spec(state: &AppState, spec: &JobSpec) -> ApiResult<Plan> {
     Scene::from_json(&text)?;
     check_codec_options(spec.codec, spec.rank, spec.quantization)
         .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
-    check_scene_cost(&spec.scene, &state.config, &state.limits)?;
+    check_scene_cost(&spec.scene, &state.config)?;
     check_assets(state, &spec.scene).await?;
     let (spec, blobs, limits) = (spec.clone(), state.blobs.clone(), state.limits);
-    let plan = tokio::task::spawn_blocking(move || spec.plan(&blobs, &limits)).await??;
-    Ok(plan)
+    match tokio::task::spawn_blocking(move || spec.plan(&blobs, &limits)).await? {
+        // The scene's bake, not the request's body, is over the memory limit.
+        Err(e @ Error::MemoryLimit { .. }) => Err(ApiError::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            e.to_string(),
+        )),
+        plan => Ok(plan?),
+    }
 }
 
 /// Submits `spec` (checked) with its `plan` to the queue, refusing with 429 a new job beyond

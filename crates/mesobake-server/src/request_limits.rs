@@ -1,17 +1,15 @@
 //! What a scene may ask the server for, checked when a job or preview is submitted, before
-//! any work starts: lights, image size, path samples, built-in base mesh triangles (the
-//! configuration's `max_*` keys) and the GDM's size (the memory limit). Each refusal names the limit it hit.
+//! any work starts: lights, image size, path samples and built-in base mesh triangles (the
+//! configuration's `max_*` keys; the bake's memory is checked by its plan). Each refusal
+//! names the limit it hit.
 
 use super::api_error::{ApiError, ApiResult};
 use super::config::ServerConfig;
 use axum::http::StatusCode;
-use mesobake_core::error::Error;
-use mesobake_core::limits::Limits;
-use mesobake_scene::technique::{Technique, is_height_field};
 use mesobake_scene::{BaseMeshSource, Scene};
 
-/// Refuses `scene` with 422 when its cost is out of the bounds of `config` and `limits`.
-pub fn check_scene_cost(scene: &Scene, config: &ServerConfig, limits: &Limits) -> ApiResult<()> {
+/// Refuses `scene` with 422 when its cost is out of the bounds of `config`.
+pub fn check_scene_cost(scene: &Scene, config: &ServerConfig) -> ApiResult<()> {
     let refuse = |what: String| Err(ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, what));
     if scene.lights.len() as u64 > u64::from(config.max_lights) {
         return refuse(format!(
@@ -51,30 +49,6 @@ pub fn check_scene_cost(scene: &Scene, config: &ServerConfig, limits: &Limits) -
                 config.max_base_triangles
             ));
         }
-    }
-    let voxels = scene.dims()?.voxel_count();
-    let directions = scene.dirs()?.count() as u64;
-    limits
-        .check(
-            "the scene's GDM (resolution × directions × 4 bytes)",
-            voxels.saturating_mul(directions),
-            4,
-        )
-        .map_err(|e: Error| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
-    if is_height_field(scene) && scene.technique != Technique::Gdm {
-        let g = scene.vdm.grid();
-        let samples = [g.n_theta, g.n_phi, g.n_curvature, scene.resolution[0]]
-            .into_iter()
-            .fold(u64::from(scene.resolution[1]), |n, m| {
-                n.saturating_mul(m.into())
-            });
-        limits
-            .check(
-                "the scene's VDM (texels × view directions × curvatures × 4 bytes)",
-                samples,
-                4,
-            )
-            .map_err(|e: Error| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, e.to_string()))?;
     }
     Ok(())
 }

@@ -14,7 +14,7 @@ use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
 use mesobake_scene::LoadedScene;
-use mesobake_scene::package::bake_scene_package;
+use mesobake_scene::package::{bake_scene_package, plan_package};
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -103,6 +103,9 @@ fn bake(
     resolve_assets(&mut scene, blobs)?;
     // A package holds transfer, not light: the environment is not loaded.
     scene.environment = None;
+    // Planned again under this worker's limits: refused before loading when the bake's
+    // memory is over them.
+    plan_package(&scene, Path::new("/"), spec.package_params(), limits)?;
     let loaded = LoadedScene::load(scene, Path::new("/"), limits)?;
     if observer.cancelled() {
         return Err(Error::Cancelled);

@@ -123,6 +123,17 @@ impl HeightField {
         Self::decode_png(&bytes, limits).map_err(|e| e.context(path.display()))
     }
 
+    /// The width and height of the PNG at `path`, from its header alone.
+    pub fn png_size(path: &Path) -> Result<(u32, u32)> {
+        let bad = |why: String| {
+            Error::InvalidParameter(format!("height field PNG {}: {why}", path.display()))
+        };
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let decoder = png::Decoder::new(std::io::BufReader::new(file));
+        let reader = decoder.read_info().map_err(|e| bad(e.to_string()))?;
+        Ok((reader.info().width, reader.info().height))
+    }
+
     /// Width and height in pixels.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
