@@ -118,6 +118,15 @@ impl Drop for TempFile {
 /// A deadline beyond any upload (for configured times too long to add to an instant).
 const FAR: Duration = Duration::from_secs(365 * 24 * 3600);
 
+/// Which of [`UploadPace`]'s bounds a deadline comes from.
+#[derive(Clone, Copy)]
+enum Bound {
+    /// `min_upload_bytes_per_s`.
+    Rate,
+    /// `upload_timeout_ms`.
+    Whole,
+}
+
 /// How fast an upload's body must arrive: `received` bytes by `min_bytes_per_s` after a
 /// grace period, and all of it within `whole`, both counted from the start of the body.
 struct UploadPace {
@@ -137,9 +146,9 @@ impl UploadPace {
         }
     }
 
-    /// When the bytes after the first `received` must have begun to arrive, and the
-    /// configuration key that says so.
-    fn deadline(&self, received: u64) -> (Instant, &'static str) {
+    /// When the bytes after the first `received` must have begun to arrive, and which
+    /// bound says so.
+    fn deadline(&self, received: u64) -> (Instant, Bound) {
         let after = |d: Duration| self.start.checked_add(d).unwrap_or(self.start + FAR);
         let whole = after(self.whole);
         let paced = (self.min_bytes_per_s > 0)
@@ -148,20 +157,20 @@ impl UploadPace {
             .map(|d| after(self.grace.saturating_add(d)))
             .filter(|&paced| paced < whole);
         match paced {
-            Some(paced) => (paced, "min_upload_bytes_per_s"),
-            None => (whole, "upload_timeout_ms"),
+            Some(paced) => (paced, Bound::Rate),
+            None => (whole, Bound::Whole),
         }
     }
 
     /// The 408 for a body that fell behind its deadline after `received` bytes.
-    fn too_slow(&self, received: u64, key: &str) -> ApiError {
+    fn too_slow(&self, received: u64, bound: Bound) -> ApiError {
         let seconds = self.start.elapsed().as_secs_f64();
-        let why = match key {
-            "upload_timeout_ms" => format!(
+        let why = match bound {
+            Bound::Whole => format!(
                 "the upload took longer than {} ms (upload_timeout_ms)",
                 self.whole.as_millis()
             ),
-            _ => format!(
+            Bound::Rate => format!(
                 "the upload arrived slower than {} bytes/s after its first {} ms \
                  (min_upload_bytes_per_s)",
                 self.min_bytes_per_s,
@@ -188,9 +197,9 @@ async fn stream_to_file(
     let mut len = 0u64;
     let mut stream = body.into_data_stream();
     loop {
-        let (deadline, key) = pace.deadline(len);
+        let (deadline, bound) = pace.deadline(len);
         let chunk = match tokio::time::timeout_at(deadline, stream.next()).await {
-            Err(_) => return Err(pace.too_slow(len, key)),
+            Err(_) => return Err(pace.too_slow(len, bound)),
             Ok(None) => break,
             Ok(Some(chunk)) => chunk.map_err(|e| body_error(&e))?,
         };
