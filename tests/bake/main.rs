@@ -13,6 +13,7 @@ mod bad_input;
 mod explicit;
 mod gdm_exact;
 mod gdm_fast;
+mod gltf_base_mesh;
 mod package;
 mod samples;
 mod svd;

@@ -344,6 +344,58 @@ async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_gltf_base_mesh_is_uploaded_by_content_and_bakes() {
+    // Blender's GLB (tests/data/blender) as a base_mesh upload, one of its two materials
+    // baked; a .gltf whose buffer is a file beside it cannot come in one upload.
+    let dir = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "gltf").await.remove(0);
+    let data = tempfile::tempdir().unwrap();
+    let s = TestServer::start(&url, data.path(), 1 << 24).await;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&s.state, 1, &stop);
+    let blender = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/blender");
+    let client = reqwest::Client::new();
+    let upload = |body: Vec<u8>, name: &str| {
+        client
+            .post(s.url(&format!("/api/v1/assets?kind=base_mesh&name={name}")))
+            .body(body)
+            .send()
+    };
+    let r = upload(
+        std::fs::read(blender.join("knight.glb")).unwrap(),
+        "knight.glb",
+    )
+    .await
+    .unwrap();
+    assert_eq!(r.status(), 201);
+    let asset: Value = r.json().await.unwrap();
+    assert_eq!(asset["summary"]["triangles"], 256, "{asset}");
+    let mut external: Value =
+        serde_json::from_slice(&std::fs::read(blender.join("knight.gltf")).unwrap()).unwrap();
+    external["buffers"][0]["uri"] = "knight.bin".into();
+    let r = upload(external.to_string().into_bytes(), "knight.gltf")
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 422);
+    assert!(r.text().await.unwrap().contains("an upload holds one file"));
+
+    let spec = json!({ "scene": {
+        "base_mesh": { "gltf": { "file": asset["id"], "material": "Chain" } },
+        "mesostructure": { "sample": "chain" },
+        "resolution": [16, 16, 8],
+        "shell": { "thickness": 0.05, "tiles_per_uv": [4, 2] },
+        "camera": { "eye": [0, 3, 3], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 32, "height": 32 }
+    }});
+    let (_, queued) = submit(&s, &spec).await;
+    let job = wait_for(&s, queued["id"].as_str().unwrap(), |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(job["state"], "succeeded", "{job}");
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cancellation_stops_a_running_bake() {
     let dir = tempfile::tempdir().unwrap();
     for url in database_urls(dir.path(), "cancel").await {

@@ -36,7 +36,7 @@ use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::trimesh::TriMesh;
 use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
-use mesobake_bake::surface::base_mesh::{BaseMesh, BuiltinMesh, MeshReport};
+use mesobake_bake::surface::base_mesh::{BaseMesh, BuiltinMesh, GltfSelection, MeshReport};
 use mesobake_bake::surface::shell::{Shell, ShellParams};
 use mesobake_core::camera::Camera;
 use mesobake_core::effect::Effect;
@@ -192,6 +192,56 @@ pub enum BaseMeshSource {
     Builtin(BuiltinMesh),
     /// An OBJ file (relative paths are relative to the scene file).
     Obj(PathBuf),
+    /// A glTF 2.0 file (`.gltf` or `.glb`): its default scene's triangles in world space.
+    Gltf(GltfSource),
+}
+
+/// A glTF base mesh: the file, or the file with the primitives and UV set to use.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum GltfSource {
+    /// Every triangle primitive of the default scene, with TEXCOORD_0.
+    File(PathBuf),
+    /// The primitives of one material, or another UV set.
+    Selected {
+        /// The glTF or GLB file (relative paths are relative to the scene file).
+        file: PathBuf,
+        /// Only the primitives of this material (all when absent).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        material: Option<String>,
+        /// The TEXCOORD set (0 when absent).
+        #[serde(default)]
+        texcoord: u32,
+    },
+}
+
+impl GltfSource {
+    /// The file.
+    pub fn file_mut(&mut self) -> &mut PathBuf {
+        match self {
+            GltfSource::File(file) | GltfSource::Selected { file, .. } => file,
+        }
+    }
+
+    /// The file.
+    pub fn file(&self) -> &Path {
+        match self {
+            GltfSource::File(file) | GltfSource::Selected { file, .. } => file,
+        }
+    }
+
+    /// Which primitives, with which UV set.
+    pub fn selection(&self) -> GltfSelection<'_> {
+        match self {
+            GltfSource::File(_) => GltfSelection::default(),
+            GltfSource::Selected {
+                material, texcoord, ..
+            } => GltfSelection {
+                material: material.as_deref(),
+                texcoord: *texcoord,
+            },
+        }
+    }
 }
 
 /// Where the mesostructure comes from.
@@ -388,6 +438,9 @@ pub fn load_base_mesh(
     let (mut base, report) = match &scene.base_mesh {
         BaseMeshSource::Builtin(b) => b.build()?,
         BaseMeshSource::Obj(p) => BaseMesh::read_obj(&base_dir.join(p), limits)?,
+        BaseMeshSource::Gltf(g) => {
+            BaseMesh::read_gltf(&base_dir.join(g.file()), g.selection(), limits)?
+        }
     };
     for p in &mut base.positions {
         *p *= scene.mesh_scale;

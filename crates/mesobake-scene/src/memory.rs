@@ -96,6 +96,8 @@ pub fn bake_memory(
         BaseMeshSource::Builtin(b) => u128::from(b.triangle_count()),
         // A face line takes at least 8 bytes ("f 1 2 3\n").
         BaseMeshSource::Obj(p) => file_len(p)? / 8,
+        // Three u16 indices a triangle, the least a glTF spends.
+        BaseMeshSource::Gltf(g) => file_len(g.file())? / 6,
     };
     add("base mesh and shell", 1536 * triangles);
 

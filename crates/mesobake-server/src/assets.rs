@@ -17,7 +17,7 @@ use mesobake_bake::mesostructure::height_field::HeightField;
 use mesobake_bake::mesostructure::mesh_tile::MeshTile;
 use mesobake_bake::mesostructure::trimesh::TriMesh;
 use mesobake_bake::mesostructure::volume_format;
-use mesobake_bake::surface::base_mesh::BaseMesh;
+use mesobake_bake::surface::base_mesh::{BaseMesh, GltfSelection};
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_scene::{BaseMeshSource, MesostructureSource, Scene};
@@ -81,7 +81,16 @@ fn utf8(bytes: &[u8], what: &str) -> Result<String> {
         .map_err(|e| Error::InvalidParameter(format!("{what} is not UTF-8 text: {e}")))
 }
 
-/// Validates `bytes` as an asset of `kind`, returning a summary of what it holds.
+/// Whether `bytes` are glTF: a GLB's magic number, or JSON with glTF's `asset` object.
+fn is_gltf(bytes: &[u8]) -> bool {
+    bytes.starts_with(b"glTF")
+        || (bytes.trim_ascii_start().starts_with(b"{")
+            && serde_json::from_slice::<serde_json::Value>(bytes)
+                .is_ok_and(|j| j["asset"]["version"].is_string()))
+}
+
+/// Validates `bytes` as an asset of `kind`, returning a summary of what it holds (a base
+/// mesh is OBJ or glTF, told by its content).
 pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_json::Value> {
     Ok(match kind {
         AssetKind::Volume => {
@@ -96,7 +105,11 @@ pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_
             serde_json::json!({ "triangles": triangles })
         }
         AssetKind::BaseMesh => {
-            let (mesh, report) = BaseMesh::from_obj(&utf8(bytes, "an OBJ base mesh")?)?;
+            let (mesh, report) = if is_gltf(bytes) {
+                BaseMesh::from_gltf(bytes, None, GltfSelection::default(), limits)?
+            } else {
+                BaseMesh::from_obj(&utf8(bytes, "an OBJ base mesh")?)?
+            };
             serde_json::json!({ "triangles": mesh.triangles.len(), "report": report })
         }
         AssetKind::HeightField => {
@@ -343,8 +356,10 @@ pub fn resolve_assets(scene: &mut Scene, blobs: &BlobStore) -> Result<()> {
         | MesostructureSource::Relief(_)
         | MesostructureSource::Medium(_) => {}
     }
-    if let BaseMeshSource::Obj(p) = &mut scene.base_mesh {
-        resolve(p)?;
+    match &mut scene.base_mesh {
+        BaseMeshSource::Obj(p) => resolve(p)?,
+        BaseMeshSource::Gltf(g) => resolve(g.file_mut())?,
+        BaseMeshSource::Builtin(_) => {}
     }
     Ok(())
 }

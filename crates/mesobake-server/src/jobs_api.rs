@@ -24,7 +24,7 @@ const EVENT_POLL: Duration = Duration::from_millis(250);
 async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
     let mut wanted = Vec::new();
     match &scene.mesostructure {
-        MesostructureSource::Volume(p) => wanted.push((p, "volume")),
+        MesostructureSource::Volume(p) => wanted.push((p.as_path(), "volume")),
         MesostructureSource::Tile(p) => wanted.push((p, "mesh_tile")),
         MesostructureSource::HeightField(p) => wanted.push((p, "height_field")),
         MesostructureSource::Sample(_)
@@ -32,8 +32,10 @@ async fn check_assets(state: &AppState, scene: &Scene) -> ApiResult<()> {
         | MesostructureSource::Relief(_)
         | MesostructureSource::Medium(_) => {}
     }
-    if let BaseMeshSource::Obj(p) = &scene.base_mesh {
-        wanted.push((p, "base_mesh"));
+    match &scene.base_mesh {
+        BaseMeshSource::Obj(p) => wanted.push((p.as_path(), "base_mesh")),
+        BaseMeshSource::Gltf(g) => wanted.push((g.file(), "base_mesh")),
+        BaseMeshSource::Builtin(_) => {}
     }
     for (path, kind) in wanted {
         let id = path.to_string_lossy();

@@ -1,5 +1,5 @@
-//! Base meshes: the triangle surfaces that mesostructure is mapped onto, read from OBJ files
-//! or built in ([`BuiltinMesh`]), validated and cleaned before use.
+//! Base meshes: the triangle surfaces that mesostructure is mapped onto, read from OBJ or
+//! glTF files ([`gltf_file`]) or built in ([`BuiltinMesh`]), validated and cleaned before use.
 //!
 //! # Conventions
 //!
@@ -30,10 +30,12 @@
 //! vertex would make every other triangle zero-area against the mesh's extent.
 
 mod builtin;
+pub mod gltf_file;
 mod grid;
 mod teapot;
 
 pub use builtin::BuiltinMesh;
+pub use gltf_file::GltfSelection;
 
 use glam::{DVec2, DVec3};
 use mesobake_core::error::{Error, Result};
@@ -169,6 +171,11 @@ impl BaseMesh {
     pub fn read_obj(path: &Path, limits: &Limits) -> Result<(BaseMesh, MeshReport)> {
         let bytes = mesobake_core::fs::read_bounded(path, "OBJ file", limits.memory_bytes / 8)?;
         let in_file = |message: String| Error::BaseMesh(format!("{}: {message}", path.display()));
+        if bytes.starts_with(b"glTF") {
+            return Err(in_file(
+                "a binary glTF (GLB), not OBJ text: name it as {\"gltf\": …}".into(),
+            ));
+        }
         let text =
             std::str::from_utf8(&bytes).map_err(|e| in_file(format!("not UTF-8 text: {e}")))?;
         Self::from_obj(text).map_err(|e| match e {
