@@ -151,6 +151,14 @@ fn broken_gltf_files_are_refused_naming_the_part() {
             "leaves the glTF file's folder",
         ),
         (edited(|j| j["meshes"] = serde_json::json!([])), "glTF"),
+        (
+            edited(|j| j["buffers"][0]["uri"] = "%2E%2E/%2E%2E/etc/passwd".into()),
+            "leaves the glTF file's folder",
+        ),
+        (
+            edited(|j| j["nodes"][0]["children"] = serde_json::json!([0])),
+            "not a tree",
+        ),
     ];
     for (message, expected) in cases {
         assert!(message.contains(expected), "{expected:?} in {message:?}");

@@ -57,7 +57,16 @@ impl BaseMesh {
         let mut materials_seen = Vec::new();
         let mut stack: Vec<(gltf::Node, DMat4)> =
             scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
+        let mut visits = 0;
         while let Some((node, parent)) = stack.pop() {
+            visits += 1;
+            if visits > document.nodes().len() {
+                return Err(bad(
+                    "the scene's node hierarchy is not a tree (a cycle, or a node with two \
+                     parents)"
+                        .into(),
+                ));
+            }
             let world = parent * to_dmat4(node.transform().matrix());
             stack.extend(node.children().map(|c| (c, world)));
             let Some(gltf_mesh) = node.mesh() else {
@@ -164,12 +173,15 @@ fn load_buffers(gltf: &gltf::Gltf, dir: Option<&Path>, limits: &Limits) -> Resul
                          export a .glb, or a .gltf with embedded buffers"
                     ))
                 })?;
-                if uri.contains("..") || uri.starts_with('/') || uri.contains(':') {
+                let file = percent_encoding::percent_decode_str(uri)
+                    .decode_utf8()
+                    .map_err(|e| bad(format!("{name}: the URI {uri:?}: {e}")))?;
+                if file.contains("..") || file.starts_with(['/', '\\']) || file.contains(':') {
                     return Err(bad(format!(
                         "{name}: the URI {uri:?} leaves the glTF file's folder"
                     )));
                 }
-                let path = dir.join(uri.replace("%20", " "));
+                let path = dir.join(&*file);
                 mesobake_core::fs::read_bounded(&path, &name, limits.memory_bytes / 8).map_err(
                     |e| match e {
                         Error::Io { source, .. } => bad(format!("{name}, {uri:?}: {source}")),
