@@ -621,22 +621,16 @@ async fn previews_render_once_the_package_is_baked() {
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_preview_past_its_deadline_is_abandoned_with_503() {
-    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
-        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let url = database_urls(dir.path(), "preview_deadline")
-        .await
-        .remove(0);
-    let data = tempfile::tempdir().unwrap();
-    let s = TestServer::start_with(&url, data.path(), 1 << 24, |c| {
-        c.preview_timeout_ms = 1;
-        c.busy_wait_ms = 60_000;
-    })
-    .await;
+/// A server on the first database of `dir` (its blobs in `data`), its configuration changed
+/// by `edit`, with a worker; and the job of a 16×16×8 weave it has baked.
+async fn baked_weave_server(
+    dir: &std::path::Path,
+    data: &std::path::Path,
+    test: &str,
+    edit: impl FnOnce(&mut mesobake_server::config::ServerConfig),
+) -> (TestServer, Value, Arc<AtomicBool>) {
+    let url = database_urls(dir, test).await.remove(0);
+    let s = TestServer::start_with(&url, data, 1 << 24, edit).await;
     let stop = Arc::new(AtomicBool::new(false));
     spawn_workers(&s.state, 1, &stop);
     let volume = upload(&s, SampleKind::Weave, [16, 16, 8]).await;
@@ -644,6 +638,21 @@ async fn a_preview_past_its_deadline_is_abandoned_with_503() {
     let (_, queued) = submit(&s, &spec).await;
     wait_for(&s, queued["id"].as_str().unwrap(), |j| {
         j["state"] == "succeeded"
+    })
+    .await;
+    (s, spec, stop)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_preview_past_its_deadline_is_abandoned_with_503() {
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") {
+        eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
+        return;
+    }
+    let (dir, data) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (s, spec, stop) = baked_weave_server(dir.path(), data.path(), "preview_deadline", |c| {
+        c.preview_timeout_ms = 1;
+        c.busy_wait_ms = 60_000;
     })
     .await;
     let client = reqwest::Client::new();
@@ -688,23 +697,11 @@ async fn an_abandoned_preview_is_cancelled_and_frees_the_gpu_at_once() {
         eprintln!("SKIPPED: MESOBAKE_SKIP_GPU_TESTS=1");
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
-    let url = database_urls(dir.path(), "preview_cancel").await.remove(0);
-    let data = tempfile::tempdir().unwrap();
-    let (deadline_ms, busy_wait_ms) = (3_000, 4_000);
-    let s = TestServer::start_with(&url, data.path(), 1 << 24, |c| {
-        c.preview_timeout_ms = deadline_ms;
-        c.busy_wait_ms = busy_wait_ms;
+    let (dir, data) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let (s, light, stop) = baked_weave_server(dir.path(), data.path(), "preview_cancel", |c| {
+        c.preview_timeout_ms = 3_000;
+        c.busy_wait_ms = 4_000;
         c.max_image_side = 8192;
-    })
-    .await;
-    let stop = Arc::new(AtomicBool::new(false));
-    spawn_workers(&s.state, 1, &stop);
-    let volume = upload(&s, SampleKind::Weave, [16, 16, 8]).await;
-    let light = json!({ "scene": scene(&volume, [16, 16, 8], [8, 16]) });
-    let (_, queued) = submit(&s, &light).await;
-    wait_for(&s, queued["id"].as_str().unwrap(), |j| {
-        j["state"] == "succeeded"
     })
     .await;
     let client = reqwest::Client::new();
