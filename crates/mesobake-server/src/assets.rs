@@ -81,12 +81,10 @@ fn utf8(bytes: &[u8], what: &str) -> Result<String> {
         .map_err(|e| Error::InvalidParameter(format!("{what} is not UTF-8 text: {e}")))
 }
 
-/// Whether `bytes` are glTF: a GLB's magic number, or JSON with glTF's `asset` object.
+/// Whether `bytes` are glTF: a GLB's magic number, or JSON (an object, which no OBJ line
+/// starts with); the glTF reader then names what is wrong with it.
 fn is_gltf(bytes: &[u8]) -> bool {
-    bytes.starts_with(b"glTF")
-        || (bytes.trim_ascii_start().starts_with(b"{")
-            && serde_json::from_slice::<serde_json::Value>(bytes)
-                .is_ok_and(|j| j["asset"]["version"].is_string()))
+    bytes.starts_with(b"glTF") || bytes.trim_ascii_start().starts_with(b"{")
 }
 
 /// Validates `bytes` as an asset of `kind`, returning a summary of what it holds (a base
