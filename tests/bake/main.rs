@@ -14,6 +14,7 @@ mod explicit;
 mod gdm_exact;
 mod gdm_fast;
 mod gltf_base_mesh;
+mod openvdb_import;
 mod package;
 mod samples;
 mod svd;

@@ -13,6 +13,7 @@ pub mod material;
 pub mod media;
 pub mod medium;
 pub mod mesh_tile;
+pub mod openvdb;
 pub mod raw_medium;
 pub mod reliefs;
 pub mod samples;
