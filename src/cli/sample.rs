@@ -6,6 +6,8 @@ use super::output::Progress;
 use clap::ValueEnum;
 use mesobake_bake::gdm;
 use mesobake_bake::gdm::npy;
+use mesobake_bake::mesostructure::file_kind::FileKind;
+use mesobake_bake::mesostructure::openvdb::{self, VdbImport};
 use mesobake_bake::mesostructure::raw_medium::{self, RawFormat};
 use mesobake_bake::mesostructure::samples::{self, SampleKind};
 use mesobake_bake::mesostructure::volume_format;
@@ -14,7 +16,7 @@ use mesobake_core::limits::Limits;
 use mesobake_core::{Error, Result};
 use mesobake_package::grid::{Dims, DirectionGrid};
 use mesobake_render::flat_preview;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Options of `mesobake sample`.
@@ -70,16 +72,27 @@ pub fn sample(args: SampleArgs, limits: &Limits) -> Result<()> {
 /// Options of `mesobake import`.
 #[derive(clap::Args)]
 pub struct ImportArgs {
-    /// The voxels: a raw file (x fastest, then y, then z; RGB sRGB-encoded, A the opacity
-    /// per voxel length) or an OpenEXR image (linear RGB, A the opacity; the Z slices
-    /// stacked downwards, X wide and Y·Z tall).
+    /// The voxels: an OpenVDB file (a level set becomes an opaque volume, a fog volume a
+    /// translucent medium: docs/scene-format.md), a raw file (x fastest, then y, then z; RGB
+    /// sRGB-encoded, A the opacity per voxel length) or an OpenEXR image (linear RGB, A the
+    /// opacity; the Z slices stacked downwards, X wide and Y·Z tall).
     input: PathBuf,
-    /// Grid X×Y×Z of the file.
+    /// Grid X×Y×Z: of a raw or EXR file (required), or the index box of an OpenVDB grid from
+    /// index (0, 0, 0) (by default its active voxels' bounding box).
     #[arg(long)]
-    res: Dims,
-    /// How the file stores the voxels.
-    #[arg(long, value_enum, default_value_t = ImportFormat::Rgba8)]
-    format: ImportFormat,
+    res: Option<Dims>,
+    /// How the file stores the voxels (by default told by its content: OpenVDB and OpenEXR
+    /// by their magic numbers, anything else raw RGBA8).
+    #[arg(long, value_enum)]
+    format: Option<ImportFormat>,
+    /// The OpenVDB grid to import (by default the first level set or fog volume, else the
+    /// float grid named `density`).
+    #[arg(long)]
+    grid: Option<String>,
+    /// Multiplies an OpenVDB fog volume's density: a voxel's opacity is
+    /// 1 − exp(−scale·density·voxel size).
+    #[arg(long, default_value_t = 1.0)]
+    density_scale: f64,
     /// Output volume (.mbvol, version 2).
     #[arg(long)]
     out: PathBuf,
@@ -88,6 +101,8 @@ pub struct ImportArgs {
 /// The file formats `mesobake import` reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum ImportFormat {
+    /// OpenVDB: a level set or a fog volume.
+    Vdb,
     /// Raw, one byte per channel, value/255.
     Rgba8,
     /// Raw, one little-endian f32 per channel, in [0, 1].
@@ -96,18 +111,44 @@ enum ImportFormat {
     Exr,
 }
 
-/// Reads the medium (its size checked before its voxels are read) and writes it as a volume.
+/// Reads the input (its size checked before its voxels are read) and writes it as a volume.
 pub fn import(args: ImportArgs, limits: &Limits) -> Result<()> {
     let ImportArgs {
         input,
         res,
         format,
+        grid,
+        density_scale,
         out,
     } = args;
+    let format = match format {
+        Some(format) => format,
+        None => match FileKind::of_file(&input)? {
+            FileKind::OpenVdb => ImportFormat::Vdb,
+            FileKind::Exr => ImportFormat::Exr,
+            _ => ImportFormat::Rgba8,
+        },
+    };
+    let vdb_options = grid.is_some() || density_scale != 1.0;
+    if vdb_options && format != ImportFormat::Vdb {
+        return Err(Error::InvalidParameter(format!(
+            "--grid and --density-scale apply to OpenVDB files; {} is read as {format:?}",
+            input.display()
+        )));
+    }
+    if format == ImportFormat::Vdb {
+        return import_vdb(&input, res, grid, density_scale, &out, limits);
+    }
+    let res = res.ok_or_else(|| {
+        Error::InvalidParameter(format!(
+            "--res X×Y×Z is required to read {} as {format:?}",
+            input.display()
+        ))
+    })?;
     let raw = match format {
         ImportFormat::Rgba8 => RawFormat::Rgba8,
         ImportFormat::Rgba32f => RawFormat::Rgba32f,
-        ImportFormat::Exr => {
+        ImportFormat::Exr | ImportFormat::Vdb => {
             let volume = raw_medium::medium_from_exr(&input, res, limits)?;
             return volume_format::write(&volume, &out);
         }
@@ -119,6 +160,45 @@ pub fn import(args: ImportArgs, limits: &Limits) -> Result<()> {
     let bytes = read_bounded(&input, "raw medium", limits.memory_bytes)?;
     let volume = raw_medium::medium_from_raw(&bytes, res, raw, limits)?;
     volume_format::write(&volume, &out)
+}
+
+/// Imports a grid of the OpenVDB file `input` and says what it became.
+fn import_vdb(
+    input: &Path,
+    res: Option<Dims>,
+    grid: Option<String>,
+    density_scale: f64,
+    out: &Path,
+    limits: &Limits,
+) -> Result<()> {
+    let bytes = read_bounded(input, "OpenVDB file", limits.memory_bytes)?;
+    let options = VdbImport {
+        grid,
+        res,
+        density_scale,
+    };
+    let (volume, imported) =
+        openvdb::import(&bytes, &options, limits).map_err(|e| e.context(input.display()))?;
+    drop(bytes);
+    volume_format::write(&volume, out)?;
+    let [x, y, z] = imported.dims;
+    let what = if imported.class == "level set" {
+        "an opaque volume"
+    } else {
+        "a medium"
+    };
+    eprintln!(
+        "imported the {} {:?} (voxel size {}) as {what} of {x}x{y}x{z} voxels from index {:?}{}",
+        imported.class,
+        imported.grid,
+        imported.voxel_size,
+        imported.origin,
+        match &imported.color_grid {
+            Some(c) => format!(", coloured by {c:?}"),
+            None => String::new(),
+        }
+    );
+    Ok(())
 }
 
 /// Options of `mesobake demo`.

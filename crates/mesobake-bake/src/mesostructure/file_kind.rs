@@ -21,6 +21,8 @@ pub enum FileKind {
     Package,
     /// An OpenEXR image.
     Exr,
+    /// An OpenVDB file.
+    OpenVdb,
     /// A NumPy `.npy` array.
     Npy,
     /// JSON text (a scene, a job).
@@ -44,7 +46,7 @@ impl FileKind {
     /// The kind of a file whose first bytes are `head` (any prefix of the file; text kinds
     /// are judged on the lines it holds).
     pub fn detect(head: &[u8]) -> FileKind {
-        let magics: [(&[u8], FileKind); 5] = [
+        let magics: [(&[u8], FileKind); 6] = [
             (crate::mesostructure::volume_format::MAGIC, FileKind::Volume),
             (
                 &crate::mesostructure::height_field::PNG_MAGIC,
@@ -53,6 +55,10 @@ impl FileKind {
             (&mesobake_package::container::MAGIC, FileKind::Package),
             (&[0x76, 0x2f, 0x31, 0x01], FileKind::Exr),
             (b"\x93NUMPY", FileKind::Npy),
+            (
+                &crate::mesostructure::openvdb::archive::MAGIC,
+                FileKind::OpenVdb,
+            ),
         ];
         if head.is_empty() {
             return FileKind::Empty;
@@ -118,6 +124,7 @@ impl FileKind {
             "mbpkg" => FileKind::Package,
             "exr" => FileKind::Exr,
             "npy" => FileKind::Npy,
+            "vdb" => FileKind::OpenVdb,
             "json" => FileKind::Json,
             "txt" | "md" | "csv" => FileKind::Text,
             _ => return None,
@@ -132,6 +139,7 @@ impl FileKind {
             FileKind::Obj => "OBJ text",
             FileKind::Package => "a .mbpkg package",
             FileKind::Exr => "an OpenEXR image",
+            FileKind::OpenVdb => "an OpenVDB file (`mesobake import` makes a volume of it)",
             FileKind::Npy => "a NumPy .npy array",
             FileKind::Json => "JSON text",
             FileKind::Text => "text that is not OBJ",
@@ -160,12 +168,13 @@ mod tests {
 
     #[test]
     fn kinds_are_told_by_content() {
-        let cases: [(&[u8], FileKind); 12] = [
+        let cases: [(&[u8], FileKind); 13] = [
             (b"MBVOL\0\r\n\x01\x00", FileKind::Volume),
             (b"\x89PNG\r\n\x1a\n....", FileKind::Png),
             (b"\x89MBPKG\r\n....", FileKind::Package),
             (b"\x76\x2f\x31\x01\x02", FileKind::Exr),
             (b"\x93NUMPY\x01\x00", FileKind::Npy),
+            (b"\x20BDV\0\0\0\0\xe0\0\0\0", FileKind::OpenVdb),
             (b"  {\"scene\": 1}", FileKind::Json),
             (
                 b"# a tile\nv 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 3\n",
