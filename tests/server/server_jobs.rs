@@ -395,6 +395,111 @@ async fn a_gltf_base_mesh_is_uploaded_by_content_and_bakes() {
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
+/// An OpenVDB file OpenVDB wrote, uploaded as a volume, is stored imported: the `.mbvol`
+/// `mesobake import` writes (its digest the asset's id, the same bytes), with what it was
+/// imported from; the import's options come as query parameters and are refused for other
+/// uploads; a grid it cannot import is a 422 naming it, storing nothing; the imported level
+/// set bakes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_openvdb_volume_upload_is_stored_imported_and_bakes() {
+    let dir = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "vdb").await.remove(0);
+    let data = tempfile::tempdir().unwrap();
+    let s = TestServer::start(&url, data.path(), 1 << 24).await;
+    let stop = Arc::new(AtomicBool::new(false));
+    spawn_workers(&s.state, 1, &stop);
+    let vdb = |name: &str| {
+        std::fs::read(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("tests/data/openvdb")
+                .join(name),
+        )
+        .unwrap()
+    };
+    let client = reqwest::Client::new();
+    let upload = |body: Vec<u8>, query: &str| {
+        client
+            .post(s.url(&format!("/api/v1/assets?{query}")))
+            .body(body)
+            .send()
+    };
+    let r = upload(vdb("sphere.vdb"), "kind=volume&name=sphere.vdb")
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 201);
+    let asset: Value = r.json().await.unwrap();
+    assert_eq!(asset["summary"]["dims"], json!([30, 30, 31]), "{asset}");
+    assert_eq!(asset["summary"]["openvdb"]["grid"], "surface", "{asset}");
+    let limits = mesobake_core::limits::Limits::default();
+    let (volume, _) = mesobake_bake::mesostructure::openvdb::import(
+        &vdb("sphere.vdb"),
+        &Default::default(),
+        &limits,
+    )
+    .unwrap();
+    let mbvol = mesobake_bake::mesostructure::volume_format::encode(&volume);
+    assert_eq!(asset["id"], blake3::hash(&mbvol).to_hex().to_string());
+    assert_eq!(asset["bytes"], mbvol.len());
+    let r = upload(vdb("sphere.vdb"), "kind=volume&name=again.vdb")
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200, "the same import is the same asset");
+
+    let r = upload(
+        vdb("fog.vdb"),
+        "kind=volume&name=fog.vdb&grid=density_half&res=16x16x8&density_scale=2",
+    )
+    .await
+    .unwrap();
+    assert_eq!(r.status(), 201);
+    let fog: Value = r.json().await.unwrap();
+    assert_eq!(fog["summary"]["dims"], json!([16, 16, 8]), "{fog}");
+    assert_eq!(fog["summary"]["opacity"], true, "{fog}");
+    assert_eq!(fog["summary"]["openvdb"]["color_grid"], "Cd", "{fog}");
+    for (body, query, says) in [
+        (
+            vdb("fog.vdb"),
+            "kind=volume&name=m.vdb&grid=mask",
+            "Tree_bool_5_4_3",
+        ),
+        (
+            vdb("fog.vdb"),
+            "kind=volume&name=m.vdb&res=0x1x1",
+            "resolution 0x1x1",
+        ),
+        (
+            mbvol.clone(),
+            "kind=volume&name=v.mbvol&grid=surface",
+            "not an OpenVDB file",
+        ),
+        (
+            b"v 0 0 0".to_vec(),
+            "kind=mesh_tile&name=t.obj&grid=surface",
+            "OpenVDB uploads of kind volume",
+        ),
+    ] {
+        let r = upload(body, query).await.unwrap();
+        assert_eq!(r.status(), 422, "{query}");
+        let text = r.text().await.unwrap();
+        assert!(text.contains(says), "{query}: {text}");
+    }
+
+    let spec = json!({ "scene": {
+        "base_mesh": { "builtin": { "plane": { "amplitude": 0.1, "segments": 4 } } },
+        "mesostructure": { "volume": asset["id"] },
+        "resolution": [30, 30, 31],
+        "shell": { "thickness": 0.2, "tiles_per_uv": [2, 2] },
+        "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 32, "height": 32 }
+    }});
+    let (_, queued) = submit(&s, &spec).await;
+    let job = wait_for(&s, queued["id"].as_str().unwrap(), |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(job["state"], "succeeded", "{job}");
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cancellation_stops_a_running_bake() {
     let dir = tempfile::tempdir().unwrap();

@@ -15,7 +15,9 @@ use axum::http::{HeaderMap, StatusCode, header};
 use futures_util::StreamExt;
 use mesobake_bake::mesostructure::height_field::HeightField;
 use mesobake_bake::mesostructure::mesh_tile::MeshTile;
+use mesobake_bake::mesostructure::openvdb::{self, VdbImport, VdbImported};
 use mesobake_bake::mesostructure::trimesh::TriMesh;
+use mesobake_bake::mesostructure::volume::Volume;
 use mesobake_bake::mesostructure::volume_format;
 use mesobake_bake::surface::base_mesh::{BaseMesh, GltfSelection};
 use mesobake_core::error::{Error, Result};
@@ -30,7 +32,8 @@ use tokio::time::Instant;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum AssetKind {
-    /// A `.mbvol` voxel volume.
+    /// A `.mbvol` voxel volume, or an OpenVDB file (a level set or a fog volume), stored
+    /// imported as `.mbvol`.
     Volume,
     /// A closed OBJ mesostructure tile.
     MeshTile,
@@ -59,6 +62,37 @@ pub struct UploadParams {
     pub kind: AssetKind,
     /// A display name (no path separators), e.g. the original file name.
     pub name: String,
+    /// An OpenVDB volume upload's grid to import (by default its first level set or fog
+    /// volume).
+    #[serde(default)]
+    pub grid: Option<String>,
+    /// An OpenVDB volume upload's index box `XxYxZ` from index (0, 0, 0) (by default the
+    /// grid's active voxels' bounds).
+    #[serde(default)]
+    pub res: Option<String>,
+    /// An OpenVDB fog volume's density scale: opacity per voxel 1 − exp(−scale·ρ·h) (1 by
+    /// default).
+    #[serde(default)]
+    pub density_scale: Option<f64>,
+}
+
+impl UploadParams {
+    /// The OpenVDB import options, when any is given.
+    fn vdb_import(&self) -> Result<Option<VdbImport>> {
+        if self.grid.is_none() && self.res.is_none() && self.density_scale.is_none() {
+            return Ok(None);
+        }
+        if self.kind != AssetKind::Volume {
+            return Err(Error::InvalidParameter(
+                "grid, res and density_scale apply to OpenVDB uploads of kind volume".into(),
+            ));
+        }
+        Ok(Some(VdbImport {
+            grid: self.grid.clone(),
+            res: self.res.as_deref().map(str::parse).transpose()?,
+            density_scale: self.density_scale.unwrap_or(1.0),
+        }))
+    }
 }
 
 /// Checks a display name: 1–255 bytes, no path separators, no `..`, no control characters.
@@ -87,15 +121,40 @@ fn is_gltf(bytes: &[u8]) -> bool {
     bytes.starts_with(b"glTF") || bytes.trim_ascii_start().starts_with(b"{")
 }
 
-/// Validates `bytes` as an asset of `kind`, returning a summary of what it holds (a base
-/// mesh is OBJ or glTF, told by its content).
-pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_json::Value> {
-    Ok(match kind {
-        AssetKind::Volume => {
-            let v = volume_format::decode(bytes, limits)?;
-            let d = v.dims();
-            serde_json::json!({ "dims": [d.x, d.y, d.z], "albedo": v.albedo().is_some() })
+/// Why OpenVDB options are refused for an upload that is not OpenVDB.
+const NOT_OPENVDB: &str =
+    "grid, res and density_scale apply to OpenVDB volume uploads; this is not an OpenVDB file";
+
+/// What validating an upload found: a summary of what it holds, and the bytes to store
+/// when they are not the upload's own (an OpenVDB volume is stored imported, as `.mbvol`).
+pub struct Validated {
+    /// What the asset holds.
+    pub summary: serde_json::Value,
+    /// The bytes to store instead of the upload's.
+    pub converted: Option<Vec<u8>>,
+}
+
+/// Validates `bytes` as an asset of `kind` (a base mesh is OBJ or glTF, a volume `.mbvol` or
+/// OpenVDB, told by their content); an OpenVDB volume is imported as `vdb` says (defaults
+/// when `None`; only OpenVDB uploads take options).
+pub fn validate(
+    kind: AssetKind,
+    bytes: &[u8],
+    vdb: Option<VdbImport>,
+    limits: &Limits,
+) -> Result<Validated> {
+    let is_vdb = kind == AssetKind::Volume && bytes.starts_with(&openvdb::archive::MAGIC);
+    if vdb.is_some() && !is_vdb {
+        return Err(Error::InvalidParameter(NOT_OPENVDB.into()));
+    }
+    let summary = match kind {
+        AssetKind::Volume if is_vdb => {
+            let (volume, imported) = openvdb::import(bytes, &vdb.unwrap_or_default(), limits)?;
+            let summary = volume_summary(&volume, Some(&imported));
+            let converted = Some(volume_format::encode(&volume));
+            return Ok(Validated { summary, converted });
         }
+        AssetKind::Volume => volume_summary(&volume_format::decode(bytes, limits)?, None),
         AssetKind::MeshTile => {
             let mesh = TriMesh::from_obj(&utf8(bytes, "an OBJ tile")?)?;
             let triangles = mesh.triangles.len();
@@ -114,7 +173,26 @@ pub fn validate(kind: AssetKind, bytes: &[u8], limits: &Limits) -> Result<serde_
             let (width, height) = HeightField::decode_png(bytes, limits)?.size();
             serde_json::json!({ "size": [width, height] })
         }
+    };
+    Ok(Validated {
+        summary,
+        converted: None,
     })
+}
+
+/// A volume's summary: its grid, whether it has albedo and opacity, and what it was
+/// imported from.
+fn volume_summary(volume: &Volume, imported: Option<&VdbImported>) -> serde_json::Value {
+    let d = volume.dims();
+    let mut summary = serde_json::json!({
+        "dims": [d.x, d.y, d.z],
+        "albedo": volume.albedo().is_some(),
+        "opacity": volume.opacity().is_some(),
+    });
+    if let Some(imported) = imported {
+        summary["openvdb"] = serde_json::json!(imported);
+    }
+    summary
 }
 
 /// Removes a temporary upload file when the upload ends early.
@@ -249,6 +327,7 @@ pub async fn upload(
     body: Body,
 ) -> ApiResult<(StatusCode, Json<AssetRow>)> {
     check_name(&params.name)?;
+    let vdb = params.vdb_import()?;
     let announced = headers
         .get(header::CONTENT_LENGTH)
         .and_then(|v| v.to_str().ok()?.parse().ok())
@@ -261,6 +340,20 @@ pub async fn upload(
             StatusCode::UNPROCESSABLE_ENTITY,
             "empty upload",
         ));
+    }
+    if vdb.is_some() {
+        // Options for a body that is not OpenVDB are refused even if its bytes are stored.
+        let mut head = [0u8; 8];
+        let file = tokio::fs::File::open(&tmp.0).await;
+        let read = match file {
+            Ok(mut f) => tokio::io::AsyncReadExt::read_exact(&mut f, &mut head)
+                .await
+                .is_ok(),
+            Err(_) => false,
+        };
+        if !(read && head == openvdb::archive::MAGIC) {
+            return Err(Error::InvalidParameter(NOT_OPENVDB.into()).into());
+        }
     }
     if let Some(existing) = state.db.asset(&id).await? {
         if existing.kind != params.kind.name() {
@@ -281,15 +374,24 @@ pub async fn upload(
     .await
     .map_err(|_| ApiError::busy("too many uploads at once; try again shortly"))?
     .map_err(|_| ApiError::busy("uploads are closed"))?;
-    let (limits, blobs, kind, key) = (state.limits, state.blobs.clone(), params.kind, id.clone());
-    let summary = tokio::task::spawn_blocking(move || -> Result<serde_json::Value> {
-        let bytes = std::fs::read(&tmp.0).map_err(|e| Error::io(&tmp.0, e))?;
-        let summary = validate(kind, &bytes, &limits)?;
-        drop(bytes);
-        blobs.put_file(&tmp.0, &key)?;
-        Ok(summary)
-    })
-    .await??;
+    let (limits, blobs, kind) = (state.limits, state.blobs.clone(), params.kind);
+    let (id, len, summary) =
+        tokio::task::spawn_blocking(move || -> Result<(String, u64, serde_json::Value)> {
+            let bytes = std::fs::read(&tmp.0).map_err(|e| Error::io(&tmp.0, e))?;
+            let validated = validate(kind, &bytes, vdb, &limits)?;
+            drop(bytes);
+            match validated.converted {
+                None => {
+                    blobs.put_file(&tmp.0, &id)?;
+                    Ok((id, len, validated.summary))
+                }
+                Some(converted) => {
+                    let stored_len = converted.len() as u64;
+                    Ok((blobs.put(&converted)?, stored_len, validated.summary))
+                }
+            }
+        })
+        .await??;
     let row = AssetRow {
         id,
         kind: kind.name().into(),
