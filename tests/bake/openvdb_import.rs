@@ -191,6 +191,13 @@ fn unsupported_grids_and_broken_files_are_refused_by_name() {
     };
     let e = refusal(&file("sphere.vdb"), small_box, &tiny);
     assert!(e.contains("over the memory limit"), "{e}");
+    // By default the box is the recorded bounds (30×30×31 voxels, 11 bytes each), refused
+    // from the header before the tree is read.
+    let e = refusal(&file("sphere.vdb"), VdbImport::default(), &tiny);
+    assert!(
+        e.contains("the imported volume") && e.contains("306900"),
+        "{e}"
+    );
 
     let sphere = file("sphere.vdb");
     for cut in (0..sphere.len()).step_by(97) {
