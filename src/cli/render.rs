@@ -12,9 +12,11 @@ use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use mesobake_core::{Error, Result};
 use mesobake_render::gdm_renderer::Substitutions;
 use mesobake_render::image::{Image, compare, difference};
+use mesobake_scene::objects::{self, SceneObject};
 use mesobake_scene::package::{check_any_package_input, gdm_scene_package, scene_package};
-use mesobake_scene::render::{MapSource, RenderMethod, load_scene, render_substituted};
+use mesobake_scene::render::{MapSource, RenderMethod, render_objects, render_substituted};
 use mesobake_scene::technique::Technique;
+use mesobake_scene::{LoadedScene, Scene};
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::time::Instant;
@@ -116,15 +118,47 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
         quality,
     } = args;
     let start = Instant::now();
-    let mut loaded = load_scene(&scene, limits)?;
-    if let Some(quality) = quality {
-        loaded.scene.quality = quality;
-    }
-    if let Some(spp) = spp {
-        loaded.scene.camera.set_samples_per_pixel(spp)?;
-    }
-    let load_s = start.elapsed().as_secs_f64();
     let dir = scene.parent().unwrap_or(Path::new("."));
+    let mut objects = objects::read(&scene)?;
+    let view = |s: &mut Scene| -> Result<()> {
+        if let Some(quality) = quality {
+            s.quality = quality;
+        }
+        if let Some(spp) = spp {
+            s.camera.set_samples_per_pixel(spp)?;
+        }
+        Ok(())
+    };
+    for object in &mut objects {
+        view(&mut object.scene)?;
+    }
+    if objects.len() > 1 {
+        if package.is_some() || substitute != Substitutions::default() {
+            return Err(Error::InvalidParameter(
+                "--package and --substitute render one object; this scene has several".into(),
+            ));
+        }
+        let codec = CodecOptions {
+            gdm_codec: match gdm_codec {
+                GdmSource::Package(codec) => codec,
+                GdmSource::Uncompressed => GdmCodec::default(),
+            },
+            rank,
+            quant,
+        };
+        codec.check(None)?;
+        let several = Several {
+            method: method.unwrap_or(RenderMethod::Gdm),
+            uncompressed: gdm_codec == GdmSource::Uncompressed,
+            codec,
+            out,
+            json,
+        };
+        return render_several(&scene, objects, several, limits);
+    }
+    let scene_object = objects.remove(0).scene;
+    let loaded = LoadedScene::load(scene_object, dir, limits)?;
+    let load_s = start.elapsed().as_secs_f64();
     if package.is_some() && matches!(method, Some(RenderMethod::Truth | RenderMethod::Explicit)) {
         return Err(Error::InvalidParameter(
             "--package only applies to --method gdm, vdm and cells".into(),
@@ -235,6 +269,87 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             "shell": loaded.shell.report,
             "seconds": rendered.seconds,
             "gi": rendered.gi,
+        }));
+    }
+    Ok(())
+}
+
+/// What `render` does with a scene of several objects.
+struct Several {
+    method: RenderMethod,
+    /// Whether `gdm` queries each object's exact GDM instead of its package.
+    uncompressed: bool,
+    codec: CodecOptions,
+    out: PathBuf,
+    json: bool,
+}
+
+/// Renders a scene of several objects together (`--method truth` or `gdm`), each object's
+/// package baked as `preview` would.
+fn render_several(
+    path: &Path,
+    objects: Vec<SceneObject>,
+    options: Several,
+    limits: &Limits,
+) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let start = Instant::now();
+    let names: Vec<String> = objects.iter().map(|o| o.name.clone()).collect();
+    let loaded = objects
+        .into_iter()
+        .map(|o| {
+            let name = o.name;
+            LoadedScene::load(o.scene, dir, limits)
+                .map_err(|e| e.context(format!("object {name:?}")))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let load_s = start.elapsed().as_secs_f64();
+    let progress = Progress::new("baking the objects' packages");
+    let packages = if options.method == RenderMethod::Gdm && !options.uncompressed {
+        loaded
+            .iter()
+            .map(|o| gdm_scene_package(o, dir, options.codec.scene_params(), limits, &progress))
+            .collect::<Result<Vec<_>>>()?
+    } else {
+        Vec::new()
+    };
+    let package_refs: Vec<Option<&_>> = packages.iter().map(Some).collect();
+    let mut rendered = render_objects(&loaded, options.method, &package_refs, &progress, limits)?;
+    progress.finish();
+    rendered.seconds.load = load_s;
+    rendered.image.write(&options.out)?;
+    let image = &rendered.image;
+    eprintln!(
+        "wrote {} ({}×{}, {} objects, {} hit pixels) in {:.2} s of rendering",
+        options.out.display(),
+        image.width,
+        image.height,
+        loaded.len(),
+        image.hits(),
+        rendered.seconds.render
+    );
+    if options.json {
+        let objects: Vec<_> = names
+            .iter()
+            .zip(&loaded)
+            .map(|(name, o)| {
+                serde_json::json!({
+                    "name": name,
+                    "base_mesh": o.base_report,
+                    "shell": o.shell.report,
+                })
+            })
+            .collect();
+        print_json(&serde_json::json!({
+            "scene": path,
+            "output": options.out,
+            "method": options.method,
+            "samples_per_pixel": loaded[0].scene.camera.samples_per_pixel,
+            "width": image.width,
+            "height": image.height,
+            "hit_pixels": image.hits(),
+            "objects": objects,
+            "seconds": rendered.seconds,
         }));
     }
     Ok(())

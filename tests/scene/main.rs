@@ -14,6 +14,7 @@ mod gi_packages;
 mod medium_package;
 mod medium_preview;
 mod medium_render;
+mod objects;
 mod preview;
 mod quality;
 mod render;

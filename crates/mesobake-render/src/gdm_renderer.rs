@@ -53,7 +53,8 @@
 
 use super::accel::BoxBvh;
 use super::gdm_lookup::GdmLookup;
-use super::lighting::{SHADOW_OFFSET, shade};
+use super::lighting::{Incident, SHADOW_OFFSET, shade};
+use super::objects::ObjectRenderer;
 use super::prepared_prism::{PreparedFace, PreparedPrism, intersect, prepare_prisms};
 use super::prism_map::PrismMap;
 use super::truth::{TruthRenderer, light_start};
@@ -407,6 +408,22 @@ impl<'a> GdmRenderer<'a> {
 
     /// Step 6: the shaded radiance along the camera ray, or `None` for a miss.
     pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
+        self.radiance_with(shot, origin, dir, &|_, _| true)
+    }
+}
+
+impl ObjectRenderer for GdmRenderer<'_> {
+    fn hit_distance(&self, origin: DVec3, dir: DVec3) -> Option<f64> {
+        self.trace(origin, dir).map(|hit| hit.t)
+    }
+
+    fn radiance_with(
+        &self,
+        shot: &Shot,
+        origin: DVec3,
+        dir: DVec3,
+        elsewhere: &dyn Fn(DVec3, &Incident) -> bool,
+    ) -> Option<DVec3> {
         let hit = self.trace(origin, dir)?;
         let frame = self.frame(&hit);
         let n_tex = self.material.normal_at(hit.texture).unwrap_or(-hit.view);
@@ -426,6 +443,9 @@ impl<'a> GdmRenderer<'a> {
                 + shade(&shot.lights, &shot.material, p, n, albedo, -dir, |inc| {
                     if !shadows {
                         return true;
+                    }
+                    if !elsewhere(start(), inc) {
+                        return false;
                     }
                     if let Some(truth) = self.exact(|s| s.exact_shadows) {
                         return !truth.blocked(start(), inc.direction, inc.distance);

@@ -20,6 +20,7 @@ pub mod medium_cells;
 pub mod medium_settings;
 pub mod medium_shadow_map;
 pub mod medium_truth;
+pub mod objects;
 pub mod path_tracer;
 pub mod prepared_prism;
 pub mod prism_map;

@@ -21,7 +21,8 @@
 //!   camera ray instead left dotted self-shadowing wherever the staircase lies under a smooth
 //!   normal).
 
-use super::lighting::{SHADOW_OFFSET, shade};
+use super::lighting::{Incident, SHADOW_OFFSET, shade};
+use super::objects::ObjectRenderer;
 use super::shell_walk::{CHORD_TOLERANCE, Chord, ShellWalk};
 use crate::shot::Shot;
 use glam::{DMat3, DVec3};
@@ -161,12 +162,22 @@ impl<'a> TruthRenderer<'a> {
 
     /// The shaded radiance along the camera ray, or `None` for a miss.
     pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
-        let hit = self.trace(origin, dir, 0.0, f64::INFINITY)?;
-        Some(self.shade_lights(shot, &self.surface(&hit, origin, dir), dir))
+        self.radiance_with(shot, origin, dir, &|_, _| true)
     }
 
     /// The scene's lights shaded at surface `s`, seen along `dir`.
     pub fn shade_lights(&self, shot: &Shot, s: &Surface, dir: DVec3) -> DVec3 {
+        self.shade_lights_with(shot, s, dir, &|_, _| true)
+    }
+
+    /// [`TruthRenderer::shade_lights`], a light also blocked where `elsewhere` says so.
+    fn shade_lights_with(
+        &self,
+        shot: &Shot,
+        s: &Surface,
+        dir: DVec3,
+        elsewhere: &dyn Fn(DVec3, &Incident) -> bool,
+    ) -> DVec3 {
         let shadows = shot.wants(Effect::Shadows);
         shade(
             &shot.lights,
@@ -175,7 +186,11 @@ impl<'a> TruthRenderer<'a> {
             s.normal,
             s.albedo,
             -dir,
-            |inc| !shadows || !self.blocked(s.light_start, inc.direction, inc.distance),
+            |inc| {
+                !shadows
+                    || (!self.blocked(s.light_start, inc.direction, inc.distance)
+                        && elsewhere(s.light_start, inc))
+            },
         )
     }
 
@@ -246,4 +261,22 @@ pub struct Surface {
 /// space by `jacobian` (texture voxel units → object).
 pub fn light_start(jacobian: DMat3, point: DVec3, n_tex: DVec3) -> DVec3 {
     point + jacobian * (n_tex * SHADOW_OFFSET)
+}
+
+impl ObjectRenderer for TruthRenderer<'_> {
+    fn hit_distance(&self, origin: DVec3, dir: DVec3) -> Option<f64> {
+        self.trace(origin, dir, 0.0, f64::INFINITY).map(|hit| hit.t)
+    }
+
+    fn radiance_with(
+        &self,
+        shot: &Shot,
+        origin: DVec3,
+        dir: DVec3,
+        elsewhere: &dyn Fn(DVec3, &Incident) -> bool,
+    ) -> Option<DVec3> {
+        let hit = self.trace(origin, dir, 0.0, f64::INFINITY)?;
+        let surface = self.surface(&hit, origin, dir);
+        Some(self.shade_lights_with(shot, &surface, dir, elsewhere))
+    }
 }

@@ -10,12 +10,14 @@ pub mod bench;
 pub mod explicit;
 pub mod gi;
 pub mod memory;
+pub mod objects;
 pub mod package;
 pub mod plan;
 pub mod preview;
 pub mod render;
 pub mod report;
 pub mod technique;
+pub mod transform;
 pub mod vdm;
 
 use glam::DVec3;
@@ -54,6 +56,7 @@ use mesobake_render::truth::TruthRenderer;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use technique::{Technique, TechniqueChoice};
+use transform::ObjectTransform;
 use vdm::VdmSettings;
 
 /// Largest accepted scene file.
@@ -68,6 +71,10 @@ pub struct Scene {
     /// Uniform scale applied to the base mesh's positions (object units per mesh unit).
     #[serde(default = "one")]
     pub mesh_scale: f64,
+    /// Where the base mesh stands: scaled, rotated and translated after `mesh_scale` (an
+    /// object of a scene with several, [`objects`]).
+    #[serde(default, skip_serializing_if = "ObjectTransform::is_identity")]
+    pub transform: ObjectTransform,
     /// The mesostructure sample.
     pub mesostructure: MesostructureSource,
     /// The technique that renders it: `gdm`, `vdm` (height fields), or `auto` (the default:
@@ -271,7 +278,17 @@ pub enum MesostructureSource {
 impl Scene {
     /// Parses and validates scene JSON.
     pub fn from_json(text: &str) -> Result<Scene> {
-        let scene: Scene = serde_json::from_str(text).map_err(|e| Error::Scene(e.to_string()))?;
+        let scene: Scene = serde_json::from_str(text).map_err(|e| {
+            let value = serde_json::from_str::<serde_json::Value>(text);
+            match value {
+                Ok(v) if v.get("objects").is_some() => Error::Scene(
+                    "the scene holds several objects (`objects`): `mesobake render` draws them; \
+                     this takes a scene of one object"
+                        .into(),
+                ),
+                _ => Error::Scene(e.to_string()),
+            }
+        })?;
         scene.validate()?;
         Ok(scene)
     }
@@ -337,6 +354,7 @@ impl Scene {
                 self.gdm_refinements
             )));
         }
+        self.transform.validate()?;
         self.quality.validate()?;
         self.vdm.validate()?;
         self.transparency.validate()?;
@@ -424,6 +442,7 @@ impl Scene {
             }
         }
         s.mesh_scale *= factor;
+        s.transform.translate = scale(s.transform.translate);
         s
     }
 }
@@ -445,8 +464,15 @@ pub fn load_base_mesh(
     for p in &mut base.positions {
         *p *= scene.mesh_scale;
     }
-    base.check_coordinates()
-        .map_err(|e| Error::Scene(format!("mesh_scale {}: {e}", scene.mesh_scale)))?;
+    scene
+        .transform
+        .apply(&mut base.positions, &mut base.normals);
+    base.check_coordinates().map_err(|e| {
+        Error::Scene(format!(
+            "mesh_scale {} and transform {:?}: {e}",
+            scene.mesh_scale, scene.transform
+        ))
+    })?;
     Ok((base, report))
 }
 

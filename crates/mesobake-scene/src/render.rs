@@ -19,6 +19,7 @@ use mesobake_render::gdm_renderer::{GdmRenderer, Substitutions};
 use mesobake_render::image::Image;
 use mesobake_render::medium_cells::CellRenderer;
 use mesobake_render::medium_truth::MediumTruth;
+use mesobake_render::objects::{self, Object, ObjectRenderer};
 use mesobake_render::render_image_observed;
 use mesobake_render::truth::TruthRenderer;
 use mesobake_render::vdm_renderer::VdmRenderer;
@@ -392,6 +393,92 @@ fn render_medium(
             render: start.elapsed().as_secs_f64(),
             ..RenderSeconds::default()
         },
+        gi: None,
+    })
+}
+
+/// Renders several objects together ([`crate::objects`]): the nearest object's hit at each
+/// pixel, shaded with the others' shadows. `truth` renders every object's ground truth; the
+/// real-time specification (`gdm`) renders each object's GDM, from `packages[i]` when given
+/// (it must be of object i's mesostructure), else baked exactly.
+pub fn render_objects(
+    objects: &[LoadedScene],
+    method: RenderMethod,
+    packages: &[Option<&Package>],
+    observer: &dyn BakeObserver,
+    limits: &Limits,
+) -> Result<Rendered> {
+    let refuse = |why: String| Err(Error::InvalidParameter(why));
+    for loaded in objects {
+        if loaded.scene.wants(Effect::EnvironmentLighting) {
+            return refuse(
+                "environment lighting of a scene with several objects is not rendered yet: \
+                 light them with point, directional and ambient lights"
+                    .into(),
+            );
+        }
+        loaded.check_opaque("a scene with several objects (translucent objects come later)")?;
+    }
+    if !matches!(method, RenderMethod::Truth | RenderMethod::Gdm) {
+        return refuse(format!(
+            "a scene with several objects renders with method truth or gdm, not {}",
+            method.name()
+        ));
+    }
+    let mut seconds = RenderSeconds::default();
+    let start = Instant::now();
+    let shots: Vec<_> = objects.iter().map(|o| o.scene.shot()).collect();
+    let package = |i: usize| packages.get(i).copied().flatten();
+    let baked = objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| match (method, package(i)) {
+            (RenderMethod::Gdm, None) => o.bake_gdm(limits, observer).map(Some),
+            _ => Ok(None),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut lookups: Vec<Box<dyn GdmLookup + '_>> = Vec::new();
+    for (i, (loaded, raw)) in objects.iter().zip(&baked).enumerate() {
+        match (package(i), raw) {
+            (Some(pkg), _) if method == RenderMethod::Gdm => {
+                pkg.check_grid(loaded.scene.dims()?)?;
+                lookups.push(package_lookup(pkg)?);
+            }
+            (_, Some(raw)) => lookups.push(Box::new(RawLookup::new(raw))),
+            _ => {}
+        }
+    }
+    seconds.gdm = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let truths: Vec<TruthRenderer> = objects
+        .iter()
+        .map(|o| TruthRenderer::new(&o.shell, o.mesostructure.caster(), &o.material))
+        .collect();
+    let gdms: Vec<GdmRenderer> = objects
+        .iter()
+        .zip(&lookups)
+        .map(|(o, lookup)| {
+            GdmRenderer::new(&o.shell, &**lookup, &o.material, o.scene.gdm_refinements)
+                .with_quality(o.scene.quality)
+        })
+        .collect();
+    let renderers: Vec<&dyn ObjectRenderer> = match method {
+        RenderMethod::Gdm => gdms.iter().map(|r| r as &dyn ObjectRenderer).collect(),
+        _ => truths.iter().map(|r| r as &dyn ObjectRenderer).collect(),
+    };
+    let composed: Vec<Object> = renderers
+        .iter()
+        .zip(&shots)
+        .map(|(&renderer, shot)| Object { renderer, shot })
+        .collect();
+    observer.stage("rendering");
+    let image = render_image_observed(&shots[0].camera, observer, |o, d| {
+        objects::radiance(&composed, o, d)
+    })?;
+    seconds.render = start.elapsed().as_secs_f64();
+    Ok(Rendered {
+        image,
+        seconds,
         gi: None,
     })
 }
