@@ -20,8 +20,9 @@ use mesobake_core::npy::write_array;
 use mesobake_core::{Error, Result};
 use mesobake_package::grid::Dims;
 use mesobake_package::vdm::{VDM_FORMAT_NAME, VdmQuery};
+use mesobake_scene::LoadedScene;
+use mesobake_scene::objects::{self, SceneObject};
 use mesobake_scene::package::{ScenePayload, bake_scene_package, plan_package};
-use mesobake_scene::{LoadedScene, Scene};
 use mesobake_server::client::Client;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -37,7 +38,8 @@ pub struct BakeArgs {
     /// lists the technique and the stages run and skipped, with reasons.
     #[arg(long, conflicts_with_all = ["input", "res", "max_rmse", "server", "method", "allow_open"])]
     scene: Option<PathBuf>,
-    /// Output package (.mbpkg).
+    /// Output package (.mbpkg); for a scene of several objects, the folder that receives one
+    /// package per object, NAME.mbpkg.
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
@@ -71,14 +73,80 @@ pub fn bake(args: BakeArgs, limits: &Limits) -> Result<()> {
     bake_input(&args, limits)
 }
 
+/// `bake --scene` of a scene with several objects: one package per object (what each object's
+/// real-time renderer reads), `OUT/NAME.mbpkg`, every object planned before any is baked.
+fn bake_objects(
+    scene: &Path,
+    objects: Vec<SceneObject>,
+    args: &BakeArgs,
+    limits: &Limits,
+) -> Result<()> {
+    let params = args.codec.scene_params();
+    let dir = scene.parent().unwrap_or(Path::new("."));
+    let mut files = std::collections::BTreeSet::new();
+    let mut outputs = Vec::new();
+    for object in &objects {
+        plan_package(&object.scene, dir, params, limits)
+            .map_err(|e| e.context(format!("object {:?}", object.name)))?;
+        let file: String = object
+            .name
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        if !files.insert(file.clone()) {
+            return Err(Error::Scene(format!(
+                "two objects are named {file:?} as files: name them apart"
+            )));
+        }
+        outputs.push(args.out.join(format!("{file}.mbpkg")));
+    }
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    let mut summaries = Vec::new();
+    for (object, out) in objects.into_iter().zip(outputs) {
+        let name = object.name;
+        let loaded = LoadedScene::load(object.scene, dir, limits)
+            .map_err(|e| e.context(format!("object {name:?}")))?;
+        let progress = Progress::new(&format!("baking {name}"));
+        let baked = bake_scene_package(&loaded, dir, params, limits, &progress)?;
+        progress.finish();
+        write_atomic(&out, &baked.bytes)?;
+        eprintln!(
+            "wrote {} ({} bytes): {name}, {} package",
+            out.display(),
+            baked.bytes.len(),
+            baked.plan.technique.technique.name(),
+        );
+        summaries.push(serde_json::json!({
+            "name": name,
+            "output": out,
+            "bytes": baked.bytes.len(),
+            "plan": baked.plan,
+        }));
+    }
+    if args.json {
+        print_json(&serde_json::json!({ "scene": scene, "objects": summaries }));
+    }
+    Ok(())
+}
+
 /// `bake --scene`: the stages the scene's effects call for.
 fn bake_scene(scene: &Path, args: &BakeArgs, limits: &Limits) -> Result<()> {
     let out = &args.out;
     let start = Instant::now();
     let params = args.codec.scene_params();
     let dir = scene.parent().unwrap_or(Path::new("."));
+    let mut objects = objects::read(scene)?;
+    if objects.len() > 1 {
+        return bake_objects(scene, objects, args, limits);
+    }
     // Planned first: a bake the memory limit cannot hold is refused before loading.
-    let read = Scene::read(scene)?;
+    let read = objects.remove(0).scene;
     plan_package(&read, dir, params, limits)?;
     let loaded = LoadedScene::load(read, dir, limits)?;
     let load_s = start.elapsed().as_secs_f64();

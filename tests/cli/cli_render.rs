@@ -253,6 +253,102 @@ fn openvdb_level_sets_and_fog_volumes_import_and_render() {
     }
 }
 
+/// A scene of several objects from the command line: the Blender knight's two materials as
+/// two objects, rendered together (truth and gdm, the image's hits those of the objects),
+/// baked as one package per object (each the package of its object alone, byte for byte),
+/// and refused by name where one object is expected.
+#[test]
+fn a_scene_of_two_objects_renders_and_bakes_a_package_per_object() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/blender/knight.glb");
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let shared = serde_json::json!({
+        "camera": { "eye": [0.3, 3.2, 2.4], "target": [0.25, 0.5, 0], "fov_y_degrees": 45, "width": 48, "height": 48 },
+        "lights": [{ "point": { "position": [2, 4, 3], "intensity": [40, 40, 40] } }],
+        "effects": ["shadows"],
+        "resolution": [16, 16, 8],
+        "shell": { "thickness": 0.06, "tiles_per_uv": [8, 4] }
+    });
+    let mut scene = shared.clone();
+    scene["objects"] = serde_json::json!([{
+        "base_mesh": { "gltf": glb },
+        "materials": {
+            "Chain": { "mesostructure": { "sample": "chain" } },
+            "Leather": { "mesostructure": { "sample": "weave" } }
+        }
+    }]);
+    std::fs::write(path("knight.json"), scene.to_string()).unwrap();
+    for method in ["truth", "gdm"] {
+        let o = succeeds(&[
+            "render",
+            "--scene",
+            &path("knight.json"),
+            "--method",
+            method,
+            "--out",
+            &path(&format!("{method}.png")),
+            "--json",
+        ]);
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(json["objects"][1]["name"], "Leather", "{json}");
+        assert!(json["hit_pixels"].as_u64().unwrap() > 200, "{json}");
+    }
+    succeeds(&[
+        "bake",
+        "--scene",
+        &path("knight.json"),
+        "--out",
+        &path("packages"),
+    ]);
+    // The chain's object alone, as a scene of one object: the same package.
+    let mut chain = shared.clone();
+    chain["base_mesh"] = serde_json::json!({ "gltf": { "file": glb, "material": "Chain" } });
+    chain["mesostructure"] = serde_json::json!({ "sample": "chain" });
+    std::fs::write(path("chain.json"), chain.to_string()).unwrap();
+    succeeds(&[
+        "bake",
+        "--scene",
+        &path("chain.json"),
+        "--out",
+        &path("chain.mbpkg"),
+    ]);
+    assert_eq!(
+        std::fs::read(path("packages/Chain.mbpkg")).unwrap(),
+        std::fs::read(path("chain.mbpkg")).unwrap()
+    );
+    assert!(
+        std::fs::metadata(path("packages/Leather.mbpkg"))
+            .unwrap()
+            .len()
+            > 0
+    );
+    each_fails_with(&[
+        (
+            vec![
+                "render",
+                "--scene",
+                &path("knight.json"),
+                "--package",
+                &path("chain.mbpkg"),
+                "--out",
+                &path("x.png"),
+            ],
+            "this scene has several",
+        ),
+        (
+            vec![
+                "preview",
+                "--scene",
+                &path("knight.json"),
+                "--out",
+                &path("x.png"),
+            ],
+            "several objects",
+        ),
+    ]);
+}
+
 #[test]
 fn the_render_report_ends_with_the_error_budget() {
     let dir = tempfile::tempdir().unwrap();
