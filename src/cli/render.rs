@@ -12,11 +12,11 @@ use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use mesobake_core::{Error, Result};
 use mesobake_render::gdm_renderer::Substitutions;
 use mesobake_render::image::{Image, compare, difference};
+use mesobake_scene::LoadedScene;
 use mesobake_scene::objects::{self, SceneObject};
 use mesobake_scene::package::{check_any_package_input, gdm_scene_package, scene_package};
 use mesobake_scene::render::{MapSource, RenderMethod, render_objects, render_substituted};
 use mesobake_scene::technique::Technique;
-use mesobake_scene::{LoadedScene, Scene};
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 use std::time::Instant;
@@ -120,33 +120,29 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
     let start = Instant::now();
     let dir = scene.parent().unwrap_or(Path::new("."));
     let mut objects = objects::read(&scene)?;
-    let view = |s: &mut Scene| -> Result<()> {
+    for object in &mut objects {
         if let Some(quality) = quality {
-            s.quality = quality;
+            object.scene.quality = quality;
         }
         if let Some(spp) = spp {
-            s.camera.set_samples_per_pixel(spp)?;
+            object.scene.camera.set_samples_per_pixel(spp)?;
         }
-        Ok(())
-    };
-    for object in &mut objects {
-        view(&mut object.scene)?;
     }
+    let codec = CodecOptions {
+        gdm_codec: match gdm_codec {
+            GdmSource::Package(codec) => codec,
+            GdmSource::Uncompressed => GdmCodec::default(),
+        },
+        rank,
+        quant,
+    };
+    codec.check(None)?;
     if objects.len() > 1 {
         if package.is_some() || substitute != Substitutions::default() {
             return Err(Error::InvalidParameter(
                 "--package and --substitute render one object; this scene has several".into(),
             ));
         }
-        let codec = CodecOptions {
-            gdm_codec: match gdm_codec {
-                GdmSource::Package(codec) => codec,
-                GdmSource::Uncompressed => GdmCodec::default(),
-            },
-            rank,
-            quant,
-        };
-        codec.check(None)?;
         let several = Several {
             method: method.unwrap_or(RenderMethod::Gdm),
             uncompressed: gdm_codec == GdmSource::Uncompressed,
@@ -174,15 +170,6 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             Ok(package)
         })
         .transpose()?;
-    let codec = CodecOptions {
-        gdm_codec: match gdm_codec {
-            GdmSource::Package(codec) => codec,
-            GdmSource::Uncompressed => GdmCodec::default(),
-        },
-        rank,
-        quant,
-    };
-    codec.check(None)?;
     let codec_chosen = codec.is_chosen() || gdm_codec == GdmSource::Uncompressed;
     if codec_chosen
         && (package.is_some()

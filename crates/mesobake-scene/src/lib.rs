@@ -296,17 +296,7 @@ impl Scene {
 
     /// Reads a scene file (at most [`MAX_SCENE_BYTES`]).
     pub fn read(path: &Path) -> Result<Scene> {
-        let bytes = read_bounded(path, "scene", MAX_SCENE_BYTES).map_err(|e| match e {
-            Error::MemoryLimit { needed, .. } => Error::Scene(format!(
-                "{} is {needed} bytes or more, over the {MAX_SCENE_BYTES}-byte limit for scene \
-                 files",
-                path.display()
-            )),
-            e => e,
-        })?;
-        let text = String::from_utf8(bytes)
-            .map_err(|e| Error::Scene(format!("{} is not UTF-8 text: {e}", path.display())))?;
-        Scene::from_json(&text).map_err(|e| e.context(path.display()))
+        Scene::from_json(&read_scene_text(path)?).map_err(|e| e.context(path.display()))
     }
 
     /// Whether the scene calls for `effect`.
@@ -446,6 +436,19 @@ impl Scene {
         s.transform.translate = scale(s.transform.translate);
         s
     }
+}
+
+/// The text of the scene file at `path` (at most [`MAX_SCENE_BYTES`], UTF-8).
+fn read_scene_text(path: &Path) -> Result<String> {
+    let bytes = read_bounded(path, "scene", MAX_SCENE_BYTES).map_err(|e| match e {
+        Error::MemoryLimit { needed, .. } => Error::Scene(format!(
+            "{} is {needed} bytes or more, over the {MAX_SCENE_BYTES}-byte limit for scene files",
+            path.display()
+        )),
+        e => e,
+    })?;
+    String::from_utf8(bytes)
+        .map_err(|e| Error::Scene(format!("{} is not UTF-8 text: {e}", path.display())))
 }
 
 /// The base mesh `scene` names, scaled by its `mesh_scale`, with what validating it found

@@ -13,9 +13,8 @@
 //! a scene takes an object (its own plan and package: one package per object), and
 //! [`crate::render::render_objects`] draws them together.
 
-use crate::{MAX_SCENE_BYTES, Scene};
+use crate::Scene;
 use mesobake_core::error::{Error, Result};
-use mesobake_core::fs::read_bounded;
 use serde_json::{Map, Value};
 use std::path::Path;
 
@@ -114,12 +113,9 @@ pub fn from_json(text: &str) -> Result<Vec<SceneObject>> {
     Ok(objects)
 }
 
-/// Reads a scene file's objects (at most [`MAX_SCENE_BYTES`]).
+/// Reads a scene file's objects (at most [`crate::MAX_SCENE_BYTES`]).
 pub fn read(path: &Path) -> Result<Vec<SceneObject>> {
-    let bytes = read_bounded(path, "scene", MAX_SCENE_BYTES)?;
-    let text = String::from_utf8(bytes)
-        .map_err(|e| Error::Scene(format!("{} is not UTF-8 text: {e}", path.display())))?;
-    from_json(&text).map_err(|e| e.context(path.display()))
+    from_json(&crate::read_scene_text(path)?).map_err(|e| e.context(path.display()))
 }
 
 /// The object of `fields` over the scene's top-level fields, checked as a scene.
