@@ -323,6 +323,21 @@ fn a_scene_of_two_objects_renders_and_bakes_a_package_per_object() {
             .len()
             > 0
     );
+    // The README's example scene: the knight on a woven ground, three objects.
+    let example =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/examples/knight-objects.json");
+    let o = succeeds(&[
+        "render",
+        "--scene",
+        example.to_str().unwrap(),
+        "--method",
+        "truth",
+        "--out",
+        &path("example.png"),
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["objects"].as_array().unwrap().len(), 3, "{json}");
     each_fails_with(&[
         (
             vec![
