@@ -144,7 +144,7 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
             ));
         }
         let several = Several {
-            method: method.unwrap_or(RenderMethod::Gdm),
+            method,
             uncompressed: gdm_codec == GdmSource::Uncompressed,
             codec,
             out,
@@ -263,7 +263,8 @@ pub fn render(args: RenderArgs, limits: &Limits) -> Result<()> {
 
 /// What `render` does with a scene of several objects.
 struct Several {
-    method: RenderMethod,
+    /// Every object's method, or by default each its technique's.
+    method: Option<RenderMethod>,
     /// Whether `gdm` queries each object's exact GDM instead of its package.
     uncompressed: bool,
     codec: CodecOptions,
@@ -271,8 +272,8 @@ struct Several {
     json: bool,
 }
 
-/// Renders a scene of several objects together (`--method truth` or `gdm`), each object's
-/// package baked as `preview` would.
+/// Renders a scene of several objects together (`--method truth`, `gdm` or `vdm`, by default
+/// each object's technique), each object's package baked as `preview` would.
 fn render_several(
     path: &Path,
     objects: Vec<SceneObject>,
@@ -291,17 +292,30 @@ fn render_several(
         })
         .collect::<Result<Vec<_>>>()?;
     let load_s = start.elapsed().as_secs_f64();
+    let methods: Vec<RenderMethod> = loaded
+        .iter()
+        .map(|o| {
+            options.method.unwrap_or(match o.technique().technique {
+                Technique::Vdm => RenderMethod::Vdm,
+                Technique::Transparency => RenderMethod::Cells,
+                Technique::Gdm | Technique::Auto => RenderMethod::Gdm,
+            })
+        })
+        .collect();
     let progress = Progress::new("baking the objects' packages");
-    let packages = if options.method == RenderMethod::Gdm && !options.uncompressed {
-        loaded
-            .iter()
-            .map(|o| gdm_scene_package(o, dir, options.codec.scene_params(), limits, &progress))
-            .collect::<Result<Vec<_>>>()?
-    } else {
-        Vec::new()
-    };
-    let package_refs: Vec<Option<&_>> = packages.iter().map(Some).collect();
-    let mut rendered = render_objects(&loaded, options.method, &package_refs, &progress, limits)?;
+    let params = options.codec.scene_params();
+    let mut packages = Vec::new();
+    for (o, method) in loaded.iter().zip(&methods) {
+        packages.push(match method {
+            RenderMethod::Gdm if !options.uncompressed => Some(AnyPackage::Gdm(gdm_scene_package(
+                o, dir, params, limits, &progress,
+            )?)),
+            RenderMethod::Vdm => Some(scene_package(o, dir, params, limits, &progress)?),
+            _ => None,
+        });
+    }
+    let package_refs: Vec<Option<&AnyPackage>> = packages.iter().map(Option::as_ref).collect();
+    let mut rendered = render_objects(&loaded, &methods, &package_refs, &progress, limits)?;
     progress.finish();
     rendered.seconds.load = load_s;
     rendered.image.write(&options.out)?;
@@ -330,7 +344,7 @@ fn render_several(
         print_json(&serde_json::json!({
             "scene": path,
             "output": options.out,
-            "method": options.method,
+            "methods": methods,
             "samples_per_pixel": loaded[0].scene.camera.samples_per_pixel,
             "width": image.width,
             "height": image.height,

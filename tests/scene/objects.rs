@@ -70,7 +70,8 @@ fn rendered_together(objects: &[SceneObject], dir: &Path, method: RenderMethod) 
         .iter()
         .map(|o| LoadedScene::load(o.scene.clone(), dir, &Limits::default()).unwrap())
         .collect();
-    render_objects(&loaded, method, &[], &(), &Limits::default())
+    let methods = vec![method; loaded.len()];
+    render_objects(&loaded, &methods, &[], &(), &Limits::default())
         .unwrap()
         .image
 }
@@ -269,4 +270,57 @@ fn bad_object_lists_are_refused_by_name() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("several objects"), "{e}");
+}
+
+/// Height fields as objects: a relief on the plane and on the turned plane above it, each
+/// object's VDM (its real-time technique) composed with the other's shadows; the hit mask is
+/// the union of each alone, the roof shades the ground, and one object composed alone renders exactly what rendering it
+/// as a scene renders (truth, GDM and VDM: composing adds nothing to one object).
+#[test]
+fn height_field_objects_compose_by_their_vdms() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut plane = String::new();
+    plane_obj(&mut plane, 0, &|p| p, [0.0, 1.0, 0.0]);
+    std::fs::write(dir.path().join("plane.obj"), &plane).unwrap();
+    let two = objects::from_json(
+        r#"{ "camera": { "eye": [0.4, 2.2, 1.6], "target": [0, 0, 0], "fov_y_degrees": 50, "width": 64, "height": 64 },
+  "lights": [ { "directional": { "direction": [1, -0.8, 0.3], "irradiance": [3, 3, 3] } },
+              { "ambient": { "radiance": [0.08, 0.08, 0.08] } } ],
+  "effects": ["shadows"],
+  "mesostructure": { "relief": "bumps" },
+  "resolution": [32, 32, 8],
+  "shell": { "thickness": 0.1, "tiles_per_uv": [2, 2] },
+  "base_mesh": { "obj": "plane.obj" },
+  "objects": [
+    { "name": "ground" },
+    { "name": "roof", "transform": { "translate": [0.2, 0.3, 0.1], "rotate_degrees": [0, 30, 0], "scale": 0.5 } }
+  ] }"#,
+    )
+    .unwrap();
+    for method in [RenderMethod::Truth, RenderMethod::Gdm, RenderMethod::Vdm] {
+        let alone: Vec<Image> = two
+            .iter()
+            .map(|o| rendered_alone(o, dir.path(), method))
+            .collect();
+        let together = rendered_together(&two, dir.path(), method);
+        let union: Vec<bool> = (0..together.mask.len())
+            .map(|i| alone[0].mask[i] || alone[1].mask[i])
+            .collect();
+        assert_eq!(together.mask, union, "{method:?}");
+        // Where the ground shows, the roof's shadow darkens it (the roof's own hit query).
+        let shaded = (0..together.rgb.len())
+            .filter(|&i| {
+                together.mask[i]
+                    && !alone[1].mask[i]
+                    && together.rgb[i][0] < 0.8 * alone[0].rgb[i][0]
+            })
+            .count();
+        assert!(
+            shaded > 20,
+            "{method:?}: {shaded} pixels in the roof's shadow"
+        );
+        let one = rendered_together(&two[..1], dir.path(), method);
+        assert_eq!(one.rgb, alone[0].rgb, "{method:?}");
+        assert_eq!(one.mask, alone[0].mask, "{method:?}");
+    }
 }

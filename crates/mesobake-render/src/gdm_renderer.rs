@@ -413,7 +413,7 @@ impl<'a> GdmRenderer<'a> {
 }
 
 impl ObjectRenderer for GdmRenderer<'_> {
-    fn hit_distance(&self, origin: DVec3, dir: DVec3) -> Option<f64> {
+    fn hit_distance(&self, _: &Shot, origin: DVec3, dir: DVec3) -> Option<f64> {
         self.trace(origin, dir).map(|hit| hit.t)
     }
 

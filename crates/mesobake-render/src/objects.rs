@@ -1,9 +1,9 @@
 //! Several objects in one image: each object's renderer finds its own first hit, the nearest
 //! is shaded, and a light reaches it only if its own shadow test passes and no other object
-//! is hit along the shadow ray before the light. The ground truth composes its exact
-//! renderers this way; the real-time specification composes the objects' real-time
-//! renderers (each object's hit query answers for the shadow rays that cross it), which is
-//! what the WGSL does with one shadow-ray pass per light and object.
+//! blocks the shadow ray before the light ([`ObjectRenderer::occludes`]). The ground truth
+//! composes its exact renderers this way; the real-time specification composes the objects'
+//! real-time renderers (GDM, VDM), each object's own hit query answering for the shadow rays
+//! that cross it.
 
 use crate::lighting::Incident;
 use crate::shot::Shot;
@@ -11,8 +11,16 @@ use glam::DVec3;
 
 /// What compositing asks of one object's renderer.
 pub trait ObjectRenderer: Sync {
-    /// The ray parameter of the first hit along `origin + t·dir` (unit `dir`), if any.
-    fn hit_distance(&self, origin: DVec3, dir: DVec3) -> Option<f64>;
+    /// The ray parameter of the first hit along `origin + t·dir` (unit `dir`), if any, with
+    /// the knobs of `shot` (the object's).
+    fn hit_distance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<f64>;
+
+    /// Whether the object blocks the shadow ray from `start` along unit `dir` within
+    /// `distance`: by default, whether its first hit lies nearer.
+    fn occludes(&self, shot: &Shot, start: DVec3, dir: DVec3, distance: f64) -> bool {
+        self.hit_distance(shot, start, dir)
+            .is_some_and(|t| t < distance)
+    }
 
     /// The shaded radiance of the first hit, a light reaching it only where the object's own
     /// shadow test and `elsewhere(shadow ray start, incident light)` both say it does.
@@ -39,7 +47,7 @@ pub fn radiance(objects: &[Object], origin: DVec3, dir: DVec3) -> Option<DVec3> 
     let (nearest, _) = objects
         .iter()
         .enumerate()
-        .filter_map(|(i, o)| Some((i, o.renderer.hit_distance(origin, dir)?)))
+        .filter_map(|(i, o)| Some((i, o.renderer.hit_distance(o.shot, origin, dir)?)))
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
     let object = &objects[nearest];
     let shadows = object.shot.wants(mesobake_core::effect::Effect::Shadows);
@@ -47,9 +55,9 @@ pub fn radiance(objects: &[Object], origin: DVec3, dir: DVec3) -> Option<DVec3> 
         !shadows
             || objects.iter().enumerate().all(|(i, o)| {
                 i == nearest
-                    || o.renderer
-                        .hit_distance(start, inc.direction)
-                        .is_none_or(|t| t >= inc.distance)
+                    || !o
+                        .renderer
+                        .occludes(o.shot, start, inc.direction, inc.distance)
             })
     };
     object

@@ -264,7 +264,7 @@ pub fn light_start(jacobian: DMat3, point: DVec3, n_tex: DVec3) -> DVec3 {
 }
 
 impl ObjectRenderer for TruthRenderer<'_> {
-    fn hit_distance(&self, origin: DVec3, dir: DVec3) -> Option<f64> {
+    fn hit_distance(&self, _: &Shot, origin: DVec3, dir: DVec3) -> Option<f64> {
         self.trace(origin, dir, 0.0, f64::INFINITY).map(|hit| hit.t)
     }
 

@@ -48,7 +48,8 @@
 //!    test sees only the relief above the hit).
 
 use super::accel::BoxBvh;
-use super::lighting::shade;
+use super::lighting::{Incident, shade};
+use super::objects::ObjectRenderer;
 use super::prepared_prism::intersect;
 use super::truth::TruthRenderer;
 use super::vdm_refine::{BentRay, FLAT_CURVATURE};
@@ -197,7 +198,19 @@ impl<'a> VdmRenderer<'a> {
 
     /// The shaded radiance along the camera ray, or `None` where it shows the background.
     pub fn radiance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<DVec3> {
-        let eye = DVec3::from(shot.camera.eye);
+        self.radiance_with(shot, origin, dir, &|_, _| true)
+    }
+
+    /// Steps 1–5 along the ray `origin + t·dir` seen from `eye` (the camera's, or for a ray
+    /// that is not the camera's, its origin): the nearest fragment that is not a silhouette,
+    /// and where it hits the relief.
+    fn first_hit(
+        &self,
+        origin: DVec3,
+        eye: DVec3,
+        dir: DVec3,
+        refine_texels: u32,
+    ) -> Option<VdmHit<'_>> {
         let mut fragments = Vec::new();
         self.bvh
             .candidates(origin, dir, 0.0, f64::INFINITY, |f, _| {
@@ -210,58 +223,64 @@ impl<'a> VdmRenderer<'a> {
             });
         fragments.sort_by(|a, b| a.0.total_cmp(&b.0));
         fragments.into_iter().find_map(|(t, f, bary)| {
-            self.fragment(shot, eye, origin + dir * t, dir, &self.faces[f], bary)
+            let face = &self.faces[f];
+            let p = origin + dir * t;
+            let tex = face.triangle.texture_at(bary).truncate();
+            let c_v = corner_curvature(face, bary, &|corner| eye - corner);
+            let (view, sigma) = self.lookup(face, tex, dir, c_v, refine_texels)?;
+            let offset = view.azimuth * sigma;
+            let t_hit = tex + offset;
+            let depth = self.relief.surface_depth(t_hit.x, t_hit.y);
+            Some(VdmHit {
+                face,
+                bary,
+                t_hit,
+                depth,
+                point: p + face.from_vdm * offset.extend(-depth),
+            })
         })
     }
 
-    /// Steps 1–6 for one fragment; `None` for a silhouette.
-    fn fragment(
+    /// Step 6 at `hit`, seen along `dir`: a light reaches it where its own shadow test and
+    /// `elsewhere` both say so.
+    fn shade_hit(
         &self,
         shot: &Shot,
-        eye: DVec3,
-        p: DVec3,
+        hit: &VdmHit,
         dir: DVec3,
-        face: &TopFace,
-        bary: [f64; 3],
-    ) -> Option<DVec3> {
-        let corner_curvature = |towards: &dyn Fn(DVec3) -> DVec3| -> f64 {
-            (0..3)
-                .map(|i| bary[i] * face.curvature[i].along(towards(face.triangle.corners[i])))
-                .sum()
-        };
-        let t = face.triangle.texture_at(bary).truncate();
-        let c_v = corner_curvature(&|corner| eye - corner);
-        let (view, sigma) = self.lookup(face, t, dir, c_v, shot.vdm_refine_texels)?;
-        let offset = view.azimuth * sigma;
-        let t_hit = t + offset;
-        let depth = self.relief.surface_depth(t_hit.x, t_hit.y);
-        let hit = p + face.from_vdm * offset.extend(-depth);
-        let n_vdm = self.relief_normal(t_hit);
+        elsewhere: &dyn Fn(DVec3, &Incident) -> bool,
+    ) -> DVec3 {
+        let face = hit.face;
+        let n_vdm = self.relief_normal(hit.t_hit);
         let normal = (face.to_vdm.transpose() * n_vdm)
             .try_normalize()
             .unwrap_or(-dir);
         let shadows = shot.wants(Effect::Shadows);
         let texel = 1.0 / f64::from(self.relief.field.size().0);
-        let exact_start = || hit + face.from_vdm * (n_vdm.normalize() * texel);
-        Some(shade(
+        let exact_start = hit.point + face.from_vdm * (n_vdm.normalize() * texel);
+        shade(
             &shot.lights,
             &shot.material,
-            hit,
+            hit.point,
             normal,
             DVec3::from(shot.material.albedo),
             -dir,
             |inc| {
-                if let Some(truth) = self.exact_shadows.filter(|_| shadows) {
-                    return !truth.blocked(exact_start(), inc.direction, inc.distance);
+                if !shadows {
+                    return true;
                 }
-                !shadows || {
-                    let c_l = corner_curvature(&|_| inc.direction);
-                    self.lit(face, t_hit, depth, inc.direction, c_l)
-                        && (shot.vdm_shadows == ShadowMethod::Local
-                            || !self.blocked_elsewhere(shot, hit, inc.direction, inc.distance))
+                if !elsewhere(exact_start, inc) {
+                    return false;
                 }
+                if let Some(truth) = self.exact_shadows {
+                    return !truth.blocked(exact_start, inc.direction, inc.distance);
+                }
+                let c_l = corner_curvature(face, hit.bary, &|_| inc.direction);
+                self.lit(face, hit.t_hit, hit.depth, inc.direction, c_l)
+                    && (shot.vdm_shadows == ShadowMethod::Local
+                        || !self.blocked_elsewhere(shot, hit.point, inc.direction, inc.distance))
             },
-        ))
+        )
     }
 
     /// Steps 2–4 for a ray along `dir` (object space) entering `face` at texture coordinate
@@ -417,4 +436,57 @@ pub fn exit_arc(depth: f64, theta: f64, c: f64) -> Option<f64> {
     let q = DVec2::new(s_ray * s, -depth + s_ray * co);
     // Arc length of the crossing: R times its angle about the centre.
     Some(r * (r.signum() * q.x).atan2(r.signum() * (q.y + r)))
+}
+
+/// Where a ray meets the relief: its fragment (face and barycentrics), the hit's VDM
+/// texture coordinate T' and depth, and the hit point in object space.
+struct VdmHit<'f> {
+    face: &'f TopFace,
+    bary: [f64; 3],
+    t_hit: DVec2,
+    depth: f64,
+    point: DVec3,
+}
+
+/// The surface's curvature at the fragment `bary` of `face` along `towards(corner)`,
+/// interpolated from its corners.
+fn corner_curvature(face: &TopFace, bary: [f64; 3], towards: &dyn Fn(DVec3) -> DVec3) -> f64 {
+    (0..3)
+        .map(|i| bary[i] * face.curvature[i].along(towards(face.triangle.corners[i])))
+        .sum()
+}
+
+impl ObjectRenderer for VdmRenderer<'_> {
+    /// The hit point's ray parameter; the ray's origin stands for the eye.
+    fn hit_distance(&self, shot: &Shot, origin: DVec3, dir: DVec3) -> Option<f64> {
+        let hit = self.first_hit(origin, origin, dir, shot.vdm_refine_texels)?;
+        Some((hit.point - origin).dot(dir))
+    }
+
+    /// Also where the ray meets a top face from behind: the relief is solid down to the
+    /// shell's base, so a ray arriving from under the top surface is inside the object.
+    fn occludes(&self, shot: &Shot, start: DVec3, dir: DVec3, distance: f64) -> bool {
+        let mut behind = false;
+        self.bvh.candidates(start, dir, 0.0, distance, |f, _| {
+            let tri = &self.faces[f].triangle;
+            behind |= tri.normal().dot(dir) > 0.0
+                && intersect(tri, start, dir).is_some_and(|(t, _)| t < distance);
+        });
+        behind
+            || self
+                .hit_distance(shot, start, dir)
+                .is_some_and(|t| t < distance)
+    }
+
+    fn radiance_with(
+        &self,
+        shot: &Shot,
+        origin: DVec3,
+        dir: DVec3,
+        elsewhere: &dyn Fn(DVec3, &Incident) -> bool,
+    ) -> Option<DVec3> {
+        let eye = DVec3::from(shot.camera.eye);
+        let hit = self.first_hit(origin, eye, dir, shot.vdm_refine_texels)?;
+        Some(self.shade_hit(shot, &hit, dir, elsewhere))
+    }
 }

@@ -4,7 +4,9 @@
 use crate::gi::{self, GiReport};
 use crate::{LoadedScene, Scene};
 use glam::DVec3;
+use mesobake_bake::mesostructure::height_field::HeightField;
 use mesobake_bake::mesostructure::medium::Medium;
+use mesobake_bake::package::AnyPackage;
 use mesobake_bake::package::Package;
 use mesobake_bake::package::medium::{self as medium_package, MediumPackage};
 use mesobake_bake::package::vdm::VdmPackage;
@@ -13,6 +15,7 @@ use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::limits::Limits;
 use mesobake_core::observer::BakeObserver;
+use mesobake_package::vdm::VdmQuery;
 use mesobake_render::explicit::ExplicitRenderer;
 use mesobake_render::gdm_lookup::{GdmLookup, RawLookup, package_lookup};
 use mesobake_render::gdm_renderer::{GdmRenderer, Substitutions};
@@ -398,78 +401,111 @@ fn render_medium(
 }
 
 /// Renders several objects together ([`crate::objects`]): the nearest object's hit at each
-/// pixel, shaded with the others' shadows. `truth` renders every object's ground truth; the
-/// real-time specification (`gdm`) renders each object's GDM, from `packages[i]` when given
-/// (it must be of object i's mesostructure), else baked exactly.
+/// pixel, shaded with the others' shadows. Object i renders with `methods[i]`: `truth` (its
+/// ground truth) or its real-time specification, `gdm` or `vdm`, from `packages[i]` when
+/// given (of object i's mesostructure), else from its exact GDM or its baked VDM.
 pub fn render_objects(
     objects: &[LoadedScene],
-    method: RenderMethod,
-    packages: &[Option<&Package>],
+    methods: &[RenderMethod],
+    packages: &[Option<&AnyPackage>],
     observer: &dyn BakeObserver,
     limits: &Limits,
 ) -> Result<Rendered> {
-    let refuse = |why: String| Err(Error::InvalidParameter(why));
-    for loaded in objects {
+    for (loaded, method) in objects.iter().zip(methods) {
         if loaded.scene.wants(Effect::EnvironmentLighting) {
-            return refuse(
+            return Err(Error::InvalidParameter(
                 "environment lighting of a scene with several objects is not rendered yet: \
                  light them with point, directional and ambient lights"
                     .into(),
-            );
+            ));
         }
         loaded.check_opaque("a scene with several objects (translucent objects come later)")?;
-    }
-    if !matches!(method, RenderMethod::Truth | RenderMethod::Gdm) {
-        return refuse(format!(
-            "a scene with several objects renders with method truth or gdm, not {}",
-            method.name()
-        ));
+        if !matches!(
+            method,
+            RenderMethod::Truth | RenderMethod::Gdm | RenderMethod::Vdm
+        ) {
+            return Err(Error::InvalidParameter(format!(
+                "a scene with several objects renders with method truth, gdm or vdm, not {}",
+                method.name()
+            )));
+        }
     }
     let mut seconds = RenderSeconds::default();
     let start = Instant::now();
-    let shots: Vec<_> = objects.iter().map(|o| o.scene.shot()).collect();
     let package = |i: usize| packages.get(i).copied().flatten();
-    let baked = objects
-        .iter()
-        .enumerate()
-        .map(|(i, o)| match (method, package(i)) {
-            (RenderMethod::Gdm, None) => o.bake_gdm(limits, observer).map(Some),
-            _ => Ok(None),
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let mut lookups: Vec<Box<dyn GdmLookup + '_>> = Vec::new();
-    for (i, (loaded, raw)) in objects.iter().zip(&baked).enumerate() {
-        match (package(i), raw) {
-            (Some(pkg), _) if method == RenderMethod::Gdm => {
+    let mut maps = Vec::new();
+    for (i, (loaded, &method)) in objects.iter().zip(methods).enumerate() {
+        maps.push(match (method, package(i)) {
+            (RenderMethod::Gdm, Some(AnyPackage::Gdm(pkg))) => {
                 pkg.check_grid(loaded.scene.dims()?)?;
-                lookups.push(package_lookup(pkg)?);
+                ObjectMap::Gdm(Gdm::Package(package_lookup(pkg)?))
             }
-            (_, Some(raw)) => lookups.push(Box::new(RawLookup::new(raw))),
-            _ => {}
-        }
+            (RenderMethod::Gdm, _) => ObjectMap::Gdm(Gdm::Raw(loaded.bake_gdm(limits, observer)?)),
+            (RenderMethod::Vdm, Some(AnyPackage::Vdm(pkg))) => ObjectMap::Vdm {
+                query: pkg.query(),
+                field: mesobake_bake::package::vdm::height_field(pkg)?,
+                depth: pkg.manifest().relief.depth,
+            },
+            (RenderMethod::Vdm, _) => {
+                let baked = loaded.bake_vdm(limits, observer)?;
+                ObjectMap::Vdm {
+                    query: baked.compressed.decode(),
+                    depth: baked.depth,
+                    field: baked.field,
+                }
+            }
+            _ => ObjectMap::None,
+        });
     }
     seconds.gdm = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let truths: Vec<TruthRenderer> = objects
+    let shots: Vec<_> = objects.iter().map(|o| o.scene.shot()).collect();
+    let raw_lookups: Vec<Option<RawLookup>> = maps
         .iter()
-        .map(|o| TruthRenderer::new(&o.shell, o.mesostructure.caster(), &o.material))
-        .collect();
-    let gdms: Vec<GdmRenderer> = objects
-        .iter()
-        .zip(&lookups)
-        .map(|(o, lookup)| {
-            GdmRenderer::new(&o.shell, &**lookup, &o.material, o.scene.gdm_refinements)
-                .with_quality(o.scene.quality)
+        .map(|m| match m {
+            ObjectMap::Gdm(Gdm::Raw(raw)) => Some(RawLookup::new(raw)),
+            _ => None,
         })
         .collect();
-    let renderers: Vec<&dyn ObjectRenderer> = match method {
-        RenderMethod::Gdm => gdms.iter().map(|r| r as &dyn ObjectRenderer).collect(),
-        _ => truths.iter().map(|r| r as &dyn ObjectRenderer).collect(),
-    };
+    let mut renderers: Vec<Box<dyn ObjectRenderer + '_>> = Vec::new();
+    for ((o, map), raw) in objects.iter().zip(&maps).zip(&raw_lookups) {
+        renderers.push(match map {
+            ObjectMap::None => Box::new(TruthRenderer::new(
+                &o.shell,
+                o.mesostructure.caster(),
+                &o.material,
+            )),
+            ObjectMap::Gdm(gdm) => {
+                let lookup: &dyn GdmLookup = match (gdm, raw) {
+                    (Gdm::Package(lookup), _) => &**lookup,
+                    (Gdm::Raw(_), Some(raw)) => raw,
+                    (Gdm::Raw(_), None) => unreachable!("every raw GDM has its lookup"),
+                };
+                Box::new(
+                    GdmRenderer::new(&o.shell, lookup, &o.material, o.scene.gdm_refinements)
+                        .with_quality(o.scene.quality),
+                )
+            }
+            ObjectMap::Vdm {
+                query,
+                field,
+                depth,
+            } => {
+                let relief = Relief {
+                    field,
+                    depth: *depth,
+                };
+                Box::new(VdmRenderer::new(&o.shell, query, relief)?)
+            }
+        });
+    }
     let composed: Vec<Object> = renderers
         .iter()
         .zip(&shots)
-        .map(|(&renderer, shot)| Object { renderer, shot })
+        .map(|(renderer, shot)| Object {
+            renderer: &**renderer,
+            shot,
+        })
         .collect();
     observer.stage("rendering");
     let image = render_image_observed(&shots[0].camera, observer, |o, d| {
@@ -481,4 +517,26 @@ pub fn render_objects(
         seconds,
         gi: None,
     })
+}
+
+/// What one object's real-time renderer reads.
+enum ObjectMap {
+    /// Nothing: the object renders its ground truth.
+    None,
+    /// A GDM.
+    Gdm(Gdm),
+    /// A VDM, with the height field and depth of its relief.
+    Vdm {
+        query: VdmQuery,
+        field: HeightField,
+        depth: f64,
+    },
+}
+
+/// Where an object's GDM lookups come from.
+enum Gdm {
+    /// Its package.
+    Package(Box<dyn GdmLookup>),
+    /// Its exact GDM.
+    Raw(mesobake_bake::gdm::Gdm),
 }
