@@ -221,3 +221,39 @@ fn unsupported_grids_and_broken_files_are_refused_by_name() {
         let _ = import(&mutant, &VdbImport::default(), &limits);
     }
 }
+
+/// The colour grid's tree is read under what the density's tree left of the memory limit:
+/// both fit at the file's bytes plus their sum, and not at one byte less.
+#[test]
+fn the_colour_tree_is_read_under_what_the_density_tree_left() {
+    use mesobake_bake::mesostructure::openvdb::archive::Archive;
+    use mesobake_bake::mesostructure::openvdb::tree::Tree;
+    let fog = file("fog.vdb");
+    let archive = Archive::read(&fog).unwrap();
+    let (_, report) = imported("fog.vdb", VdbImport::default());
+    let density = Tree::read(&fog, archive.grid("density").unwrap(), u64::MAX, |_| true)
+        .unwrap()
+        .bytes();
+    // The colour's leaves that meet the imported box, as the import keeps them.
+    let (o, d) = (report.origin, report.dims);
+    let meets = |leaf: [i32; 3]| {
+        (0..3).all(|a| leaf[a] + 8 > o[a] && i64::from(leaf[a]) < i64::from(o[a]) + i64::from(d[a]))
+    };
+    let colour = Tree::read(&fog, archive.grid("Cd").unwrap(), u64::MAX, meets)
+        .unwrap()
+        .bytes();
+    let enough = fog.len() as u64 + density + colour;
+    let at = |memory_bytes| {
+        let limits = Limits {
+            memory_bytes,
+            ..Limits::default()
+        };
+        import(&fog, &VdbImport::default(), &limits)
+    };
+    at(enough).unwrap();
+    let e = at(enough - 1).unwrap_err().to_string();
+    assert!(
+        e.contains("\"Cd\"") && e.contains("over the memory limit"),
+        "{e}"
+    );
+}

@@ -145,8 +145,10 @@ pub fn import(bytes: &[u8], options: &VdbImport, limits: &Limits) -> Result<(Vol
     };
     let colour_tree = match colour {
         Some(g) => Some(
-            Tree::read(bytes, g, budget, |leaf| overlaps(leaf, origin, dims))
-                .map_err(|e| bad(format!("grid {:?}: {e}", g.name)))?,
+            Tree::read(bytes, g, budget - tree.bytes(), |leaf| {
+                overlaps(leaf, origin, dims)
+            })
+            .map_err(|e| bad(format!("grid {:?}: {e}", g.name)))?,
         ),
         None => None,
     };

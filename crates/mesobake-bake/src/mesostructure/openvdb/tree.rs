@@ -82,6 +82,8 @@ pub struct Tree {
     /// Root children by origin: index into `nodes`.
     roots: HashMap<[i32; 3], usize>,
     nodes: Vec<Node>,
+    /// The bytes charged to the budget while reading.
+    charged: u64,
 }
 
 /// How a grid's values are stored, and what reading may still allocate.
@@ -263,6 +265,7 @@ impl Tree {
             tiles: HashMap::new(),
             roots: HashMap::new(),
             nodes: Vec::new(),
+            charged: 0,
         };
         for _ in 0..tiles_count {
             let origin = [
@@ -298,6 +301,7 @@ impl Tree {
         for (_, index) in order {
             tree.read_buffers(&mut c, &mut f, index, &background, &keep)?;
         }
+        tree.charged = budget - f.budget;
         Ok(tree)
     }
 
@@ -384,6 +388,11 @@ impl Tree {
             self.read_buffers(c, f, child, background, keep)?;
         }
         Ok(())
+    }
+
+    /// The bytes reading it charged to its budget (its nodes' memory, roughly).
+    pub fn bytes(&self) -> u64 {
+        self.charged
     }
 
     /// The value at index `p` and whether it is active.
