@@ -97,6 +97,19 @@ async fn wait_for(s: &TestServer, id: &str, until: impl Fn(&Value) -> bool) -> V
     }
 }
 
+/// Job `id` once it has ended (succeeded, failed or cancelled).
+async fn wait_until_ended(s: &TestServer, id: &str) -> Value {
+    wait_for(s, id, |j| j["state"] != "queued" && j["state"] != "running").await
+}
+
+/// Submits `spec`, waits for its job to end and asserts that it succeeded.
+async fn bakes(s: &TestServer, spec: &Value) -> Value {
+    let (_, queued) = submit(s, spec).await;
+    let done = wait_until_ended(s, queued["id"].as_str().unwrap()).await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    done
+}
+
 /// The manifest and the package (of any kind) of succeeded job `done`, downloaded.
 async fn fetch_any(s: &TestServer, done: &Value) -> (Value, mesobake_bake::package::AnyPackage) {
     let digest = done["package_digest"].as_str().unwrap();
@@ -302,10 +315,7 @@ async fn a_gi_job_bakes_the_radiance_transfer_its_effects_call_for() {
         ])
     );
     let id = queued["id"].as_str().unwrap().to_owned();
-    let done = wait_for(&s, &id, |j| {
-        j["state"] != "queued" && j["state"] != "running"
-    })
-    .await;
+    let done = wait_until_ended(&s, &id).await;
     assert_eq!(done["state"], "succeeded", "{done}");
     for stage in ["bake_prt", "bake_rtv", "compress_rtv"] {
         assert!(done["timings"][stage].as_f64().is_some(), "{stage}: {done}");
@@ -386,12 +396,7 @@ async fn a_gltf_base_mesh_is_uploaded_by_content_and_bakes() {
         "shell": { "thickness": 0.05, "tiles_per_uv": [4, 2] },
         "camera": { "eye": [0, 3, 3], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 32, "height": 32 }
     }});
-    let (_, queued) = submit(&s, &spec).await;
-    let job = wait_for(&s, queued["id"].as_str().unwrap(), |j| {
-        j["state"] != "queued" && j["state"] != "running"
-    })
-    .await;
-    assert_eq!(job["state"], "succeeded", "{job}");
+    bakes(&s, &spec).await;
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
@@ -491,12 +496,7 @@ async fn an_openvdb_volume_upload_is_stored_imported_and_bakes() {
         "shell": { "thickness": 0.2, "tiles_per_uv": [2, 2] },
         "camera": { "eye": [0, 2, 2], "target": [0, 0, 0], "fov_y_degrees": 45, "width": 32, "height": 32 }
     }});
-    let (_, queued) = submit(&s, &spec).await;
-    let job = wait_for(&s, queued["id"].as_str().unwrap(), |j| {
-        j["state"] != "queued" && j["state"] != "running"
-    })
-    .await;
-    assert_eq!(job["state"], "succeeded", "{job}");
+    bakes(&s, &spec).await;
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
 }
 
@@ -1128,10 +1128,7 @@ async fn an_s3_blob_store_is_shared_by_servers_on_other_machines() {
     let (status, queued) = submit(&a, &json!({ "scene": job_scene })).await;
     assert_eq!(status, 202, "{queued}");
     let id = queued["id"].as_str().unwrap();
-    let done = wait_for(&a, id, |j| {
-        j["state"] != "queued" && j["state"] != "running"
-    })
-    .await;
+    let done = wait_until_ended(&a, id).await;
     assert_eq!(done["state"], "succeeded", "{done}");
     let digest = done["package_digest"].as_str().unwrap().to_owned();
     // The package and the upload are objects in the bucket, under the prefix.
