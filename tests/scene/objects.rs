@@ -51,12 +51,21 @@ fn placed(p: [f64; 3]) -> [f64; 3] {
     [c * x + s * z + 0.2, y + 0.3, -s * x + c * z + 0.1]
 }
 
-const SHARED: &str = r#""camera": { "eye": [0.4, 2.2, 1.6], "target": [0, 0, 0], "fov_y_degrees": 50, "width": 64, "height": 64 },
+/// The camera, lights and effects of the plane-and-roof scenes: the roof's shadow falls on
+/// the ground in view.
+const VIEW: &str = r#""camera": { "eye": [0.4, 2.2, 1.6], "target": [0, 0, 0], "fov_y_degrees": 50, "width": 64, "height": 64 },
   "lights": [ { "directional": { "direction": [1, -0.8, 0.3], "irradiance": [3, 3, 3] } },
               { "ambient": { "radiance": [0.08, 0.08, 0.08] } } ],
-  "effects": ["shadows"],
-  "mesostructure": { "sample": "weave" },
-  "resolution": [16, 16, 8]"#;
+  "effects": ["shadows"]"#;
+
+/// A folder holding `plane.obj` ([`plane_obj`], untransformed), and its text.
+fn plane_dir() -> (tempfile::TempDir, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let mut plane = String::new();
+    plane_obj(&mut plane, 0, &|p| p, [0.0, 1.0, 0.0]);
+    std::fs::write(dir.path().join("plane.obj"), &plane).unwrap();
+    (dir, plane)
+}
 
 fn rendered_alone(object: &SceneObject, dir: &Path, method: RenderMethod) -> Image {
     let loaded = LoadedScene::load(object.scene.clone(), dir, &Limits::default()).unwrap();
@@ -84,16 +93,14 @@ fn rendered_together(objects: &[SceneObject], dir: &Path, method: RenderMethod) 
 /// and the GDM renderer.
 #[test]
 fn two_objects_render_as_one_object_holding_both_meshes() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut plane = String::new();
-    plane_obj(&mut plane, 0, &|p| p, [0.0, 1.0, 0.0]);
-    std::fs::write(dir.path().join("plane.obj"), &plane).unwrap();
+    let (dir, plane) = plane_dir();
     let mut both = plane.clone();
     plane_obj(&mut both, 25, &placed, [0.0, 1.0, 0.0]);
     std::fs::write(dir.path().join("both.obj"), &both).unwrap();
-    let shell = r#""shell": { "thickness": 0.1, "tiles_per_uv": [2, 2] }"#;
+    let shell = r#""shell": { "thickness": 0.1, "tiles_per_uv": [2, 2] },
+  "mesostructure": { "sample": "weave" }, "resolution": [16, 16, 8]"#;
     let two = objects::from_json(&format!(
-        r#"{{ {SHARED}, {shell},
+        r#"{{ {VIEW}, {shell},
   "objects": [
     {{ "name": "ground", "base_mesh": {{ "obj": "plane.obj" }} }},
     {{ "name": "roof", "base_mesh": {{ "obj": "plane.obj" }},
@@ -104,7 +111,7 @@ fn two_objects_render_as_one_object_holding_both_meshes() {
     assert_eq!(two.len(), 2);
     assert_eq!(two[1].name, "roof");
     let one = objects::from_json(&format!(
-        r#"{{ {SHARED}, {shell}, "base_mesh": {{ "obj": "both.obj" }} }}"#
+        r#"{{ {VIEW}, {shell}, "base_mesh": {{ "obj": "both.obj" }} }}"#
     ))
     .unwrap();
     let together = rendered_together(&two, dir.path(), RenderMethod::Truth);
@@ -274,28 +281,23 @@ fn bad_object_lists_are_refused_by_name() {
 
 /// Height fields as objects: a relief on the plane and on the turned plane above it, each
 /// object's VDM (its real-time technique) composed with the other's shadows; the hit mask is
-/// the union of each alone, the roof shades the ground, and one object composed alone renders exactly what rendering it
-/// as a scene renders (truth, GDM and VDM: composing adds nothing to one object).
+/// the union of each alone, the roof shades the ground, and one object composed alone
+/// renders exactly what rendering it as a scene renders (truth, GDM and VDM: composing adds
+/// nothing to one object).
 #[test]
 fn height_field_objects_compose_by_their_vdms() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut plane = String::new();
-    plane_obj(&mut plane, 0, &|p| p, [0.0, 1.0, 0.0]);
-    std::fs::write(dir.path().join("plane.obj"), &plane).unwrap();
-    let two = objects::from_json(
-        r#"{ "camera": { "eye": [0.4, 2.2, 1.6], "target": [0, 0, 0], "fov_y_degrees": 50, "width": 64, "height": 64 },
-  "lights": [ { "directional": { "direction": [1, -0.8, 0.3], "irradiance": [3, 3, 3] } },
-              { "ambient": { "radiance": [0.08, 0.08, 0.08] } } ],
-  "effects": ["shadows"],
-  "mesostructure": { "relief": "bumps" },
+    let (dir, _) = plane_dir();
+    let two = objects::from_json(&format!(
+        r#"{{ {VIEW},
+  "mesostructure": {{ "relief": "bumps" }},
   "resolution": [32, 32, 8],
-  "shell": { "thickness": 0.1, "tiles_per_uv": [2, 2] },
-  "base_mesh": { "obj": "plane.obj" },
+  "shell": {{ "thickness": 0.1, "tiles_per_uv": [2, 2] }},
+  "base_mesh": {{ "obj": "plane.obj" }},
   "objects": [
-    { "name": "ground" },
-    { "name": "roof", "transform": { "translate": [0.2, 0.3, 0.1], "rotate_degrees": [0, 30, 0], "scale": 0.5 } }
-  ] }"#,
-    )
+    {{ "name": "ground" }},
+    {{ "name": "roof", "transform": {{ "translate": [0.2, 0.3, 0.1], "rotate_degrees": [0, 30, 0], "scale": 0.5 }} }}
+  ] }}"#
+    ))
     .unwrap();
     for method in [RenderMethod::Truth, RenderMethod::Gdm, RenderMethod::Vdm] {
         let alone: Vec<Image> = two
