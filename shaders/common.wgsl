@@ -15,8 +15,9 @@ struct View {
     light_count: u32,
     // Image width in pixels (the row stride of `nearest_hit`).
     width: u32,
-    _pad1: u32,
-    _pad2: u32,
+    // The object drawn, in a scene of several (its index among them; 0 for one object).
+    object: u32,
+    _pad: u32,
 }
 
 struct Light {

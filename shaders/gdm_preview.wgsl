@@ -3,11 +3,14 @@
 // to PSNR ≥ 35 dB). This file is completed by one query file for the package's GDM codec
 // (`query_svd.wgsl` or `query_occupancy.wgsl`: group 1, `segment_hit` and `escapes`), one
 // shadow file (`shadows_off.wgsl`, `shadows_local.wgsl` or `shadows_shell.wgsl`:
-// `light_visible`), one environment file (`gi_on.wgsl` or `gi_off.wgsl`) and by the
-// constants REFINEMENTS, CHORDS and JACOBIAN_FRAME, chosen from the package and the scene's
-// effects and quality (`crates/mesobake-gpu/src/variant.rs`); `common.wgsl` precedes it. Two passes:
+// `light_visible`; `shell_trace.wgsl` before the shell's), one environment file (`gi_on.wgsl`
+// or `gi_off.wgsl`), one objects file (`objects_on.wgsl`, with `shell_trace.wgsl`, or
+// `objects_off.wgsl`: `blocked_elsewhere`) and by the constants REFINEMENTS, CHORDS and
+// JACOBIAN_FRAME, chosen from the package and the scene's effects and quality
+// (`crates/mesobake-gpu/src/variant.rs`); `common.wgsl` precedes it. Two passes:
 // `vs_main`/`fs_main` find each pixel's nearest hit (steps 2–5) and write it to the hit
-// targets, `vs_fullscreen`/`fs_shade` shade it once (step 6).
+// targets, `vs_fullscreen`/`fs_shade` shade it once (step 6); with several objects each
+// object's module draws both into the same targets (its hits and the pixels it won).
 
 // Where the shadow query starts, in voxels from the hit along the texture normal (every
 // renderer's convention: SHADOW_OFFSET in crates/mesobake-render/src/lighting.rs).
@@ -88,20 +91,22 @@ fn albedo_at(t: vec3<f32>) -> vec3<f32> {
 // Normalizes v, or returns `fallback` for a zero or non-finite vector.
 
 // Where a hit's shadow tests start: its prism, the point one voxel off the hit along the
-// texture normal in texture space and in object space, and the shading frame.
+// texture normal in texture space and in object space, the shading frame and that normal.
 struct ShadowStart {
     prism: u32,
     texture: vec3<f32>,
     point: vec3<f32>,
     frame: mat3x3<f32>,
+    normal: vec3<f32>,
 }
 
-// Lambert + normalized Blinn–Phong from every light, with the variant's shadow test. The
+// Lambert + normalized Blinn–Phong from every light, with the variant's shadow test, lights
+// whose bit is set in `blocked` (blocked by other objects: `objects_on.wgsl`) left out. The
 // ambient lights are summed first, in a loop of their own: Mesa's llvmpipe ends every loop
 // of a shader invocation once 65535 loop iterations have run in all, all loops and lanes
 // together (LP_MAX_TGSI_LOOP_ITERATIONS), and a shell shadow query that grazes the surface
 // near the light's terminator can spend them; the ambient term then still arrives.
-fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, start: ShadowStart) -> vec3<f32> {
+fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, start: ShadowStart, blocked: u32) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     for (var l = 0u; l < view.light_count; l++) {
         if lights[l].kind == 2u {
@@ -118,7 +123,8 @@ fn shade(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, to_eye: vec3<f32>, start: 
             continue;
         }
         let cos_l = dot(n, inc.dir);
-        if cos_l <= 0.0 || !light_visible(start, inc.dir, inc.distance) {
+        let elsewhere = l < 32u && (blocked & (1u << l)) != 0u;
+        if cos_l <= 0.0 || elsewhere || !light_visible(start, inc.dir, inc.distance) {
             continue;
         }
         out += direct(n, base, to_eye, inc, cos_l);
@@ -241,7 +247,7 @@ struct HitOut {
     @location(0) point: vec4<f32>,
     // xyz: the hit's texture coordinate; w: 1.
     @location(1) texture: vec4<f32>,
-    // xyz: the texture-space direction of the chord that hit.
+    // xyz: the texture-space direction of the chord that hit; w: the object's index.
     @location(2) view: vec4<f32>,
     @builtin(frag_depth) depth: f32,
 }
@@ -426,19 +432,21 @@ fn shading_frame(pi: u32, t_hit: vec3<f32>) -> mat3x3<f32> {
     return mean;
 }
 
-// Step 6: the radiance of fragment hit `hit` of prism pi seen along dir.
-fn shade_hit(pi: u32, hit: FragmentHit, dir: vec3<f32>) -> vec3<f32> {
-    let p_hit = hit.point;
-    let t_hit = hit.texture;
-    let view_tex = hit.view;
-    let frame = shading_frame(pi, t_hit);
-    let n_raw = normal_at(t_hit);
-    let n_tex = normalize_or(n_raw, -view_tex);
-    let n_obj = normalize_or(transpose(frame) * n_tex, -dir);
-    let base = albedo_at(t_hit + view_tex * ALBEDO_DEPTH);
+// Where the shadow tests of fragment hit `hit` of prism pi start.
+fn shadow_start(pi: u32, hit: FragmentHit) -> ShadowStart {
+    let frame = shading_frame(pi, hit.texture);
+    let n_tex = normalize_or(normal_at(hit.texture), -hit.view);
     let offset = n_tex * SHADOW_OFFSET;
-    let start = ShadowStart(pi, t_hit + offset, p_hit + inverse3(frame) * offset, frame);
-    return environment_light(pi, t_hit, view_tex) + shade(p_hit, n_obj, base, -dir, start);
+    return ShadowStart(pi, hit.texture + offset, hit.point + inverse3(frame) * offset, frame, n_tex);
+}
+
+// Step 6: the radiance of fragment hit `hit` of prism pi seen along dir, the lights of
+// `blocked`'s bits left out.
+fn shade_hit(pi: u32, hit: FragmentHit, dir: vec3<f32>, blocked: u32) -> vec3<f32> {
+    let start = shadow_start(pi, hit);
+    let n_obj = normalize_or(transpose(start.frame) * start.normal, -dir);
+    let base = albedo_at(hit.texture + hit.view * ALBEDO_DEPTH);
+    return environment_light(pi, hit.texture, hit.view) + shade(hit.point, n_obj, base, -dir, start, blocked);
 }
 
 // The hit pass: steps 2–5 per fragment; the nearest hit's data to the targets.
@@ -463,7 +471,7 @@ fn fs_main(in: VertexOut) -> HitOut {
     var out: HitOut;
     out.point = vec4<f32>(hit.point, bitcast<f32>(in.prism));
     out.texture = vec4<f32>(hit.texture, 1.0);
-    out.view = vec4<f32>(hit.view, 0.0);
+    out.view = vec4<f32>(hit.view, f32(view.object));
     out.depth = depth;
     return out;
 }
@@ -480,19 +488,19 @@ fn vs_fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> 
     return vec4<f32>(corner * 2.0 - 1.0, 0.0, 1.0);
 }
 
-// Step 6 once per pixel, on the hit the hit pass kept (shading in the hit pass ran on the few
-// winning fragments of each small face's blocks: llvmpipe shades a triangle's 4×4 blocks
-// whole).
+// Step 6 once per pixel whose hit is this object's, on the hit the hit pass kept (shading in
+// the hit pass ran on the few winning fragments of each small face's blocks: llvmpipe shades
+// a triangle's 4×4 blocks whole).
 @fragment
 fn fs_shade(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let pixel = vec2<i32>(frag.xy);
     let texture = textureLoad(hit_textures, pixel, 0);
-    if texture.w == 0.0 {
+    let chord = textureLoad(hit_views, pixel, 0);
+    if texture.w == 0.0 || u32(chord.w) != view.object {
         discard;
     }
     let point = textureLoad(hit_points, pixel, 0);
-    let chord = textureLoad(hit_views, pixel, 0).xyz;
     let dir = normalize(point.xyz - view.eye.xyz);
-    let hit = FragmentHit(true, point.xyz, texture.xyz, chord);
-    return vec4<f32>(shade_hit(bitcast<u32>(point.w), hit, dir), 1.0);
+    let hit = FragmentHit(true, point.xyz, texture.xyz, chord.xyz);
+    return vec4<f32>(shade_hit(bitcast<u32>(point.w), hit, dir, blocked_elsewhere(pixel)), 1.0);
 }

@@ -1,40 +1,10 @@
 // Shadow variant `shell`: the per-pixel algorithm itself traced towards the light (as
 // `GdmRenderer::shell_blocked`): the rest of the hit's prism from the shadow ray's start,
-// then every front face the ray meets beyond it, found through a BVH over the prisms'
-// boxes (`upload_prism_bvh` in `crates/mesobake-gpu/src/resources/bvh.rs`). A light is visible iff no
-// fragment hits nearer than the light.
-
-@group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
-@group(0) @binding(4) var<storage, read> bvh_prisms: array<u32>;
-
-// (t, b1, b2) of the ray o + t·d on face f of prism pi; t ≤ 0 for none.
-fn intersect_face(pi: u32, f: u32, o: vec3<f32>, d: vec3<f32>) -> vec3<f32> {
-    let c = prisms[pi].faces[f].corners;
-    return intersect_triangle(c[0].xyz, c[1].xyz, c[2].xyz, o, d);
-}
-
-// The fragment that the ray o + t·dir makes on face f of prism pi, if it meets that face
-// from the front at 0 < t < t_max (what the rasterizer would produce, depth-tested against
-// t_max), with its answer (steps 2–5).
-fn face_fragment(pi: u32, f: u32, o: vec3<f32>, dir: vec3<f32>, t_max: f32) -> FragmentHit {
-    if dot(prisms[pi].faces[f].plane.xyz, dir) >= 0.0 {
-        return no_hit(); // back-facing
-    }
-    let h = intersect_face(pi, f, o, dir);
-    if !(h.x > 0.0 && h.x < t_max) {
-        return no_hit();
-    }
-    let bary = vec3<f32>(1.0 - h.y - h.z, h.y, h.z);
-    return fragment(pi, o + dir * h.x, texture_at(pi, f, bary), dir);
-}
+// then the shell beyond it (`shell_trace.wgsl`, which precedes this file). A light is
+// visible iff no fragment hits nearer than the light.
 
 fn light_visible(start: ShadowStart, dir: vec3<f32>, distance: f32) -> bool {
     return !shadow_query(start, dir, distance);
-}
-
-// Whether a fragment's hit lies nearer to `o` than `distance`.
-fn blocks(hit: FragmentHit, o: vec3<f32>, distance: f32) -> bool {
-    return hit.hit && length(hit.point - o) < distance;
 }
 
 // A start above the prism's top (or below its base) lies outside the prism: only the prisms
@@ -45,28 +15,5 @@ fn shadow_query(start: ShadowStart, dir: vec3<f32>, distance: f32) -> bool {
     if inside && blocks(fragment(start.prism, o, start.texture, dir), o, distance) {
         return true;
     }
-    let inv = safe_inverse(dir);
-    let count = arrayLength(&bvh_nodes);
-    var i = 0u;
-    while i < count {
-        let node = bvh_nodes[i];
-        if node_entry(node, o, inv, distance) < 0.0 {
-            i = node.skip;
-            continue;
-        }
-        if node.count == 0u {
-            i += 1u;
-            continue;
-        }
-        for (var k = 0u; k < node.count; k++) {
-            let pi = bvh_prisms[node.first + k];
-            for (var f = 0u; f < 8u; f++) {
-                if blocks(face_fragment(pi, f, o, dir, distance), o, distance) {
-                    return true;
-                }
-            }
-        }
-        i = node.skip;
-    }
-    return false;
+    return shell_hit_within(o, dir, distance);
 }

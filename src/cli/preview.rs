@@ -7,7 +7,9 @@ use mesobake_core::Result;
 use mesobake_core::limits::Limits;
 use mesobake_core::quality::Quality;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
-use mesobake_scene::package::{check_any_package_input, scene_package};
+use mesobake_scene::LoadedScene;
+use mesobake_scene::objects::{self, SceneObject};
+use mesobake_scene::package::{check_any_package_input, gdm_scene_package, scene_package};
 use mesobake_scene::preview::{PreviewDevice, PreviewFallback};
 use mesobake_scene::render::load_scene;
 use mesobake_scene::technique::Technique;
@@ -82,6 +84,27 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
              --package renders a package as it is"
                 .into(),
         ));
+    }
+    let objects = objects::read(&scene)?;
+    if objects.len() > 1 {
+        if package.is_some() {
+            return Err(mesobake_core::Error::InvalidParameter(
+                "--package renders one object's package; a scene of several objects is \
+                 previewed from a package baked for each object"
+                    .into(),
+            ));
+        }
+        let options = Several {
+            codec,
+            frames,
+            adapter,
+            fallback,
+            quality,
+            spp,
+            out,
+            json,
+        };
+        return preview_several(&scene, objects, options, limits);
     }
     let start = Instant::now();
     let mut loaded = load_scene(&scene, limits)?;
@@ -162,6 +185,95 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
             "samples_per_pixel": loaded.scene.camera.samples_per_pixel,
             "seconds": { "load": load_s, "package": package_s },
             "technique": technique,
+            "renderer": outcome.renderer,
+            "fallback_reason": outcome.fallback_reason,
+            "cpu_mean_frame_seconds": outcome.cpu_mean_frame_seconds,
+            "preview": outcome.gpu,
+        }));
+    }
+    Ok(())
+}
+
+/// What `preview` does with a scene of several objects.
+struct Several {
+    codec: CodecOptions,
+    frames: u32,
+    adapter: Option<String>,
+    fallback: PreviewFallback,
+    quality: Option<Quality>,
+    spp: Option<SamplesPerPixel>,
+    out: PathBuf,
+    json: bool,
+}
+
+/// Previews a scene of several objects: a GDM package baked for each object (as `bake --scene`
+/// bakes it), all drawn together by the real-time pipeline.
+fn preview_several(
+    path: &Path,
+    objects: Vec<SceneObject>,
+    options: Several,
+    limits: &Limits,
+) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let start = Instant::now();
+    let mut loaded = Vec::with_capacity(objects.len());
+    for SceneObject { name, mut scene } in objects {
+        if let Some(quality) = options.quality {
+            scene.quality = quality;
+        }
+        if let Some(spp) = options.spp {
+            scene.camera.set_samples_per_pixel(spp)?;
+        }
+        let object = LoadedScene::load(scene, dir, limits)
+            .map_err(|e| e.context(format!("object {name:?}")))?;
+        let technique = object.technique().technique;
+        if !matches!(technique, Technique::Gdm | Technique::Auto) {
+            return Err(mesobake_core::Error::InvalidParameter(format!(
+                "object {name:?}: its technique is {}; the preview of several objects draws \
+                 GDM objects (`mesobake render` draws VDM objects among the others)",
+                technique.name()
+            )));
+        }
+        loaded.push((name, object));
+    }
+    let load_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let progress = Progress::new("baking the objects' packages");
+    let mut packages = Vec::with_capacity(loaded.len());
+    for (_, o) in &loaded {
+        let params = options.codec.scene_params();
+        let package = gdm_scene_package(o, dir, params, limits, &progress)?;
+        packages.push(AnyPackage::Gdm(package));
+    }
+    progress.finish();
+    let package_s = start.elapsed().as_secs_f64();
+    let (names, loaded): (Vec<String>, Vec<LoadedScene>) = loaded.into_iter().unzip();
+    let device = PreviewDevice::open(options.adapter.as_deref(), options.fallback)?;
+    let progress = Progress::new("rendering");
+    let rendered = device.render_objects(&loaded, &packages, options.frames, &progress);
+    progress.finish();
+    let (image, outcome) = rendered?;
+    image.write(&options.out)?;
+    eprintln!(
+        "wrote {} ({}×{}, {} objects, {} hit pixels) on {}",
+        options.out.display(),
+        image.width,
+        image.height,
+        loaded.len(),
+        image.hits(),
+        outcome.renderer
+    );
+    if options.json {
+        print_json(&serde_json::json!({
+            "scene": path,
+            "output": options.out,
+            "objects": names,
+            "width": image.width,
+            "height": image.height,
+            "hit_pixels": image.hits(),
+            "samples_per_pixel": loaded[0].scene.camera.samples_per_pixel,
+            "seconds": { "load": load_s, "package": package_s },
+            "technique": Technique::Gdm.name(),
             "renderer": outcome.renderer,
             "fallback_reason": outcome.fallback_reason,
             "cpu_mean_frame_seconds": outcome.cpu_mean_frame_seconds,

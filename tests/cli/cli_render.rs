@@ -256,7 +256,8 @@ fn openvdb_level_sets_and_fog_volumes_import_and_render() {
 /// A scene of several objects from the command line: the Blender knight's two materials as
 /// two objects, rendered together (truth and gdm, the image's hits those of the objects),
 /// baked as one package per object (each the package of its object alone, byte for byte),
-/// and refused by name where one object is expected.
+/// previewed (the WGSL ≥ 35 dB from `render --method gdm`), and refused by name where one
+/// object's package is given.
 #[test]
 fn a_scene_of_two_objects_renders_and_bakes_a_package_per_object() {
     let dir = tempfile::tempdir().unwrap();
@@ -356,12 +357,38 @@ fn a_scene_of_two_objects_renders_and_bakes_a_package_per_object() {
                 "preview",
                 "--scene",
                 &path("knight.json"),
+                "--package",
+                &path("chain.mbpkg"),
                 "--out",
                 &path("x.png"),
             ],
-            "several objects",
+            "a scene of several objects is previewed from a package baked for each",
         ),
     ]);
+    // The preview draws both objects with the real-time pipeline, as `render --method gdm`
+    // (its CPU specification, from the same packages) draws them.
+    let o = succeeds(&[
+        "preview",
+        "--scene",
+        &path("knight.json"),
+        "--out",
+        &path("preview.png"),
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        json["objects"],
+        serde_json::json!(["Chain", "Leather"]),
+        "{json}"
+    );
+    if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() != Ok("1") {
+        assert_eq!(json["renderer"], "gpu", "{json}");
+    }
+    let read = |name: &str| mesobake_render::image::Image::read(std::path::Path::new(&path(name)));
+    let c =
+        mesobake_render::image::compare(&read("preview.png").unwrap(), &read("gdm.png").unwrap())
+            .unwrap();
+    assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
 }
 
 #[test]

@@ -15,6 +15,7 @@ mod medium_package;
 mod medium_preview;
 mod medium_render;
 mod objects;
+mod objects_preview;
 mod preview;
 mod quality;
 mod render;

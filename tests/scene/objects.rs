@@ -53,13 +53,13 @@ fn placed(p: [f64; 3]) -> [f64; 3] {
 
 /// The camera, lights and effects of the plane-and-roof scenes: the roof's shadow falls on
 /// the ground in view.
-const VIEW: &str = r#""camera": { "eye": [0.4, 2.2, 1.6], "target": [0, 0, 0], "fov_y_degrees": 50, "width": 64, "height": 64 },
+pub const VIEW: &str = r#""camera": { "eye": [0.4, 2.2, 1.6], "target": [0, 0, 0], "fov_y_degrees": 50, "width": 64, "height": 64 },
   "lights": [ { "directional": { "direction": [1, -0.8, 0.3], "irradiance": [3, 3, 3] } },
               { "ambient": { "radiance": [0.08, 0.08, 0.08] } } ],
   "effects": ["shadows"]"#;
 
 /// A folder holding `plane.obj` ([`plane_obj`], untransformed), and its text.
-fn plane_dir() -> (tempfile::TempDir, String) {
+pub fn plane_dir() -> (tempfile::TempDir, String) {
     let dir = tempfile::tempdir().unwrap();
     let mut plane = String::new();
     plane_obj(&mut plane, 0, &|p| p, [0.0, 1.0, 0.0]);

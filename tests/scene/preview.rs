@@ -231,12 +231,15 @@ fn plane_weave_matches_with_refinements_and_partial_groups() {
 }
 
 /// Every shader variant a scene can choose passes naga's validation, and only the shadow
-/// variants contain the shadow query, only the shell-shadow variants the prisms' BVH, only
-/// the environment variants the RTV.
+/// variants contain the shadow query, only the shell-shadow variants and those of an object
+/// among several with shadows the prisms' BVH, only the latter the occlusion pass, only the
+/// environment variants the RTV.
 #[test]
 fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for() {
     use mesobake_core::quality::ShadowMethod;
-    use mesobake_gpu::variant::{BVH_BINDING, GI_BINDING, SHADOW_QUERY_FN, ShaderVariant};
+    use mesobake_gpu::variant::{
+        BVH_BINDING, GI_BINDING, OCCLUDE_ENTRY, SHADOW_QUERY_FN, ShaderVariant,
+    };
     let mut count = 0;
     for variant in ShaderVariant::all() {
         let module = naga::front::wgsl::parse_str(&variant.source()).unwrap_or_else(|e| {
@@ -270,10 +273,12 @@ fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for()
         };
         assert_eq!(
             has_binding(BVH_BINDING),
-            variant.shadows == Some(ShadowMethod::Shell),
+            variant.shadows == Some(ShadowMethod::Shell) || variant.occluders,
             "{}",
             variant.name()
         );
+        let occludes = module.entry_points.iter().any(|e| e.name == OCCLUDE_ENTRY);
+        assert_eq!(occludes, variant.occluders, "{}", variant.name());
         assert_eq!(
             has_binding(GI_BINDING),
             variant.environment,
@@ -300,9 +305,10 @@ fn every_shader_variant_validates_and_effect_code_exists_only_where_called_for()
         );
         count += 1;
     }
-    // paper-svd: 3 shadow tests × environment or not × 9 refinement counts × 2 chord counts
-    // × 2 frames × early-z or not; occupancy: 3 × 2 × 1 × 2 × 2 × 2.
-    assert_eq!(count, 432 + 48);
+    // paper-svd: (3 shadow tests × environment or not + 2 shadow tests with occluders) × 9
+    // refinement counts × 2 chord counts × 2 frames × early-z or not; occupancy: 8 × 1 × 2 ×
+    // 2 × 2.
+    assert_eq!(count, 576 + 64);
 }
 
 /// A scene without shadows builds the pipeline of the variant without shadow code; with

@@ -12,8 +12,10 @@ use super::resources::{
     GpuEnvironment, GpuMaterial, GpuMemory, GpuPackage, GpuShell, Vertex, upload_environment,
     upload_material, upload_package, upload_prism_bvh, upload_shell,
 };
-use super::target::{DrawState, HitTargets, Target, target_pipeline};
-use super::variant::ShaderVariant;
+use super::target::{
+    DrawState, HitTargets, Target, pixel_target, pixel_target_bytes, target_pipeline,
+};
+use super::variant::{OCCLUDE_ENTRY, ShaderVariant};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
 use glam::{DMat4, DVec3};
@@ -26,7 +28,7 @@ use mesobake_core::error::{Error, Result};
 use mesobake_core::light::Light;
 use mesobake_core::quality::ShadowMethod;
 use mesobake_render::gi_shading::GiShading;
-use mesobake_render::prepared_prism::prepare_prisms;
+use mesobake_render::prepared_prism::{PreparedPrism, prepare_prisms};
 use mesobake_render::shot::Shot;
 use wgpu::util::DeviceExt;
 
@@ -39,7 +41,8 @@ pub(super) struct ViewUniform {
     specular: [f32; 4],
     light_count: u32,
     width: u32,
-    _pad: [u32; 2],
+    object: u32,
+    _pad: u32,
 }
 
 /// The shader's `Light`.
@@ -92,7 +95,8 @@ pub(super) fn view_uniform(shot: &Shot, bounds: impl Iterator<Item = DVec3>) -> 
         ],
         light_count: shot.lights.len() as u32,
         width: shot.camera.width,
-        _pad: [0; 2],
+        object: 0,
+        _pad: 0,
     }
 }
 
@@ -167,30 +171,6 @@ fn view_projection(camera: &Camera, bounds: impl Iterator<Item = DVec3>) -> DMat
     // WebGPU's clip space: depth 0..1, y up (the DirectX convention).
     let proj = rh::proj::directx::perspective(camera.fov_y_degrees.to_radians(), aspect, near, far);
     proj * rh::view::look_at_mat4(eye, DVec3::from(camera.target), DVec3::from(camera.up))
-}
-
-/// A scene ready to render with the real-time pipeline.
-pub struct Preview<'g> {
-    gpu: &'g Gpu,
-    variant: ShaderVariant,
-    /// Steps 2–5 per fragment, into `hits`.
-    hit_pipeline: wgpu::RenderPipeline,
-    /// Step 6 per pixel, from `hits` into the target.
-    shade_pipeline: wgpu::RenderPipeline,
-    scene_group: wgpu::BindGroup,
-    /// The scene's bindings and `hits` to read.
-    shade_group: wgpu::BindGroup,
-    hits: HitTargets,
-    package: GpuPackage,
-    material: GpuMaterial,
-    shell: GpuShell,
-    environment: Option<GpuEnvironment>,
-    target: Target,
-    /// Per pixel, the nearest hit so far this frame (`nearest_hit` of the shader), cleared
-    /// before each frame.
-    nearest_hit: wgpu::Buffer,
-    view: ViewBuffer,
-    memory: GpuMemory,
 }
 
 /// A bind group layout over `entries` and the bind group binding each entry's resource.
@@ -284,6 +264,82 @@ fn uint_texture(dimension: wgpu::TextureViewDimension) -> wgpu::BindingType {
     }
 }
 
+/// The most lights a scene of several objects with shadows may have: the occlusion pass
+/// keeps one bit per light and pixel (`objects_on.wgsl`).
+pub const MAX_OCCLUDED_LIGHTS: usize = 32;
+
+/// One object of a preview: what it is drawn from.
+pub struct PreviewObject<'a> {
+    /// The shot with the object's material; every object's camera, lights and effects are
+    /// the first object's.
+    pub shot: &'a Shot,
+    /// The object's shell.
+    pub shell: &'a Shell,
+    /// Its material (normals and albedo); its grid is the package's.
+    pub material: &'a MaterialVolume,
+    /// Its package, whose GDM the pipeline queries.
+    pub package: &'a Package,
+    /// The environment shading the CPU twin reads from the same package (where the scene
+    /// calls for environment lighting).
+    pub gi: Option<&'a GiShading>,
+}
+
+/// A scene ready to render with the real-time pipeline: one object, or several drawn into
+/// the same targets (each object's hits compete in one depth-tested hit pass, and with
+/// shadows each object's shell blocks the others' shadow rays: `objects_on.wgsl`).
+pub struct Preview<'g> {
+    gpu: &'g Gpu,
+    objects: Vec<ObjectPasses>,
+    hits: HitTargets,
+    target: Target,
+    /// Per pixel, the nearest hit so far this frame (`nearest_hit` of the shader), cleared
+    /// before each frame.
+    nearest_hit: wgpu::Buffer,
+    /// With several objects and shadows, what the occlusion passes share.
+    occlusion: Option<SharedOcclusion>,
+    memory: GpuMemory,
+}
+
+/// What the start, occlusion and shading passes of several objects share.
+struct SharedOcclusion {
+    /// Per pixel, its hit's shadow-ray start (`hit_starts`).
+    starts: wgpu::TextureView,
+    /// Per pixel, the bits of the lights another object blocks (`blocked`), cleared before
+    /// each frame.
+    blocked: wgpu::Buffer,
+}
+
+/// One object's pipelines and the resources its bind groups hold.
+struct ObjectPasses {
+    variant: ShaderVariant,
+    /// Steps 2–5 per fragment, into the hit targets.
+    hit_pipeline: wgpu::RenderPipeline,
+    /// Step 6 per pixel the object won, from the hit targets into the target.
+    shade_pipeline: wgpu::RenderPipeline,
+    /// The object's bindings.
+    scene_group: wgpu::BindGroup,
+    /// The object's bindings and the hit targets to read.
+    shade_group: wgpu::BindGroup,
+    /// With several objects and shadows: its start and occlusion passes.
+    occlusion: Option<ObjectOcclusion>,
+    package: GpuPackage,
+    material: GpuMaterial,
+    shell: GpuShell,
+    environment: Option<GpuEnvironment>,
+    view: ViewBuffer,
+    memory: GpuMemory,
+}
+
+/// One object's part in the occlusion between objects.
+struct ObjectOcclusion {
+    /// `fs_start`: its pixels' shadow-ray starts.
+    start_pipeline: wgpu::RenderPipeline,
+    /// `fs_occlude`: its shell against the other objects' shadow rays.
+    occlude_pipeline: wgpu::RenderPipeline,
+    /// The shading bindings and the starts.
+    occlude_group: wgpu::BindGroup,
+}
+
 impl<'g> Preview<'g> {
     /// Uploads `shell`, `material` and `package`'s GDM (and, for environment lighting, the
     /// package's RTV with `gi`, the shading the CPU twin reads from the same package), and
@@ -299,48 +355,194 @@ impl<'g> Preview<'g> {
         gi: Option<&GiShading>,
         early_depth_test: bool,
     ) -> Result<Preview<'g>> {
-        package.check_grid(material.dims())?;
+        let object = PreviewObject {
+            shot,
+            shell,
+            material,
+            package,
+            gi,
+        };
+        Preview::of_objects(gpu, &[object], early_depth_test)
+    }
+
+    /// [`Preview::new`] of several objects rendered together (the CPU specification:
+    /// `mesobake_render::objects`): the nearest object's hit at each pixel, shaded with the
+    /// other objects' shadows where the scene calls for shadows (at most
+    /// [`MAX_OCCLUDED_LIGHTS`] lights then).
+    pub fn of_objects(
+        gpu: &'g Gpu,
+        objects: &[PreviewObject],
+        early_depth_test: bool,
+    ) -> Result<Preview<'g>> {
+        let Some(first) = objects.first() else {
+            return Err(Error::InvalidParameter(
+                "a preview needs at least one object".into(),
+            ));
+        };
         let early_depth_test = early_depth_test
             && gpu
                 .device
                 .features()
                 .contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST);
-        let codec = package.manifest().codec;
-        let variant = ShaderVariant::for_shot(shot, codec, early_depth_test);
-        let (width, height) = (shot.camera.width, shot.camera.height);
+        let variants: Vec<ShaderVariant> = objects
+            .iter()
+            .map(|o| {
+                let codec = o.package.manifest().codec;
+                ShaderVariant::for_shot(o.shot, codec, objects.len(), early_depth_test)
+            })
+            .collect();
+        let occluded = variants.iter().any(|v| v.occluders);
+        if occluded && first.shot.lights.len() > MAX_OCCLUDED_LIGHTS {
+            return Err(Error::InvalidParameter(format!(
+                "the preview of several objects with shadows takes at most \
+                 {MAX_OCCLUDED_LIGHTS} lights; this scene has {}",
+                first.shot.lights.len()
+            )));
+        }
+        let mut prisms = Vec::with_capacity(objects.len());
+        for o in objects {
+            o.package.check_grid(o.material.dims())?;
+            prisms.push(prepare_prisms(o.shell, o.package.dims()));
+        }
+        // One projection for all: their depths are compared in one depth test.
+        let corners: Vec<DVec3> = prisms
+            .iter()
+            .flatten()
+            .flat_map(|p| {
+                p.faces[0]
+                    .triangle
+                    .corners
+                    .into_iter()
+                    .chain(p.faces[1].triangle.corners)
+            })
+            .collect();
+        let (width, height) = (first.shot.camera.width, first.shot.camera.height);
         let target = Target::new(gpu, width, height)?;
         let hits = HitTargets::new(gpu, &target);
+        let pixels = u64::from(width) * u64::from(height);
+        let storage_buffer = |label| {
+            gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: pixels * 4,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (nearest_hit, occlusion) = gpu.checked("allocating the targets", || {
+            let occlusion = occluded.then(|| SharedOcclusion {
+                starts: pixel_target(gpu, &target, "shadow-ray starts"),
+                blocked: storage_buffer("blocked lights"),
+            });
+            (storage_buffer("nearest hit"), occlusion)
+        })?;
+        let shared = SharedTargets {
+            hits: &hits,
+            nearest_hit: &nearest_hit,
+            occlusion: occlusion.as_ref(),
+            corners: &corners,
+        };
+        let mut passes = Vec::with_capacity(objects.len());
+        for (index, ((object, variant), prisms)) in
+            objects.iter().zip(variants).zip(&prisms).enumerate()
+        {
+            passes.push(ObjectPasses::new(
+                gpu, object, variant, index, prisms, &shared,
+            )?);
+        }
+        let mut memory = passes
+            .iter()
+            .fold(GpuMemory::default(), |total, o| total + o.memory);
+        memory.targets += target.bytes()
+            + hits.bytes
+            + nearest_hit.size()
+            + occlusion
+                .as_ref()
+                .map_or(0, |o| pixel_target_bytes(&target) + o.blocked.size());
+        Ok(Preview {
+            gpu,
+            objects: passes,
+            hits,
+            target,
+            nearest_hit,
+            occlusion,
+            memory,
+        })
+    }
+
+    /// The shader variant the scene chose (its first object's).
+    pub fn variant(&self) -> ShaderVariant {
+        self.objects[0].variant
+    }
+}
+
+/// What an object's passes draw into and read, shared by every object.
+struct SharedTargets<'a> {
+    hits: &'a HitTargets,
+    nearest_hit: &'a wgpu::Buffer,
+    occlusion: Option<&'a SharedOcclusion>,
+    /// Every object's prism corners, which the projection's depth range encloses.
+    corners: &'a [DVec3],
+}
+
+impl ObjectPasses {
+    /// Uploads object number `index` and builds its pipelines of `variant`.
+    fn new(
+        gpu: &Gpu,
+        object: &PreviewObject,
+        variant: ShaderVariant,
+        index: usize,
+        prisms: &[PreparedPrism],
+        shared: &SharedTargets,
+    ) -> Result<ObjectPasses> {
+        let PreviewObject {
+            shot,
+            package,
+            material,
+            gi,
+            ..
+        } = *object;
+        let codec = package.manifest().codec;
         let frag = wgpu::ShaderStages::FRAGMENT;
         let d = &gpu.device;
-        // The shell-shadow variant also reads the prisms' BVH (bindings 3 and 4); binding 5
-        // is the per-pixel nearest hit so far (`nearest_hit`).
-        let shell_shadows = variant.shadows == Some(ShadowMethod::Shell);
+        // The shell-shadow variant and an object among several with shadows also read the
+        // prisms' BVH (bindings 3 and 4); binding 5 is the per-pixel nearest hit so far
+        // (`nearest_hit`).
+        let traced = variant.shadows == Some(ShadowMethod::Shell) || variant.occluders;
         let mut scene_entries = vec![
             layout_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
             layout_entry(1, frag, storage()),
             layout_entry(2, frag, storage()),
             layout_entry(5, frag, storage_read_write()),
         ];
-        if shell_shadows {
+        if traced {
             scene_entries.extend([
                 layout_entry(3, frag, storage()),
                 layout_entry(4, frag, storage()),
             ]);
         }
-        let scene_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("scene"),
-            entries: &scene_entries,
-        });
-        // The shading pass also reads the hit pass's targets (bindings 6–8).
-        let shade_entries: Vec<_> = scene_entries
-            .iter()
-            .copied()
-            .chain((6..9).map(|b| layout_entry(b, frag, texture(wgpu::TextureViewDimension::D2))))
-            .collect();
-        let shade_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("scene and hits"),
-            entries: &shade_entries,
-        });
+        // The full-screen passes also read the hit pass's targets (bindings 6–8) and, with
+        // occluders, the blocked lights (10); the occlusion pass the starts (9).
+        let mut shade_entries = scene_entries.clone();
+        shade_entries
+            .extend((6..9).map(|b| layout_entry(b, frag, texture(wgpu::TextureViewDimension::D2))));
+        if variant.occluders {
+            shade_entries.push(layout_entry(10, frag, storage_read_write()));
+        }
+        let mut occlude_entries = shade_entries.clone();
+        occlude_entries.push(layout_entry(
+            9,
+            frag,
+            texture(wgpu::TextureViewDimension::D2),
+        ));
+        let new_layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
+            d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let scene_layout = new_layout("scene", &scene_entries);
+        let shade_layout = new_layout("scene and hits", &shade_entries);
+        let occlude_layout = new_layout("scene, hits and starts", &occlude_entries);
         let package_entries = match codec {
             GdmCodec::PaperSvd => vec![
                 layout_entry(0, frag, uniform()),
@@ -356,20 +558,17 @@ impl<'g> Preview<'g> {
                 uint_texture(wgpu::TextureViewDimension::D3),
             )],
         };
-        let package_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("package"),
-            entries: &package_entries,
-        });
-        let material_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("material"),
-            entries: &[
+        let package_layout = new_layout("package", &package_entries);
+        let material_layout = new_layout(
+            "material",
+            &[
                 layout_entry(0, frag, texture(wgpu::TextureViewDimension::D3)),
                 layout_entry(1, frag, texture(wgpu::TextureViewDimension::D3)),
             ],
-        });
-        let environment_layout = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("environment"),
-            entries: &[
+        );
+        let environment_layout = new_layout(
+            "environment",
+            &[
                 layout_entry(0, frag, uniform()),
                 layout_entry(1, frag, uint_texture(wgpu::TextureViewDimension::D3)),
                 layout_entry(2, frag, storage()),
@@ -377,16 +576,15 @@ impl<'g> Preview<'g> {
                 layout_entry(4, frag, storage()),
                 layout_entry(5, frag, storage()),
             ],
-        });
-        let prisms = prepare_prisms(shell, package.dims());
+        );
         let (gpu_package, material, shell, bvh, environment) =
             gpu.checked("uploading the scene", || {
                 Ok::<_, Error>((
                     upload_package(gpu, &package_layout, package)?,
                     upload_material(gpu, &material_layout, material)?,
-                    upload_shell(gpu, &prisms, DVec3::from(shot.camera.eye))?,
-                    if shell_shadows {
-                        Some(upload_prism_bvh(gpu, &prisms)?)
+                    upload_shell(gpu, prisms, DVec3::from(shot.camera.eye))?,
+                    if traced {
+                        Some(upload_prism_bvh(gpu, prisms)?)
                     } else {
                         None
                     },
@@ -404,145 +602,151 @@ impl<'g> Preview<'g> {
                     },
                 ))
             })??;
-        let corners = prisms.iter().flat_map(|p| {
-            p.faces[0]
-                .triangle
-                .corners
-                .into_iter()
-                .chain(p.faces[1].triangle.corners)
-        });
         let lights = light_records(shot);
-        let (hit_pipeline, shade_pipeline, scene_group, shade_group, nearest_hit, view) = gpu
-            .checked("building the pipeline", || {
-                let view = ViewBuffer::new(d, view_uniform(shot, corners), &shot.camera);
-                let lights = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("lights"),
-                    contents: bytemuck::cast_slice(&lights),
-                    usage: wgpu::BufferUsages::STORAGE,
-                });
-                let nearest_hit = d.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("nearest hit"),
-                    size: width as u64 * height as u64 * 4,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                });
-                let mut buffers = vec![(0, &view.buffer), (1, &lights), (2, &shell.prisms)];
-                buffers.push((5, &nearest_hit));
-                if let Some(bvh) = &bvh {
-                    buffers.extend([(3, &bvh.nodes), (4, &bvh.primitives)]);
-                }
-                let entries: Vec<wgpu::BindGroupEntry> = buffers
-                    .into_iter()
-                    .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                        binding,
-                        resource: buffer.as_entire_binding(),
-                    })
-                    .collect();
-                let scene_group = d.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("scene"),
-                    layout: &scene_layout,
-                    entries: &entries,
-                });
-                let shade_group =
-                    d.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some("scene and hits"),
-                        layout: &shade_layout,
-                        entries: &entries
-                            .iter()
-                            .cloned()
-                            .chain((6..).zip(&hits.views).map(|(binding, view)| {
-                                wgpu::BindGroupEntry {
-                                    binding,
-                                    resource: wgpu::BindingResource::TextureView(view),
-                                }
-                            }))
-                            .collect::<Vec<_>>(),
-                    });
-                let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("gdm preview"),
-                    source: wgpu::ShaderSource::Wgsl(variant.source().into()),
-                });
-                let layout = |label, scene_layout| {
-                    d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                        label: Some(label),
-                        bind_group_layouts: &[
-                            Some(scene_layout),
-                            Some(&package_layout),
-                            Some(&material_layout),
-                            variant.environment.then_some(&environment_layout),
-                        ],
-                        immediate_size: 0,
-                    })
-                };
-                let hit_pipeline = target_pipeline(
-                    d,
-                    "gdm preview hits",
-                    &layout("gdm preview hits", &scene_layout),
-                    &module,
-                    &[Some(Vertex::LAYOUT)],
-                    DrawState {
-                        entry_points: ["vs_main", "fs_main"],
-                        cull: Some(wgpu::Face::Back),
-                        depth_tested: true,
-                        blend: None,
-                        colour_targets: hits.views.len(),
-                    },
-                );
-                let shade_pipeline = target_pipeline(
-                    d,
-                    "gdm preview shading",
-                    &layout("gdm preview shading", &shade_layout),
-                    &module,
-                    &[],
-                    DrawState {
-                        entry_points: ["vs_fullscreen", "fs_shade"],
-                        cull: None,
-                        depth_tested: false,
-                        blend: None,
-                        colour_targets: 1,
-                    },
-                );
-                (
-                    hit_pipeline,
-                    shade_pipeline,
-                    scene_group,
-                    shade_group,
-                    nearest_hit,
-                    view,
-                )
-            })?;
-        let memory = GpuMemory {
-            package: gpu_package.bytes,
-            material: material.bytes,
-            geometry: shell.bytes
-                + bvh.as_ref().map_or(0, |b| b.bytes)
-                + (lights.len() * std::mem::size_of::<LightRecord>()
-                    + std::mem::size_of::<ViewUniform>()) as u64,
-            environment: environment.as_ref().map_or(0, |e| e.bytes),
-            targets: target.bytes() + hits.bytes + nearest_hit.size(),
+        let view = ViewUniform {
+            object: index as u32,
+            ..view_uniform(shot, shared.corners.iter().copied())
         };
-        Ok(Preview {
-            gpu,
-            variant,
-            hit_pipeline,
-            shade_pipeline,
-            scene_group,
-            shade_group,
-            hits,
-            package: gpu_package,
-            material,
-            shell,
-            environment,
-            target,
-            nearest_hit,
-            view,
-            memory,
+        gpu.checked("building the pipeline", || {
+            let view = ViewBuffer::new(d, view, &shot.camera);
+            let lights = init_buffer(
+                d,
+                "lights",
+                bytemuck::cast_slice(&lights),
+                wgpu::BufferUsages::STORAGE,
+            );
+            let mut scene = vec![
+                (0, view.buffer.as_entire_binding()),
+                (1, lights.as_entire_binding()),
+                (2, shell.prisms.as_entire_binding()),
+                (5, shared.nearest_hit.as_entire_binding()),
+            ];
+            if let Some(bvh) = &bvh {
+                scene.extend([
+                    (3, bvh.nodes.as_entire_binding()),
+                    (4, bvh.primitives.as_entire_binding()),
+                ]);
+            }
+            let mut shade = scene.clone();
+            shade.extend(
+                (6..)
+                    .zip(&shared.hits.views)
+                    .map(|(b, v)| (b, wgpu::BindingResource::TextureView(v))),
+            );
+            let occlusion = shared.occlusion.filter(|_| variant.occluders);
+            if let Some(o) = occlusion {
+                shade.push((10, o.blocked.as_entire_binding()));
+            }
+            let group = |label, layout, entries: &[(u32, wgpu::BindingResource)]| {
+                d.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(label),
+                    layout,
+                    entries: &entries
+                        .iter()
+                        .map(|(binding, resource)| wgpu::BindGroupEntry {
+                            binding: *binding,
+                            resource: resource.clone(),
+                        })
+                        .collect::<Vec<_>>(),
+                })
+            };
+            let scene_group = group("scene", &scene_layout, &scene);
+            let shade_group = group("scene and hits", &shade_layout, &shade);
+            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("gdm preview"),
+                source: wgpu::ShaderSource::Wgsl(variant.source().into()),
+            });
+            let pipeline = |label, group_layout, vertices: &[_], state| {
+                let layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(label),
+                    bind_group_layouts: &[
+                        Some(group_layout),
+                        Some(&package_layout),
+                        Some(&material_layout),
+                        variant.environment.then_some(&environment_layout),
+                    ],
+                    immediate_size: 0,
+                });
+                target_pipeline(d, label, &layout, &module, vertices, state)
+            };
+            let full_screen = |fragment, colour_targets| DrawState {
+                entry_points: ["vs_fullscreen", fragment],
+                cull: None,
+                depth_tested: false,
+                blend: None,
+                colour_targets,
+            };
+            let hit_pipeline = pipeline(
+                "gdm preview hits",
+                &scene_layout,
+                &[Some(Vertex::LAYOUT)],
+                DrawState {
+                    entry_points: ["vs_main", "fs_main"],
+                    cull: Some(wgpu::Face::Back),
+                    depth_tested: true,
+                    blend: None,
+                    colour_targets: shared.hits.views.len(),
+                },
+            );
+            let shade_pipeline = pipeline(
+                "gdm preview shading",
+                &shade_layout,
+                &[],
+                full_screen("fs_shade", 1),
+            );
+            let occlusion = occlusion.map(|o| {
+                let mut occlude = shade.clone();
+                occlude.push((9, wgpu::BindingResource::TextureView(&o.starts)));
+                ObjectOcclusion {
+                    start_pipeline: pipeline(
+                        "gdm shadow-ray starts",
+                        &shade_layout,
+                        &[],
+                        full_screen("fs_start", 1),
+                    ),
+                    occlude_pipeline: pipeline(
+                        "gdm occlusion",
+                        &occlude_layout,
+                        &[],
+                        full_screen(OCCLUDE_ENTRY, 0),
+                    ),
+                    occlude_group: group("scene, hits and starts", &occlude_layout, &occlude),
+                }
+            });
+            let memory = GpuMemory {
+                package: gpu_package.bytes,
+                material: material.bytes,
+                geometry: shell.bytes
+                    + bvh.as_ref().map_or(0, |b| b.bytes)
+                    + (lights.size() + std::mem::size_of::<ViewUniform>() as u64),
+                environment: environment.as_ref().map_or(0, |e| e.bytes),
+                targets: 0,
+            };
+            ObjectPasses {
+                variant,
+                hit_pipeline,
+                shade_pipeline,
+                scene_group,
+                shade_group,
+                occlusion,
+                package: gpu_package,
+                material,
+                shell,
+                environment,
+                view,
+                memory,
+            }
         })
     }
 
-    /// The shader variant the scene chose.
-    pub fn variant(&self) -> ShaderVariant {
-        self.variant
+    /// Binds `scene_group` and the object's package, material and environment.
+    fn bind(&self, pass: &mut wgpu::RenderPass, scene_group: &wgpu::BindGroup) {
+        pass.set_bind_group(0, scene_group, &[]);
+        pass.set_bind_group(1, &self.package.bind_group, &[]);
+        pass.set_bind_group(2, &self.material.bind_group, &[]);
+        if let Some(environment) = &self.environment {
+            pass.set_bind_group(3, &environment.bind_group, &[]);
+        }
     }
 }
 
@@ -555,30 +759,56 @@ impl RealtimePipeline for Preview<'_> {
         &self.target
     }
 
+    /// The hit pass of every object, then (with several objects and shadows) every object's
+    /// start and occlusion passes, then every object's shading of the pixels it won.
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.nearest_hit, 0, None);
-        let bind = |pass: &mut wgpu::RenderPass, scene_group| {
-            pass.set_bind_group(0, scene_group, &[]);
-            pass.set_bind_group(1, &self.package.bind_group, &[]);
-            pass.set_bind_group(2, &self.material.bind_group, &[]);
-            if let Some(environment) = &self.environment {
-                pass.set_bind_group(3, &environment.bind_group, &[]);
-            }
-        };
         {
             let views: Vec<_> = self.hits.views.iter().collect();
             let mut pass = self.target.pass_into(&mut encoder, "gdm hits", &views);
-            pass.set_pipeline(&self.hit_pipeline);
-            bind(&mut pass, &self.scene_group);
-            pass.set_vertex_buffer(0, self.shell.vertices.slice(..));
-            pass.draw(0..self.shell.vertex_count, 0..1);
+            for object in &self.objects {
+                pass.set_pipeline(&object.hit_pipeline);
+                object.bind(&mut pass, &object.scene_group);
+                pass.set_vertex_buffer(0, object.shell.vertices.slice(..));
+                pass.draw(0..object.shell.vertex_count, 0..1);
+            }
+        }
+        if let Some(shared) = &self.occlusion {
+            encoder.clear_buffer(&shared.blocked, 0, None);
+            let each = |pass: &mut wgpu::RenderPass, occluding: bool| {
+                for object in &self.objects {
+                    if let Some(o) = &object.occlusion {
+                        if occluding {
+                            pass.set_pipeline(&o.occlude_pipeline);
+                            object.bind(pass, &o.occlude_group);
+                        } else {
+                            pass.set_pipeline(&o.start_pipeline);
+                            object.bind(pass, &object.shade_group);
+                        }
+                        pass.draw(0..3, 0..1);
+                    }
+                }
+            };
+            let label = "gdm shadow-ray starts";
+            each(
+                &mut self
+                    .target
+                    .pass_into(&mut encoder, label, &[&shared.starts]),
+                false,
+            );
+            each(
+                &mut self.target.pass_into(&mut encoder, "gdm occlusion", &[]),
+                true,
+            );
         }
         {
             let mut pass = self.target.pass(&mut encoder, "gdm shading");
-            pass.set_pipeline(&self.shade_pipeline);
-            bind(&mut pass, &self.shade_group);
-            pass.draw(0..3, 0..1);
+            for object in &self.objects {
+                pass.set_pipeline(&object.shade_pipeline);
+                object.bind(&mut pass, &object.shade_group);
+                pass.draw(0..3, 0..1);
+            }
         }
         if read_back {
             self.target.copy_out(&mut encoder);
@@ -588,7 +818,9 @@ impl RealtimePipeline for Preview<'_> {
 
     /// Moves the next frames' rays to `offset` in each pixel ([`ViewBuffer::set_subpixel`]).
     fn set_subpixel(&self, offset: [f64; 2]) {
-        self.view.set_subpixel(self.gpu, offset);
+        for object in &self.objects {
+            object.view.set_subpixel(self.gpu, offset);
+        }
     }
 
     /// GPU memory taken by this preview's resources.
@@ -612,7 +844,8 @@ mod tests {
             eye,
             specular,
             light_count,
-            width
+            width,
+            object
         });
         assert_twin(&source, "View", view);
         assert_twin(

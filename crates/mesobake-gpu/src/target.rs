@@ -176,8 +176,8 @@ impl Target {
         self.pass_into(encoder, label, &[&self.colour_view])
     }
 
-    /// A render pass into `colours` (cleared to transparent black) with the target's depth
-    /// (cleared to 1).
+    /// A render pass into `colours` (cleared to transparent black; none for a pass that only
+    /// writes storage) with the target's depth (cleared to 1).
     pub fn pass_into<'e>(
         &self,
         encoder: &'e mut wgpu::CommandEncoder,
@@ -287,22 +287,30 @@ pub struct HitTargets {
 impl HitTargets {
     /// Three targets the size of `target`.
     pub fn new(gpu: &Gpu, target: &Target) -> HitTargets {
-        let (width, height) = target.size();
-        let views = std::array::from_fn(|_| {
-            image_texture(
-                &gpu.device,
-                "hit target",
-                (width, height),
-                COLOUR_FORMAT,
-                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            )
-            .create_view(&Default::default())
-        });
         HitTargets {
-            views,
-            bytes: 3 * u64::from(width) * u64::from(height) * u64::from(COLOUR_TEXEL),
+            views: std::array::from_fn(|_| pixel_target(gpu, target, "hit target")),
+            bytes: 3 * pixel_target_bytes(target),
         }
     }
+}
+
+/// An `rgba32float` texture the size of `target` that a pass draws into and a later pass
+/// reads.
+pub fn pixel_target(gpu: &Gpu, target: &Target, label: &str) -> wgpu::TextureView {
+    image_texture(
+        &gpu.device,
+        label,
+        target.size(),
+        COLOUR_FORMAT,
+        wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+    )
+    .create_view(&Default::default())
+}
+
+/// GPU bytes of one [`pixel_target`] of `target`.
+pub fn pixel_target_bytes(target: &Target) -> u64 {
+    let (width, height) = target.size();
+    u64::from(width) * u64::from(height) * u64::from(COLOUR_TEXEL)
 }
 
 /// Maps `buffer` (MAP_READ) once the submissions writing it are done, hands its bytes to

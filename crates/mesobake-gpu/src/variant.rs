@@ -17,6 +17,9 @@ const QUERY_OCCUPANCY: &str = include_str!("../../../shaders/query_occupancy.wgs
 const SHADOWS_LOCAL: &str = include_str!("../../../shaders/shadows_local.wgsl");
 const SHADOWS_SHELL: &str = include_str!("../../../shaders/shadows_shell.wgsl");
 const SHADOWS_OFF: &str = include_str!("../../../shaders/shadows_off.wgsl");
+const SHELL_TRACE: &str = include_str!("../../../shaders/shell_trace.wgsl");
+const OBJECTS_ON: &str = include_str!("../../../shaders/objects_on.wgsl");
+const OBJECTS_OFF: &str = include_str!("../../../shaders/objects_off.wgsl");
 const GI_ON: &str = include_str!("../../../shaders/gi_on.wgsl");
 const GI_OFF: &str = include_str!("../../../shaders/gi_off.wgsl");
 
@@ -28,6 +31,9 @@ pub const SHADOW_QUERY_FN: &str = "shadow_query";
 
 /// A binding that only the shell-shadow variant declares.
 pub const BVH_BINDING: &str = "bvh_nodes";
+
+/// The entry point that only the variants of an object among several with shadows declare.
+pub const OCCLUDE_ENTRY: &str = "fs_occlude";
 
 /// A binding that only the environment-lighting variant declares.
 pub const GI_BINDING: &str = "rtv_weights";
@@ -41,6 +47,9 @@ pub struct ShaderVariant {
     pub shadows: Option<ShadowMethod>,
     /// Environment light through the PRT and the RTV (the scene's `environment_lighting`).
     pub environment: bool,
+    /// One object among several with shadows: other objects' shells block its shadow rays,
+    /// and its shell theirs (`objects_on.wgsl`).
+    pub occluders: bool,
     /// GDM refinement queries per hit (the scene's `gdm_refinements`; 0 for the occupancy
     /// codec, whose march is exact), unrolled as a constant.
     pub refinements: u32,
@@ -56,12 +65,19 @@ pub struct ShaderVariant {
 }
 
 impl ShaderVariant {
-    /// The variant `shot` calls for with a package of `codec`.
-    pub fn for_shot(shot: &Shot, codec: GdmCodec, early_depth_test: bool) -> ShaderVariant {
+    /// The variant `shot` calls for with a package of `codec`, for one object of a scene of
+    /// `objects`.
+    pub fn for_shot(
+        shot: &Shot,
+        codec: GdmCodec,
+        objects: usize,
+        early_depth_test: bool,
+    ) -> ShaderVariant {
         ShaderVariant {
             codec,
             shadows: shot.wants(Effect::Shadows).then_some(shot.quality.shadows),
             environment: shot.wants(Effect::EnvironmentLighting),
+            occluders: objects > 1 && shot.wants(Effect::Shadows),
             refinements: match codec {
                 GdmCodec::PaperSvd => shot.gdm_refinements,
                 GdmCodec::Occupancy => 0,
@@ -73,7 +89,8 @@ impl ShaderVariant {
     }
 
     /// Every variant a valid scene and package can ask for, with two chord counts standing
-    /// for all (1 and [`MAX_CHORDS`]: the count is only a loop bound).
+    /// for all (1 and [`MAX_CHORDS`]: the count is only a loop bound); occluders only with
+    /// shadows and without environment light (which scenes of several objects refuse).
     pub fn all() -> impl Iterator<Item = ShaderVariant> {
         let shadows = [None, Some(ShadowMethod::Local), Some(ShadowMethod::Shell)];
         let frames = [ShadingFrame::Mean, ShadingFrame::Jacobian];
@@ -83,31 +100,36 @@ impl ShaderVariant {
                 GdmCodec::Occupancy => 0,
             };
             shadows.into_iter().flat_map(move |shadows| {
-                [false, true].into_iter().flat_map(move |environment| {
-                    (0..=refinements).flat_map(move |refinements| {
-                        [1, MAX_CHORDS].into_iter().flat_map(move |chords| {
-                            frames.into_iter().flat_map(move |frame| {
-                                [false, true].map(|early_depth_test| ShaderVariant {
-                                    codec,
-                                    shadows,
-                                    environment,
-                                    refinements,
-                                    chords,
-                                    frame,
-                                    early_depth_test,
+                [(false, false), (false, true), (true, false)]
+                    .into_iter()
+                    .filter(move |&(_, occluders)| !occluders || shadows.is_some())
+                    .flat_map(move |(environment, occluders)| {
+                        (0..=refinements).flat_map(move |refinements| {
+                            [1, MAX_CHORDS].into_iter().flat_map(move |chords| {
+                                frames.into_iter().flat_map(move |frame| {
+                                    [false, true].map(|early_depth_test| ShaderVariant {
+                                        codec,
+                                        shadows,
+                                        environment,
+                                        occluders,
+                                        refinements,
+                                        chords,
+                                        frame,
+                                        early_depth_test,
+                                    })
                                 })
                             })
                         })
                     })
-                })
             })
         })
     }
 
-    /// A short name, e.g. `paper-svd+shadows+env+refine2+chords4+jacobian+earlyz`.
+    /// A short name, e.g. `paper-svd+shadows+env+refine2+chords4+jacobian+earlyz`
+    /// (`+occluders` for an object among several with shadows).
     pub fn name(&self) -> String {
         format!(
-            "{}+{}{}+refine{}+chords{}{}{}",
+            "{}+{}{}{}+refine{}+chords{}{}{}",
             self.codec,
             match self.shadows {
                 None => "noshadows",
@@ -115,6 +137,7 @@ impl ShaderVariant {
                 Some(ShadowMethod::Shell) => "shellshadows",
             },
             if self.environment { "+env" } else { "" },
+            if self.occluders { "+occluders" } else { "" },
             self.refinements,
             self.chords,
             match self.frame {
@@ -127,11 +150,21 @@ impl ShaderVariant {
 
     /// The complete WGSL source of this variant.
     pub fn source(&self) -> String {
-        let shadows = match self.shadows {
+        let shell_shadows = self.shadows == Some(ShadowMethod::Shell);
+        let mut shadows = String::new();
+        if shell_shadows || self.occluders {
+            shadows.push_str(SHELL_TRACE);
+        }
+        shadows.push_str(match self.shadows {
             None => SHADOWS_OFF,
             Some(ShadowMethod::Local) => SHADOWS_LOCAL,
             Some(ShadowMethod::Shell) => SHADOWS_SHELL,
-        };
+        });
+        shadows.push_str(if self.occluders {
+            OBJECTS_ON
+        } else {
+            OBJECTS_OFF
+        });
         let pipeline = if self.early_depth_test {
             PIPELINE.replace(
                 FRAGMENT_ENTRY,

@@ -5,6 +5,7 @@
 
 use crate::LoadedScene;
 use crate::gi;
+use crate::render::{RenderMethod, check_composable, render_objects};
 use crate::technique::Technique;
 use mesobake_bake::mesostructure::medium::Medium;
 use mesobake_bake::package::medium as medium_package;
@@ -13,11 +14,12 @@ use mesobake_bake::package::{AnyPackage, Package};
 use mesobake_bake::vdm::Relief;
 use mesobake_core::camera::Camera;
 use mesobake_core::error::{Error, Result};
+use mesobake_core::limits::Limits;
 use mesobake_core::observer::{BakeObserver, CancellationOf};
 use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
 use mesobake_gpu::medium_pipeline::MediumPreview;
-use mesobake_gpu::pipeline::Preview;
+use mesobake_gpu::pipeline::{Preview, PreviewObject};
 use mesobake_gpu::resources::GpuMemory;
 use mesobake_gpu::variant::ShaderVariant;
 use mesobake_gpu::vdm_pipeline::VdmPreview;
@@ -27,6 +29,7 @@ use mesobake_render::image::Image;
 use mesobake_render::medium_cells::CellRenderer;
 use mesobake_render::render_image_observed;
 use mesobake_render::sampling::supersample;
+use mesobake_render::shot::Shot;
 use mesobake_render::vdm_renderer::VdmRenderer;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -103,6 +106,32 @@ impl PreviewDevice {
         self.run(
             |gpu| preview(gpu, loaded, package, frames, observer),
             || render_on_cpu(loaded, package, &CancellationOf(observer)),
+            frames,
+            observer,
+        )
+    }
+
+    /// Renders several objects together, each from its GDM package ([`objects_preview`]), or
+    /// where no adapter exists by the CPU twin ([`render_objects`] with the GDM renderer); with
+    /// `frames` > 0, also times that many frames.
+    pub fn render_objects(
+        &self,
+        objects: &[LoadedScene],
+        packages: &[AnyPackage],
+        frames: u32,
+        observer: &dyn BakeObserver,
+    ) -> Result<(Image, PreviewOutcome)> {
+        let gdm = gdm_packages(objects, packages)?;
+        let methods = vec![RenderMethod::Gdm; objects.len()];
+        let given: Vec<Option<&AnyPackage>> = packages.iter().map(Some).collect();
+        self.run(
+            |gpu| objects_preview(gpu, objects, &gdm, frames, observer),
+            || {
+                // Every object has its package: nothing is baked, so no limit applies.
+                let cancel = CancellationOf(observer);
+                let limits = Limits::default();
+                Ok(render_objects(objects, &methods, &given, &cancel, &limits)?.image)
+            },
             frames,
             observer,
         )
@@ -305,6 +334,70 @@ pub fn gdm_preview(
         frames,
         observer,
     )
+}
+
+/// The GDM packages of `objects` (one each, in order), or the error naming the first object
+/// the preview of several objects cannot draw.
+fn gdm_packages<'p>(
+    objects: &[LoadedScene],
+    packages: &'p [AnyPackage],
+) -> Result<Vec<&'p Package>> {
+    if objects.len() != packages.len() {
+        return Err(Error::InvalidParameter(format!(
+            "{} objects but {} packages: a preview of several objects takes one package per object",
+            objects.len(),
+            packages.len()
+        )));
+    }
+    let mut gdm = Vec::with_capacity(packages.len());
+    for (i, (object, package)) in objects.iter().zip(packages).enumerate() {
+        check_composable(object)?;
+        match package {
+            AnyPackage::Gdm(p) => {
+                p.check_grid(object.material.dims())?;
+                gdm.push(p);
+            }
+            other => {
+                return Err(Error::InvalidParameter(format!(
+                    "object {} has a {} package: the preview of several objects draws GDM \
+                     objects (`mesobake render` draws VDM objects among the others)",
+                    i + 1,
+                    Technique::of_package(other).name()
+                )));
+            }
+        }
+    }
+    Ok(gdm)
+}
+
+/// Renders several objects together by the GDM pipeline on `gpu` ([`Preview::of_objects`]),
+/// each from its GDM package; with `frames` > 0, also times that many frames.
+pub fn objects_preview(
+    gpu: &Gpu,
+    objects: &[LoadedScene],
+    packages: &[&Package],
+    frames: u32,
+    observer: &dyn BakeObserver,
+) -> Result<(Image, PreviewReport)> {
+    let start = Instant::now();
+    let shots: Vec<Shot> = objects.iter().map(|o| o.scene.shot()).collect();
+    let parts: Vec<PreviewObject> = objects
+        .iter()
+        .zip(&shots)
+        .zip(packages)
+        .map(|((o, shot), &package)| PreviewObject {
+            shot,
+            shell: &o.shell,
+            material: &o.material,
+            package,
+            gi: None,
+        })
+        .collect();
+    let preview = Preview::of_objects(gpu, &parts, true)?;
+    let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
+    let camera = &shots[0].camera;
+    let technique = Technique::Gdm.name();
+    measure(gpu, camera, &preview, technique, setup, frames, observer)
 }
 
 /// [`preview`] by the VDM pipeline.

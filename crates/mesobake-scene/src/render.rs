@@ -400,6 +400,19 @@ fn render_medium(
     })
 }
 
+/// Refuses an object that a scene of several objects cannot render yet: one lit by the
+/// environment, or a translucent one.
+pub fn check_composable(loaded: &LoadedScene) -> Result<()> {
+    if loaded.scene.wants(Effect::EnvironmentLighting) {
+        return Err(Error::InvalidParameter(
+            "environment lighting of a scene with several objects is not rendered yet: \
+             light them with point, directional and ambient lights"
+                .into(),
+        ));
+    }
+    loaded.check_opaque("a scene with several objects (translucent objects come later)")
+}
+
 /// Renders several objects together ([`crate::objects`]): the nearest object's hit at each
 /// pixel, shaded with the others' shadows. Object i renders with `methods[i]`: `truth` (its
 /// ground truth) or its real-time specification, `gdm` or `vdm`, from `packages[i]` when
@@ -412,14 +425,7 @@ pub fn render_objects(
     limits: &Limits,
 ) -> Result<Rendered> {
     for (loaded, method) in objects.iter().zip(methods) {
-        if loaded.scene.wants(Effect::EnvironmentLighting) {
-            return Err(Error::InvalidParameter(
-                "environment lighting of a scene with several objects is not rendered yet: \
-                 light them with point, directional and ambient lights"
-                    .into(),
-            ));
-        }
-        loaded.check_opaque("a scene with several objects (translucent objects come later)")?;
+        check_composable(loaded)?;
         if !matches!(
             method,
             RenderMethod::Truth | RenderMethod::Gdm | RenderMethod::Vdm

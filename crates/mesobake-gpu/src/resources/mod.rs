@@ -48,6 +48,21 @@ impl GpuMemory {
     }
 }
 
+impl std::ops::Add for GpuMemory {
+    type Output = GpuMemory;
+
+    /// Kind by kind, the memory of two sets of resources.
+    fn add(self, other: GpuMemory) -> GpuMemory {
+        GpuMemory {
+            package: self.package + other.package,
+            material: self.material + other.material,
+            geometry: self.geometry + other.geometry,
+            environment: self.environment + other.environment,
+            targets: self.targets + other.targets,
+        }
+    }
+}
+
 fn extent(width: u32, height: u32, depth: u32) -> wgpu::Extent3d {
     wgpu::Extent3d {
         width,
