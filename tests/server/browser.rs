@@ -399,6 +399,47 @@ async fn upload_bake_and_preview_in_a_browser() {
     )
     .await;
 
+    // The scene of several objects from the list (shrunk): the preview waits for every
+    // object's package and draws them together by the GDM pipeline; baking names a job per
+    // object.
+    c.execute(
+        "const m = document.getElementById('sample-scene'); m.value = 'torus-over-weave'; \
+         m.dispatchEvent(new Event('change'));",
+        vec![],
+    )
+    .await
+    .unwrap();
+    until_true(
+        &c,
+        30,
+        "the scene of several objects in the editor",
+        "const t = document.getElementById('scene-json'); const s = JSON.parse(t.value); \
+         if (!Array.isArray(s.objects)) return false; \
+         s.resolution = [16, 16, 8]; s.camera.width = 64; s.camera.height = 64; \
+         s.objects[1].base_mesh.builtin.torus.segments = [24, 12]; \
+         t.value = JSON.stringify(s, null, 2); return true;",
+    )
+    .await;
+    click(&c, "preview-button").await;
+    until_true(
+        &c,
+        240,
+        "a preview of both objects",
+        "const img = document.getElementById('preview'); \
+         return img.dataset.technique === 'gdm' && img.naturalWidth === 64 && \
+         document.getElementById('preview-status').textContent.startsWith('Rendered');",
+    )
+    .await;
+    click(&c, "bake-button").await;
+    until_true(
+        &c,
+        30,
+        "a job per object",
+        "return /one per object: ground: .*, torus: /.test( \
+         document.getElementById('bake-status').textContent);",
+    )
+    .await;
+
     // A job put back in the queue after a failed attempt says it is retrying, with the count,
     // and a long error wraps inside the table (the view as the server sends it).
     let retrying = c

@@ -282,9 +282,9 @@ impl Scene {
             let value = serde_json::from_str::<serde_json::Value>(text);
             match value {
                 Ok(v) if v.get("objects").is_some() => Error::Scene(
-                    "the scene holds several objects (`objects`): `mesobake render` draws them \
-                     and `mesobake bake --scene` bakes a package for each; previews and the \
-                     server's jobs take a scene of one object for now"
+                    "the scene holds several objects (`objects`), and this takes a scene of one: \
+                     `mesobake render`, `preview` and `bake --scene` take several, as do the \
+                     server's `POST /api/v1/object-jobs` and `/api/v1/preview`"
                         .into(),
                 ),
                 _ => Error::Scene(e.to_string()),

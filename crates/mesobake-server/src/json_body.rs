@@ -1,5 +1,6 @@
 //! JSON request bodies, parsed straight into their typed structs (never into a
-//! `serde_json::Value` first), off the async threads when they are large. The body's size is
+//! `serde_json::Value` first, but for the scene of a `SceneSpec`, which is split into its
+//! objects before each is typed), off the async threads when they are large. The body's size is
 //! bounded by the router's limit layer (413 from `Content-Length` before anything is read).
 
 use super::api_error::{ApiError, ApiResult};
@@ -71,8 +72,16 @@ impl<S: Send + Sync, T: DeserializeOwned + Send + 'static> FromRequest<S> for Js
             // wrong shape: 422, as axum's `Json` answers.
             serde_json::from_slice::<serde::de::IgnoredAny>(&bytes)
                 .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, format!("not JSON: {e}")))?;
-            serde_json::from_slice::<T>(&bytes)
-                .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, format!("job: {e}")))
+            serde_json::from_slice::<T>(&bytes).map_err(|e| {
+                let mut message = format!("job: {e}");
+                if message.contains("unknown field `objects`") {
+                    message.push_str(
+                        " (a scene of several objects is baked by POST /api/v1/object-jobs, a \
+                         job per object)",
+                    );
+                }
+                ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, message)
+            })
         };
         let value = if small {
             parse()?

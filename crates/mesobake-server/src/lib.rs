@@ -24,6 +24,7 @@ pub mod jobs;
 pub mod jobs_api;
 pub mod json_body;
 pub mod middleware;
+pub mod object_jobs;
 pub mod packages;
 pub mod preview_api;
 pub mod preview_cache;
@@ -81,6 +82,7 @@ pub struct AppState {
         jobs_api::get,
         jobs_api::cancel,
         jobs_api::events,
+        object_jobs::submit,
         packages::get,
         packages::manifest,
         preview_api::render,
@@ -121,6 +123,7 @@ pub fn router(state: AppState) -> Router {
         .route("/jobs/{id}", get(jobs_api::get))
         .route("/jobs/{id}/cancel", post(jobs_api::cancel))
         .route("/jobs/{id}/events", get(jobs_api::events))
+        .route("/object-jobs", post(object_jobs::submit))
         .route("/packages/{digest}", get(packages::get))
         .route("/packages/{digest}/manifest", get(packages::manifest))
         .route("/preview", post(preview_api::render))

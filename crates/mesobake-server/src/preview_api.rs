@@ -1,13 +1,14 @@
 //! `POST /api/v1/preview`: a scene rendered by the real-time pipeline (wgpu) from the package
-//! baked for it, as PNG, cached by (scene, package).
+//! baked for it (a scene of several objects from each object's), as PNG, cached by (scene,
+//! packages).
 
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
 use super::assets::resolve_assets;
 use super::config::millis;
-use super::jobs::JobSpec;
-use super::jobs_api::{check_spec, enqueue};
+use super::jobs_api::enqueue;
 use super::json_body::JsonBody;
+use super::object_jobs::{ObjectJob, SceneSpec, not_previewable};
 use super::preview_cache;
 use axum::Json;
 use axum::extract::State;
@@ -18,6 +19,7 @@ use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::observer::BakeObserver;
 use mesobake_scene::preview::PreviewDevice;
+use mesobake_scene::technique::Technique;
 use mesobake_scene::{EnvironmentSource, LoadedScene, Scene};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -53,20 +55,27 @@ impl Default for PreviewGpu {
     }
 }
 
-/// Renders the PNG, opening the device on first use; returns it with the renderer's name.
-/// Stops with [`Error::Cancelled`] once `cancel` is set: before rendering, between the
-/// GPU's frames, within a tile of the CPU twin's.
+/// Renders the PNG of `scenes` (one object's, or several objects' drawn together) from their
+/// `packages`, opening the device on first use; returns it with the renderer's name. Stops
+/// with [`Error::Cancelled`] once `cancel` is set: before rendering, between the GPU's
+/// frames, within a tile of the CPU twin's.
 fn render_png(
     gpu: &PreviewGpu,
-    scene: &Scene,
-    package: Vec<u8>,
+    scenes: &[Scene],
+    packages: Vec<Vec<u8>>,
     state: &AppState,
     cancel: &AtomicBool,
 ) -> Result<(Vec<u8>, &'static str)> {
-    let package = AnyPackage::parse_within(package, &state.limits)?;
-    let mut scene = scene.clone();
-    resolve_assets(&mut scene, &state.blobs)?;
-    let loaded = LoadedScene::load(scene, Path::new("/"), &state.limits)?;
+    let packages = packages
+        .into_iter()
+        .map(|p| AnyPackage::parse_within(p, &state.limits))
+        .collect::<Result<Vec<_>>>()?;
+    let mut loaded = Vec::with_capacity(scenes.len());
+    for scene in scenes {
+        let mut scene = scene.clone();
+        resolve_assets(&mut scene, &state.blobs)?;
+        loaded.push(LoadedScene::load(scene, Path::new("/"), &state.limits)?);
+    }
     if cancel.cancelled() {
         return Err(Error::Cancelled);
     }
@@ -86,7 +95,10 @@ fn render_png(
         *guard = Some(device);
     }
     let device = guard.as_ref().expect("opened above");
-    let (image, _) = device.render(&loaded, &package, 0, cancel)?;
+    let (image, _) = match (&loaded[..], &packages[..]) {
+        ([one], [package]) => device.render(one, package, 0, cancel)?,
+        _ => device.render_objects(&loaded, &packages, 0, cancel)?,
+    };
     Ok((image.to_png()?, device.renderer()))
 }
 
@@ -100,14 +112,14 @@ impl Drop for CancelOnDrop {
     }
 }
 
-/// Renders `spec`'s scene from `package` on the GPU: waits at most `busy_wait_ms` for the
+/// Renders `scenes` from their `packages` on the GPU: waits at most `busy_wait_ms` for the
 /// GPU and `preview_timeout_ms` for the render (503 beyond either). A render past its
 /// deadline, or whose client went away, is cancelled and frees the GPU within a frame (a
 /// tile of the CPU twin's).
 async fn render_on_gpu(
     state: &AppState,
-    spec: &JobSpec,
-    package: Vec<u8>,
+    scenes: Vec<Scene>,
+    packages: Vec<Vec<u8>>,
 ) -> ApiResult<(Vec<u8>, &'static str)> {
     let config = &state.config;
     let permit = tokio::time::timeout(
@@ -119,10 +131,10 @@ async fn render_on_gpu(
     .map_err(|_| ApiError::busy("the GPU is closed"))?;
     let cancel = Arc::new(AtomicBool::new(false));
     let _cancel_on_drop = CancelOnDrop(cancel.clone());
-    let (st, scene) = (state.clone(), spec.scene.clone());
+    let st = state.clone();
     let render = tokio::task::spawn_blocking(move || {
         let _permit = permit;
-        render_png(&st.gpu, &scene, package, &st, &cancel)
+        render_png(&st.gpu, &scenes, packages, &st, &cancel)
             .map_err(|e| ApiError::scrubbed(e, &st.blobs))
     });
     match tokio::time::timeout(millis(config.preview_timeout_ms), render).await {
@@ -134,56 +146,91 @@ async fn render_on_gpu(
     }
 }
 
-/// Renders a scene with the real-time pipeline from the package baked for it. While that
-/// package is not baked, answers 409 with the job baking it (submitted if needed).
+/// Renders a scene with the real-time pipeline from the package baked for it; a scene of
+/// several objects from each object's package, drawn together (GDM objects). While a
+/// package is not baked, answers 409 with the job baking it (submitted if needed) and, for
+/// several objects, every object's job.
 #[utoipa::path(
     post,
     path = "/api/v1/preview",
-    request_body = JobSpec,
+    request_body = SceneSpec,
     responses(
         (status = 200, description = "The image", content_type = "image/png"),
-        (status = 409, description = "The scene's package is not baked yet: {error, job}"),
+        (status = 409, description = "A package of the scene is not baked yet: {error, job, jobs} (job: the first not baked; jobs: every object's)"),
         (status = 413, description = "Body over max_json_bytes"),
-        (status = 422, description = "Invalid scene, or a cost over the server's limits"),
-        (status = 429, description = "The scene's package is not baked and the queue is full"),
-        (status = 507, description = "The scene's package is not baked and the server's storage is below its reserve"),
+        (status = 422, description = "Invalid scene, a cost over the server's limits, or an object among several that is not GDM"),
+        (status = 429, description = "A package of the scene is not baked and the queue is full"),
+        (status = 507, description = "A package of the scene is not baked and the server's storage is below its reserve"),
         (status = 503, description = "No GPU adapter (with preview_fallback = \"none\"), the GPU busy, or the render past preview_timeout_ms (then cancelled)"),
     )
 )]
 pub async fn render(
     State(state): State<AppState>,
-    JsonBody(spec): JsonBody<JobSpec>,
+    JsonBody(spec): JsonBody<SceneSpec>,
 ) -> ApiResult<Response> {
     let start = Instant::now();
-    let plan = check_spec(&state, &spec).await?;
-    let lit_by_exr = matches!(spec.scene.environment, Some(EnvironmentSource::Exr(_)))
-        && spec.scene.wants(Effect::EnvironmentLighting);
-    if lit_by_exr {
-        return Err(ApiError::new(
-            StatusCode::UNPROCESSABLE_ENTITY,
-            "previews light environment-lit scenes with the built-in skies only: the server \
-             takes no EXR environment uploads (bake jobs do not need the environment)"
-                .to_owned(),
-        ));
-    }
-    let job = match state.db.job_for(&spec, plan.technique.technique).await? {
-        Some(job) if job.state == "succeeded" => job,
-        _ => enqueue(&state, &spec, &plan).await?.0,
-    };
-    let Some(digest) = job
-        .package_digest
-        .clone()
-        .filter(|_| job.state == "succeeded")
-    else {
-        let body = serde_json::json!({
-            "error": format!("the scene's package is not baked yet (job {} is {})", job.id, job.state),
-            "job": job,
+    let objects = spec.objects(&state).await?;
+    let several = objects.len() > 1;
+    let mut jobs = Vec::with_capacity(objects.len());
+    for object in &objects {
+        let scene = &object.spec.scene;
+        let lit_by_exr = matches!(scene.environment, Some(EnvironmentSource::Exr(_)))
+            && scene.wants(Effect::EnvironmentLighting);
+        if lit_by_exr {
+            return Err(ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                "previews light environment-lit scenes with the built-in skies only: the \
+                 server takes no EXR environment uploads (bake jobs do not need the environment)"
+                    .to_owned(),
+            ));
+        }
+        let technique = object.plan.technique.technique;
+        if several && technique != Technique::Gdm {
+            return Err(not_previewable(&object.name, technique.name()));
+        }
+        let job = match state.db.job_for(&object.spec, technique).await? {
+            Some(job) if job.state == "succeeded" => job,
+            _ => enqueue(&state, &object.spec, &object.plan).await?.0,
+        };
+        jobs.push(ObjectJob {
+            name: object.name.clone(),
+            job,
         });
-        return Ok((StatusCode::CONFLICT, Json(body)).into_response());
+    }
+    let digest = |j: &ObjectJob| {
+        (j.job.state == "succeeded")
+            .then(|| j.job.package_digest.clone())
+            .flatten()
     };
-    let scene_text = serde_json::to_string(&spec.scene).expect("scenes serialize");
+    if let Some(waiting) = jobs.iter().find(|j| digest(j).is_none()) {
+        let job = &waiting.job;
+        let error = if several {
+            format!(
+                "the package of object {:?} is not baked yet (job {} is {})",
+                waiting.name, job.id, job.state
+            )
+        } else {
+            format!(
+                "the scene's package is not baked yet (job {} is {})",
+                job.id, job.state
+            )
+        };
+        let body = serde_json::json!({ "error": error, "job": job, "jobs": jobs });
+        return Ok((StatusCode::CONFLICT, Json(body)).into_response());
+    }
+    let digests: Vec<String> = jobs.iter().filter_map(digest).collect();
+    // One object's technique, or GDM for several (checked above).
+    let technique = objects[0].plan.technique.technique;
+    let scene_texts: Vec<String> = objects
+        .iter()
+        .map(|o| serde_json::to_string(&o.spec.scene).expect("scenes serialize"))
+        .collect();
     let cache_key = |renderer: &str| {
-        let text = format!("preview-v2\n{renderer}\n{digest}\n{scene_text}");
+        let text = format!(
+            "preview-v2\n{renderer}\n{}\n{}",
+            digests.join(","),
+            scene_texts.join("\n")
+        );
         blake3::hash(text.as_bytes()).to_hex().to_string()
     };
     // Before the device is first opened the renderer is unknown, and so is the cache key.
@@ -206,17 +253,24 @@ pub async fn render(
                 .metrics
                 .preview_cache_misses
                 .fetch_add(1, Ordering::Relaxed);
-            let package = {
-                let (blobs, digest) = (state.blobs.clone(), digest.clone());
-                tokio::task::spawn_blocking(move || blobs.get(&digest)).await??
+            let packages = {
+                let (blobs, digests) = (state.blobs.clone(), digests.clone());
+                tokio::task::spawn_blocking(move || {
+                    digests
+                        .iter()
+                        .map(|d| blobs.get(d))
+                        .collect::<Result<Option<Vec<_>>>>()
+                })
+                .await??
             }
             .ok_or_else(|| {
                 ApiError::new(
                     StatusCode::INTERNAL_SERVER_ERROR,
-                    "the package's blob is missing",
+                    "a package's blob is missing",
                 )
             })?;
-            let (png, renderer) = render_on_gpu(&state, &spec, package).await?;
+            let scenes = objects.into_iter().map(|o| o.spec.scene).collect();
+            let (png, renderer) = render_on_gpu(&state, scenes, packages).await?;
             // An image the cache cannot keep (a full disk, say) is still answered.
             if let Err(e) = preview_cache::store(&state, &cache_key(renderer), png.clone()).await {
                 tracing::warn!("preview not cached: {e}");
@@ -234,7 +288,7 @@ pub async fn render(
             (header::HeaderName::from_static(RENDERER_HEADER), renderer),
             (
                 header::HeaderName::from_static(TECHNIQUE_HEADER),
-                plan.technique.technique.name(),
+                technique.name(),
             ),
         ],
         png,

@@ -1,6 +1,7 @@
-//! `GET /api/v1/scenes`: the shipped sample scenes (`scenes/*.json`, built-in meshes and
-//! mesostructure only, so the server bakes them as they are), by name; `sample` is the one
-//! the web page starts from.
+//! `GET /api/v1/scenes`: the shipped sample scenes (`scenes/*.json`, and the scene of several
+//! objects `docs/examples/torus-over-weave.json`; built-in meshes and mesostructure only, so
+//! the server bakes them as they are), by name; `sample` is the one the web page starts
+//! from.
 
 use super::api_error::{ApiError, ApiResult};
 use axum::Json;
@@ -11,8 +12,9 @@ use axum::response::IntoResponse;
 /// The scene the web page starts from and the server seeds (`scenes/torus-chain.json`).
 pub const SAMPLE_SCENE: &str = include_str!("../../../scenes/torus-chain.json");
 
-/// The shipped sample scenes by name, with the technique each calls for.
-pub const SAMPLE_SCENES: [(&str, &str, &str); 11] = [
+/// The shipped sample scenes by name, with the technique each calls for (every object's, for
+/// the scene of several objects that ends the list).
+pub const SAMPLE_SCENES: [(&str, &str, &str); 12] = [
     ("torus-chain", "gdm", SAMPLE_SCENE),
     (
         "plane-weave",
@@ -64,6 +66,11 @@ pub const SAMPLE_SCENES: [(&str, &str, &str); 11] = [
         "transparency",
         include_str!("../../../scenes/vase-inclusions.json"),
     ),
+    (
+        "torus-over-weave",
+        "gdm",
+        include_str!("../../../docs/examples/torus-over-weave.json"),
+    ),
 ];
 
 /// One entry of the list.
@@ -113,21 +120,26 @@ mod tests {
     use super::*;
     use mesobake_bake::surface::shell::Shell;
     use mesobake_core::limits::Limits;
+    use mesobake_scene::load_base_mesh;
+    use mesobake_scene::objects::{self, SceneObject};
     use mesobake_scene::technique::{Surface, choose};
-    use mesobake_scene::{Scene, load_base_mesh};
 
     #[test]
     fn every_listed_scene_parses_and_names_the_technique_its_plan_chooses() {
+        let mut several = 0;
         for (name, technique, text) in SAMPLE_SCENES {
-            let scene = Scene::from_json(text).unwrap_or_else(|e| panic!("{name}: {e}"));
-            let dir = std::path::Path::new(".");
-            let (base, report) = load_base_mesh(&scene, dir, &Limits::default()).unwrap();
-            let surface = Surface::of(&report, &Shell::new(&base, scene.shell).unwrap());
-            assert_eq!(
-                choose(&scene, &surface).technique.name(),
-                technique,
-                "{name}"
-            );
+            let objects = objects::from_json(text).unwrap_or_else(|e| panic!("{name}: {e}"));
+            several += usize::from(objects.len() > 1);
+            for SceneObject { scene, .. } in objects {
+                let dir = std::path::Path::new(".");
+                let (base, report) = load_base_mesh(&scene, dir, &Limits::default()).unwrap();
+                let surface = Surface::of(&report, &Shell::new(&base, scene.shell).unwrap());
+                assert_eq!(
+                    choose(&scene, &surface).technique.name(),
+                    technique,
+                    "{name}"
+                );
+            }
         }
         let shipped = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes"))
             .unwrap()
@@ -140,7 +152,7 @@ mod tests {
             })
             .count();
         assert_eq!(
-            shipped,
+            shipped + several,
             SAMPLE_SCENES.len(),
             "every shipped scene is listed"
         );
