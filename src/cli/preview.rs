@@ -11,7 +11,6 @@ use mesobake_scene::LoadedScene;
 use mesobake_scene::objects::{self, SceneObject};
 use mesobake_scene::package::{check_any_package_input, gdm_scene_package, scene_package};
 use mesobake_scene::preview::{PreviewDevice, PreviewFallback};
-use mesobake_scene::render::load_scene;
 use mesobake_scene::technique::Technique;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -85,7 +84,7 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
                 .into(),
         ));
     }
-    let objects = objects::read(&scene)?;
+    let mut objects = objects::read(&scene)?;
     if objects.len() > 1 {
         if package.is_some() {
             return Err(mesobake_core::Error::InvalidParameter(
@@ -107,7 +106,8 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
         return preview_several(&scene, objects, options, limits);
     }
     let start = Instant::now();
-    let mut loaded = load_scene(&scene, limits)?;
+    let dir = scene.parent().unwrap_or(Path::new("."));
+    let mut loaded = LoadedScene::load(objects.remove(0).scene, dir, limits)?;
     if let Some(quality) = quality {
         loaded.scene.quality = quality;
     }
@@ -119,14 +119,12 @@ pub fn preview(args: PreviewArgs, limits: &Limits) -> Result<()> {
     let package = if let Some(path) = &package {
         let package = AnyPackage::read(path, limits)?;
         if !force {
-            let dir = scene.parent().unwrap_or(Path::new("."));
             check_any_package_input(&package, &loaded.scene, dir)
                 .map_err(|e| e.context(path.display()))?;
         }
         package
     } else {
         let progress = Progress::new("baking the package");
-        let dir = scene.parent().unwrap_or(Path::new("."));
         let p = scene_package(&loaded, dir, codec.scene_params(), limits, &progress)?;
         progress.finish();
         p

@@ -389,6 +389,19 @@ fn a_scene_of_two_objects_renders_and_bakes_a_package_per_object() {
         mesobake_render::image::compare(&read("preview.png").unwrap(), &read("gdm.png").unwrap())
             .unwrap();
     assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
+    // An object list that leaves one object (the leather not drawn) previews as that object.
+    scene["objects"][0]["materials"]["Leather"] = serde_json::Value::Null;
+    std::fs::write(path("chain-only.json"), scene.to_string()).unwrap();
+    let o = succeeds(&[
+        "preview",
+        "--scene",
+        &path("chain-only.json"),
+        "--out",
+        &path("chain-only.png"),
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(json["hit_pixels"].as_u64().unwrap() > 100, "{json}");
 }
 
 #[test]

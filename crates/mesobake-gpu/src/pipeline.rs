@@ -521,19 +521,13 @@ impl ObjectPasses {
             ]);
         }
         // The full-screen passes also read the hit pass's targets (bindings 6–8) and, with
-        // occluders, the blocked lights (10); the occlusion pass the starts (9).
+        // occluders, the blocked lights (10); the occlusion pass also the starts (9).
         let mut shade_entries = scene_entries.clone();
         shade_entries
             .extend((6..9).map(|b| layout_entry(b, frag, texture(wgpu::TextureViewDimension::D2))));
         if variant.occluders {
             shade_entries.push(layout_entry(10, frag, storage_read_write()));
         }
-        let mut occlude_entries = shade_entries.clone();
-        occlude_entries.push(layout_entry(
-            9,
-            frag,
-            texture(wgpu::TextureViewDimension::D2),
-        ));
         let new_layout = |label, entries: &[wgpu::BindGroupLayoutEntry]| {
             d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some(label),
@@ -542,7 +536,15 @@ impl ObjectPasses {
         };
         let scene_layout = new_layout("scene", &scene_entries);
         let shade_layout = new_layout("scene and hits", &shade_entries);
-        let occlude_layout = new_layout("scene, hits and starts", &occlude_entries);
+        let occlude_layout = variant.occluders.then(|| {
+            let mut entries = shade_entries.clone();
+            entries.push(layout_entry(
+                9,
+                frag,
+                texture(wgpu::TextureViewDimension::D2),
+            ));
+            new_layout("scene, hits and starts", &entries)
+        });
         let package_entries = match codec {
             GdmCodec::PaperSvd => vec![
                 layout_entry(0, frag, uniform()),
@@ -694,25 +696,27 @@ impl ObjectPasses {
                 &[],
                 full_screen("fs_shade", 1),
             );
-            let occlusion = occlusion.map(|o| {
-                let mut occlude = shade.clone();
-                occlude.push((9, wgpu::BindingResource::TextureView(&o.starts)));
-                ObjectOcclusion {
-                    start_pipeline: pipeline(
-                        "gdm shadow-ray starts",
-                        &shade_layout,
-                        &[],
-                        full_screen("fs_start", 1),
-                    ),
-                    occlude_pipeline: pipeline(
-                        "gdm occlusion",
-                        &occlude_layout,
-                        &[],
-                        full_screen(OCCLUDE_ENTRY, 0),
-                    ),
-                    occlude_group: group("scene, hits and starts", &occlude_layout, &occlude),
-                }
-            });
+            let occlusion = occlusion
+                .zip(occlude_layout.as_ref())
+                .map(|(o, occlude_layout)| {
+                    let mut occlude = shade.clone();
+                    occlude.push((9, wgpu::BindingResource::TextureView(&o.starts)));
+                    ObjectOcclusion {
+                        start_pipeline: pipeline(
+                            "gdm shadow-ray starts",
+                            &shade_layout,
+                            &[],
+                            full_screen("fs_start", 1),
+                        ),
+                        occlude_pipeline: pipeline(
+                            "gdm occlusion",
+                            occlude_layout,
+                            &[],
+                            full_screen(OCCLUDE_ENTRY, 0),
+                        ),
+                        occlude_group: group("scene, hits and starts", occlude_layout, &occlude),
+                    }
+                });
             let memory = GpuMemory {
                 package: gpu_package.bytes,
                 material: material.bytes,

@@ -1,7 +1,9 @@
 //! Scene → image with the real-time pipeline (`mesobake preview`, the server's previews):
 //! renders a scene with its package ([`crate::package`]) on the GPU and optionally
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
-//! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's.
+//! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's; a
+//! scene of several objects is drawn by the GDM pipeline from a GDM package per object
+//! ([`objects_preview`]), its CPU twin the composed GDM renderers.
 
 use crate::LoadedScene;
 use crate::gi;
