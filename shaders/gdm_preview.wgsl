@@ -494,13 +494,27 @@ fn vs_fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> 
 @fragment
 fn fs_shade(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let pixel = vec2<i32>(frag.xy);
+    let own = own_hit(pixel);
+    if !own.hit.hit {
+        discard;
+    }
+    let dir = normalize(own.hit.point - view.eye.xyz);
+    return vec4<f32>(shade_hit(own.prism, own.hit, dir, blocked_elsewhere(pixel)), 1.0);
+}
+
+// The hit the hit pass kept at a pixel, with its prism; no hit where none was kept or
+// another object's was.
+struct PixelHit {
+    hit: FragmentHit,
+    prism: u32,
+}
+
+fn own_hit(pixel: vec2<i32>) -> PixelHit {
     let texture = textureLoad(hit_textures, pixel, 0);
     let chord = textureLoad(hit_views, pixel, 0);
     if texture.w == 0.0 || u32(chord.w) != view.object {
-        discard;
+        return PixelHit(no_hit(), 0u);
     }
     let point = textureLoad(hit_points, pixel, 0);
-    let dir = normalize(point.xyz - view.eye.xyz);
-    let hit = FragmentHit(true, point.xyz, texture.xyz, chord.xyz);
-    return vec4<f32>(shade_hit(bitcast<u32>(point.w), hit, dir, blocked_elsewhere(pixel)), 1.0);
+    return PixelHit(FragmentHit(true, point.xyz, texture.xyz, chord.xyz), bitcast<u32>(point.w));
 }

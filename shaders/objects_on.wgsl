@@ -24,15 +24,11 @@ fn blocked_elsewhere(pixel: vec2<i32>) -> u32 {
 // computes).
 @fragment
 fn fs_start(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
-    let pixel = vec2<i32>(frag.xy);
-    let texture = textureLoad(hit_textures, pixel, 0);
-    let chord = textureLoad(hit_views, pixel, 0);
-    if texture.w == 0.0 || u32(chord.w) != view.object {
+    let own = own_hit(vec2<i32>(frag.xy));
+    if !own.hit.hit {
         discard;
     }
-    let point = textureLoad(hit_points, pixel, 0);
-    let hit = FragmentHit(true, point.xyz, texture.xyz, chord.xyz);
-    return vec4<f32>(shadow_start(bitcast<u32>(point.w), hit).point, 1.0);
+    return vec4<f32>(shadow_start(own.prism, own.hit).point, 1.0);
 }
 
 // This object's shell against every other object's shadow rays: the bits of the lights it

@@ -139,6 +139,20 @@ fn two_objects_render_as_one_object_holding_both_meshes() {
     }
 }
 
+/// The scene of the knight Blender wrote at `base` (96², a point light and shadows, the
+/// chain by default), its one object extended by `materials` (JSON text after the base mesh).
+pub fn knight_scene(base: &str, materials: &str) -> String {
+    format!(
+        r#"{{ "camera": {{ "eye": [0.3, 3.2, 2.4], "target": [0.25, 0.5, 0], "fov_y_degrees": 45, "width": 96, "height": 96 }},
+  "lights": [ {{ "point": {{ "position": [2, 4, 3], "intensity": [40, 40, 40] }} }},
+          {{ "ambient": {{ "radiance": [0.05, 0.05, 0.05] }} }} ],
+  "effects": ["shadows"], "resolution": [32, 32, 16],
+  "shell": {{ "thickness": 0.06, "tiles_per_uv": [8, 4] }},
+  "mesostructure": {{ "sample": "chain" }},
+  "objects": [ {{ "base_mesh": {{ "gltf": "{base}" }} {materials} }} ] }}"#
+    )
+}
+
 /// The knight Blender wrote (`tests/data/blender`: a torus in two materials) with
 /// `"materials": {"Chain": …, "Leather": …}` is two objects, each the primitives of its
 /// material; given the same mesostructure, they render as the whole mesh does as one object
@@ -149,21 +163,10 @@ fn two_objects_render_as_one_object_holding_both_meshes() {
 #[test]
 fn a_blender_gltf_maps_its_two_materials_to_two_objects() {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/blender");
-    let scene = |base: &str, materials: &str| {
-        format!(
-            r#"{{ "camera": {{ "eye": [0.3, 3.2, 2.4], "target": [0.25, 0.5, 0], "fov_y_degrees": 45, "width": 96, "height": 96 }},
-  "lights": [ {{ "point": {{ "position": [2, 4, 3], "intensity": [40, 40, 40] }} }},
-              {{ "ambient": {{ "radiance": [0.05, 0.05, 0.05] }} }} ],
-  "effects": ["shadows"], "resolution": [32, 32, 16],
-  "shell": {{ "thickness": 0.06, "tiles_per_uv": [8, 4] }},
-  "mesostructure": {{ "sample": "chain" }},
-  "objects": [ {{ "base_mesh": {{ "gltf": "{base}" }} {materials} }} ] }}"#
-        )
-    };
     let glb = data.join("knight.glb");
     let glb = glb.to_str().unwrap();
-    let whole = objects::from_json(&scene(glb, "")).unwrap();
-    let same = objects::from_json(&scene(
+    let whole = objects::from_json(&knight_scene(glb, "")).unwrap();
+    let same = objects::from_json(&knight_scene(
         glb,
         r#", "materials": { "Chain": {}, "Leather": {} }"#,
     ))
@@ -183,7 +186,7 @@ fn a_blender_gltf_maps_its_two_materials_to_two_objects() {
             "{method:?}: {c:?}"
         );
     }
-    let dressed = objects::from_json(&scene(
+    let dressed = objects::from_json(&knight_scene(
         glb,
         r#", "materials": { "Chain": {}, "Leather": { "mesostructure": { "sample": "weave" },
              "material": { "albedo": [0.6, 0.35, 0.2] } } }"#,
@@ -195,13 +198,13 @@ fn a_blender_gltf_maps_its_two_materials_to_two_objects() {
     // measured (the chain alone on this torus: 23.6 dB at 128²).
     let c = compare(&truth, &gdm).unwrap();
     assert!(c.psnr_db >= 18.0 && c.mask_disagreement <= 0.05, "{c:?}");
-    let chain_only = objects::from_json(&scene(
+    let chain_only = objects::from_json(&knight_scene(
         glb,
         r#", "materials": { "Chain": {}, "Leather": null }"#,
     ))
     .unwrap();
     assert_eq!(chain_only.len(), 1);
-    let e = objects::from_json(&scene(glb, r#", "materials": { "Mail": {} }"#))
+    let e = objects::from_json(&knight_scene(glb, r#", "materials": { "Mail": {} }"#))
         .map(|objects| LoadedScene::load(objects[0].scene.clone(), &data, &Limits::default()).err())
         .unwrap()
         .unwrap()

@@ -6,7 +6,8 @@
 //! mesostructure. That the shadow between objects is drawn is checked on its own too: the
 //! ground under the roof is darker than the ground's own preview.
 
-use crate::objects::{VIEW, plane_dir};
+use crate::objects::{VIEW, knight_scene, plane_dir};
+use crate::preview::gpu_or_skip;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_bake::package::{AnyPackage, Package};
 use mesobake_core::limits::Limits;
@@ -18,18 +19,6 @@ use mesobake_scene::package::{ScenePackageParams, gdm_scene_package};
 use mesobake_scene::preview::objects_preview;
 use mesobake_scene::render::{RenderMethod, render_objects};
 use std::path::Path;
-
-/// Whether GPU tests run here (as `preview.rs` decides).
-fn gpu_or_skip() -> bool {
-    match Gpu::open(None) {
-        Ok(_) => true,
-        Err(e) if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
-            eprintln!("SKIPPED: no GPU adapter ({e}) and MESOBAKE_SKIP_GPU_TESTS=1");
-            false
-        }
-        Err(e) => panic!("{e} (set MESOBAKE_SKIP_GPU_TESTS=1 to skip the GPU tests)"),
-    }
-}
 
 /// The objects loaded from `dir`, with a package of `codec` each.
 fn loaded(
@@ -142,17 +131,11 @@ fn the_preview_of_the_blender_knights_two_materials_matches_the_composed_cpu_ren
         return;
     }
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/blender");
-    let knight = objects::from_json(&format!(
-        r#"{{ "camera": {{ "eye": [0.3, 3.2, 2.4], "target": [0.25, 0.5, 0], "fov_y_degrees": 45, "width": 96, "height": 96 }},
-  "lights": [ {{ "point": {{ "position": [2, 4, 3], "intensity": [40, 40, 40] }} }},
-              {{ "ambient": {{ "radiance": [0.05, 0.05, 0.05] }} }} ],
-  "effects": ["shadows"], "resolution": [32, 32, 16],
-  "shell": {{ "thickness": 0.06, "tiles_per_uv": [8, 4] }},
-  "mesostructure": {{ "sample": "chain" }},
-  "objects": [ {{ "base_mesh": {{ "gltf": {:?} }},
-     "materials": {{ "Chain": {{}}, "Leather": {{ "mesostructure": {{ "sample": "weave" }},
-                     "material": {{ "albedo": [0.6, 0.35, 0.2] }} }} }} }} ] }}"#,
-        data.join("knight.glb")
+    let glb = data.join("knight.glb");
+    let knight = objects::from_json(&knight_scene(
+        glb.to_str().unwrap(),
+        r#", "materials": { "Chain": {}, "Leather": { "mesostructure": { "sample": "weave" },
+             "material": { "albedo": [0.6, 0.35, 0.2] } } }"#,
     ))
     .unwrap();
     assert_eq!(knight.len(), 2);

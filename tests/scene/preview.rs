@@ -20,7 +20,7 @@ use std::path::Path;
 
 /// Whether GPU tests run here; panics with the reason when no adapter exists and skipping
 /// was not asked for.
-fn gpu_or_skip() -> bool {
+pub fn gpu_or_skip() -> bool {
     match Gpu::open(None) {
         Ok(_) => true,
         Err(e) if std::env::var("MESOBAKE_SKIP_GPU_TESTS").as_deref() == Ok("1") => {
