@@ -61,7 +61,7 @@ impl Default for PreviewGpu {
 /// frames, within a tile of the CPU twin's.
 fn render_png(
     gpu: &PreviewGpu,
-    scenes: &[Scene],
+    scenes: Vec<Scene>,
     packages: Vec<Vec<u8>>,
     state: &AppState,
     cancel: &AtomicBool,
@@ -71,8 +71,7 @@ fn render_png(
         .map(|p| AnyPackage::parse_within(p, &state.limits))
         .collect::<Result<Vec<_>>>()?;
     let mut loaded = Vec::with_capacity(scenes.len());
-    for scene in scenes {
-        let mut scene = scene.clone();
+    for mut scene in scenes {
         resolve_assets(&mut scene, &state.blobs)?;
         loaded.push(LoadedScene::load(scene, Path::new("/"), &state.limits)?);
     }
@@ -134,7 +133,7 @@ async fn render_on_gpu(
     let st = state.clone();
     let render = tokio::task::spawn_blocking(move || {
         let _permit = permit;
-        render_png(&st.gpu, &scenes, packages, &st, &cancel)
+        render_png(&st.gpu, scenes, packages, &st, &cancel)
             .map_err(|e| ApiError::scrubbed(e, &st.blobs))
     });
     match tokio::time::timeout(millis(config.preview_timeout_ms), render).await {
