@@ -7,7 +7,8 @@
 // or `gi_off.wgsl`), one objects file (`objects_on.wgsl`, with `shell_trace.wgsl`, or
 // `objects_off.wgsl`: `blocked_elsewhere`) and by the constants REFINEMENTS, CHORDS and
 // JACOBIAN_FRAME, chosen from the package and the scene's effects and quality
-// (`crates/mesobake-gpu/src/variant.rs`); `common.wgsl` precedes it. Two passes:
+// (`crates/mesobake-gpu/src/variant.rs`); `common.wgsl` precedes it, `hit_targets.wgsl`
+// follows. Two passes:
 // `vs_main`/`fs_main` find each pixel's nearest hit (steps 2–5) and write it to the hit
 // targets, `vs_fullscreen`/`fs_shade` shade it once (step 6); with several objects each
 // object's module draws both into the same targets (its hits and the pixels it won).
@@ -43,14 +44,6 @@ struct Prism {
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> lights: array<Light>;
 @group(0) @binding(2) var<storage, read> prisms: array<Prism>;
-// Per pixel, the depth of the nearest hit any fragment has found so far this frame, stored
-// as the complement of its f32 bits (depths are ≥ 0, so their bits order like them; the
-// buffer is cleared to 0 each frame, "no hit yet"). A fragment whose face lies behind it
-// cannot win the depth test and stops before its march, and one whose hit lies behind it
-// before writing it: the depth test done early by hand, whatever order fragments run in (a
-// stale value only culls less). The prisms are drawn nearest first, so most hidden
-// fragments find a nearer hit already stored.
-@group(0) @binding(5) var<storage, read_write> nearest_hit: array<atomic<u32>>;
 
 // xyz: unnormalized outward normal (−∇ solid fraction) per voxel centre.
 @group(2) @binding(0) var normals: texture_3d<f32>;
@@ -452,9 +445,8 @@ fn shade_hit(pi: u32, hit: FragmentHit, dir: vec3<f32>, blocked: u32) -> vec3<f3
 // The hit pass: steps 2–5 per fragment; the nearest hit's data to the targets.
 @fragment
 fn fs_main(in: VertexOut) -> HitOut {
-    let pixel = u32(in.clip.y) * view.width + u32(in.clip.x);
-    let stored = atomicLoad(&nearest_hit[pixel]);
-    if stored != 0u && in.clip.z >= bitcast<f32>(~stored) {
+    let pixel = pixel_index(vec2<i32>(in.clip.xy));
+    if behind_nearest_hit(pixel, in.clip.z) {
         discard;
     }
     let dir = normalize(in.world - view.eye.xyz);
@@ -462,10 +454,8 @@ fn fs_main(in: VertexOut) -> HitOut {
     if !hit.hit {
         discard;
     }
-    let clip = view.view_proj * vec4<f32>(hit.point, 1.0);
-    let depth = clip.z / clip.w;
-    let mine = ~bitcast<u32>(max(depth, 0.0));
-    if atomicMax(&nearest_hit[pixel], mine) > mine {
+    let depth = hit_depth(hit.point);
+    if !claim_pixel(pixel, depth) {
         discard; // a nearer hit is stored already
     }
     var out: HitOut;
@@ -476,17 +466,6 @@ fn fs_main(in: VertexOut) -> HitOut {
     return out;
 }
 
-// The hit pass's targets, read by the shading pass.
-@group(0) @binding(6) var hit_points: texture_2d<f32>;
-@group(0) @binding(7) var hit_textures: texture_2d<f32>;
-@group(0) @binding(8) var hit_views: texture_2d<f32>;
-
-// The shading pass: one triangle over the whole image.
-@vertex
-fn vs_fullscreen(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let corner = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(corner * 2.0 - 1.0, 0.0, 1.0);
-}
 
 // Step 6 once per pixel whose hit is this object's, on the hit the hit pass kept (shading in
 // the hit pass ran on the few winning fragments of each small face's blocks: llvmpipe shades
@@ -517,4 +496,14 @@ fn own_hit(pixel: vec2<i32>) -> PixelHit {
     }
     let point = textureLoad(hit_points, pixel, 0);
     return PixelHit(FragmentHit(true, point.xyz, texture.xyz, chord.xyz), bitcast<u32>(point.w));
+}
+
+// The shadow-ray start of the pixel's hit (w = 1) if it is this object's (the start
+// `shade_hit` computes), else w = 0.
+fn own_start(pixel: vec2<i32>) -> vec4<f32> {
+    let own = own_hit(pixel);
+    if !own.hit.hit {
+        return vec4<f32>(0.0);
+    }
+    return vec4<f32>(shadow_start(own.prism, own.hit).point, 1.0);
 }

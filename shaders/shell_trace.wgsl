@@ -61,3 +61,9 @@ fn shell_hit_within(o: vec3<f32>, dir: vec3<f32>, distance: f32) -> bool {
     }
     return false;
 }
+
+// `ObjectRenderer::occludes` of a GDM object (`objects_on.wgsl`): whether its shell's first
+// hit along the shadow ray lies before the light.
+fn occludes(o: vec3<f32>, dir: vec3<f32>, distance: f32) -> bool {
+    return shell_hit_within(o, dir, distance);
+}

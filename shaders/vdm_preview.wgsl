@@ -4,7 +4,9 @@
 // silhouette discards its fragment, so the depth test keeps the nearest fragment that is
 // not one. The VDM's factors and the height field come as storage buffers, filtered here
 // exactly as `VdmQuery::sample` and `HeightField::sample` filter them. Preceded by
-// `common.wgsl`.
+// `common.wgsl`; an object among several adds `hit_targets.wgsl`, `vdm_objects.wgsl` and an
+// objects file (`objects_on.wgsl` or `objects_off.wgsl`), which draw its hits into targets
+// shared with the other objects and shade them in a pass of their own.
 
 const HALF_PI: f32 = 1.5707963267948966;
 
@@ -57,15 +59,17 @@ struct Vdm {
 @group(0) @binding(3) var<uniform> vdm: Vdm;
 // W, rows (b·H + j)·W + i, `rank` values each.
 @group(0) @binding(4) var<storage, read> weights: array<f32>;
+// (Bindings 5–10 are what objects share: `hit_targets.wgsl`, `objects_on.wgsl`.)
 // E, rows k·Nθ + a, `rank` values each.
-@group(0) @binding(5) var<storage, read> eigen: array<f32>;
+@group(0) @binding(11) var<storage, read> eigen: array<f32>;
 // E_MVM, rows k, `mvm_rank` values each.
-@group(0) @binding(6) var<storage, read> mvm: array<f32>;
+@group(0) @binding(12) var<storage, read> mvm: array<f32>;
 // h(i, j), x fastest.
-@group(0) @binding(7) var<storage, read> heights: array<f32>;
-// A BVH over the top faces' boxes for step 7 (one empty node without shell shadows).
-@group(0) @binding(8) var<storage, read> bvh_nodes: array<BvhNode>;
-@group(0) @binding(9) var<storage, read> bvh_faces: array<u32>;
+@group(0) @binding(13) var<storage, read> heights: array<f32>;
+// A BVH over the top faces' boxes for step 7 and for other objects' shadow rays (one empty
+// node where neither is called for).
+@group(0) @binding(14) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(15) var<storage, read> bvh_faces: array<u32>;
 
 // ---- Filtering ------------------------------------------------------------------------
 
@@ -162,14 +166,20 @@ fn along(c: Curvature, d: vec3<f32>) -> f32 {
     return 0.0;
 }
 
-// The curvature along d (or, per corner, towards the eye) interpolated over face fi.
-fn corner_curvature(fi: u32, bary: vec3<f32>, d: vec3<f32>, per_corner: bool) -> f32 {
+// The curvature along d interpolated over face fi.
+fn corner_curvature(fi: u32, bary: vec3<f32>, d: vec3<f32>) -> f32 {
     var c = 0.0;
     for (var i = 0u; i < 3u; i++) {
-        var towards = d;
-        if per_corner {
-            towards = view.eye.xyz - faces[fi].corners[i].xyz;
-        }
+        c += bary[i] * along(faces[fi].curvature[i], d);
+    }
+    return c;
+}
+
+// The curvature towards `eye` (per corner) interpolated over face fi.
+fn curvature_towards(fi: u32, bary: vec3<f32>, eye: vec3<f32>) -> f32 {
+    var c = 0.0;
+    for (var i = 0u; i < 3u; i++) {
+        let towards = eye - faces[fi].corners[i].xyz;
         c += bary[i] * along(faces[fi].curvature[i], towards);
     }
     return c;
@@ -418,7 +428,7 @@ fn lit(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, l: vec3<f32>) -> 
     if light.inward <= 0.0 {
         return false;
     }
-    let c = corner_curvature(fi, bary, l, false) * light.tile_length;
+    let c = corner_curvature(fi, bary, l) * light.tile_length;
     let sigma = exit_arc(depth, light.theta, c);
     if sigma < 0.0 {
         return false;
@@ -432,13 +442,13 @@ fn lit(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, l: vec3<f32>) -> 
     return d.d >= sigma / max(sin(theta), 1e-9) - vdm.shadow_tolerance;
 }
 
-// Step 7 (`VdmRenderer::blocked_elsewhere`): whether the straight ray from o along the
+// Step 7 (`VdmRenderer::blocked_elsewhere`, named apart from the objects' `blocked_elsewhere`): whether the straight ray from o along the
 // light's direction l enters the top surface before `distance` at a fragment that is not a
 // silhouette. The traversal is written out as in `shadows_shell.wgsl`: a shared
 // `next_leaf` function spent more of llvmpipe's per-invocation loop budget (CPU against
 // WGSL, GDM shell shadows: torus-bumps paper-svd high 31.5 dB, under the 33 dB its test
 // allows, and four more preset rows under 35 dB).
-fn blocked_elsewhere(o: vec3<f32>, l: vec3<f32>, distance: f32) -> bool {
+fn blocked_by_shell(o: vec3<f32>, l: vec3<f32>, distance: f32) -> bool {
     let inv = safe_inverse(l);
     let count = arrayLength(&bvh_nodes);
     var i = 0u;
@@ -463,9 +473,7 @@ fn blocked_elsewhere(o: vec3<f32>, l: vec3<f32>, distance: f32) -> bool {
                 continue;
             }
             let bary = vec3<f32>(1.0 - h.y - h.z, h.y, h.z);
-            let uv = faces[fi].uv;
-            let t = bary.x * uv[0].xy + bary.y * uv[1].xy + bary.z * uv[2].xy;
-            if lookup(fi, t, l, corner_curvature(fi, bary, l, false)).hit {
+            if lookup(fi, texture_at(fi, bary), l, corner_curvature(fi, bary, l)).hit {
                 return true;
             }
         }
@@ -483,8 +491,9 @@ fn relief_normal(t: vec2<f32>) -> vec3<f32> {
     return vec3<f32>(-vdm.depth * gx, -vdm.depth * gy, 1.0);
 }
 
-// Lambert + normalized Blinn–Phong from every light, with the VDM shadow test.
-fn shade(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, p: vec3<f32>, n: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
+// Lambert + normalized Blinn–Phong from every light, with the VDM shadow test; the lights
+// whose bit is set in `blocked` (blocked by other objects) left out.
+fn shade(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, p: vec3<f32>, n: vec3<f32>, to_eye: vec3<f32>, blocked: u32) -> vec3<f32> {
     var out = vec3<f32>(0.0);
     let base = vdm.albedo.rgb;
     // Ambient lights first: llvmpipe ends every loop of an invocation once 65535 iterations
@@ -504,10 +513,11 @@ fn shade(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, p: vec3<f32>, n
             continue;
         }
         let cos_l = dot(n, inc.dir);
-        if cos_l <= 0.0 || !(vdm.shadows == 0u || lit(fi, bary, t_hit, depth, inc.dir)) {
+        let elsewhere = i < 32u && (blocked & (1u << i)) != 0u;
+        if cos_l <= 0.0 || elsewhere || !(vdm.shadows == 0u || lit(fi, bary, t_hit, depth, inc.dir)) {
             continue;
         }
-        if vdm.shadows != 0u && vdm.shell_shadows != 0u && blocked_elsewhere(p, inc.dir, inc.distance) {
+        if vdm.shadows != 0u && vdm.shell_shadows != 0u && blocked_by_shell(p, inc.dir, inc.distance) {
             continue;
         }
         out += direct(n, base, to_eye, inc, cos_l);
@@ -540,21 +550,64 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-@fragment
-fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    let fi = in.face;
-    let bary = in.bary;
+// Where a ray meets the relief (steps 1–5).
+struct VdmHit {
+    hit: bool,
+    t_hit: vec2<f32>,
+    // Below the reference surface, in object units along the VDM's z.
+    depth: f32,
+    point: vec3<f32>,
+    // The view ray's direction.
+    dir: vec3<f32>,
+}
+
+// The texture coordinate at barycentrics `bary` of face fi.
+fn texture_at(fi: u32, bary: vec3<f32>) -> vec2<f32> {
     let uv = faces[fi].uv;
-    let t = bary.x * uv[0].xy + bary.y * uv[1].xy + bary.z * uv[2].xy;
-    let dir = normalize(in.world - view.eye.xyz);
-    let found = lookup(fi, t, dir, corner_curvature(fi, bary, dir, true));
+    return bary.x * uv[0].xy + bary.y * uv[1].xy + bary.z * uv[2].xy;
+}
+
+// Steps 1–5 at a fragment of face fi (its barycentrics and its point on the top surface):
+// where the view ray through it meets the relief.
+fn fragment_hit(fi: u32, bary: vec3<f32>, world: vec3<f32>) -> VdmHit {
+    return relief_hit(fi, bary, world, normalize(world - view.eye.xyz), view.eye.xyz);
+}
+
+// The same along any ray: the one along `dir` that meets face fi at `world`, seen from `eye`
+// (for the surface's curvature towards it).
+fn relief_hit(fi: u32, bary: vec3<f32>, world: vec3<f32>, dir: vec3<f32>, eye: vec3<f32>) -> VdmHit {
+    let t = texture_at(fi, bary);
+    let found = lookup(fi, t, dir, curvature_towards(fi, bary, eye));
     if !found.hit {
-        discard;
+        return VdmHit(false, t, 0.0, world, dir);
     }
     let offset = found.azimuth * found.sigma;
     let t_hit = t + offset;
-    let depth = vdm.depth * (1.0 - height(t_hit));
-    let hit = in.world + apply(faces[fi].from_vdm, vec3<f32>(offset, -depth));
-    let n = normalize_or(apply_transposed(faces[fi].to_vdm, relief_normal(t_hit)), -dir);
-    return vec4<f32>(shade(fi, bary, t_hit, depth, hit, n, -dir), 1.0);
+    let depth = relief_depth(t_hit);
+    let point = world + apply(faces[fi].from_vdm, vec3<f32>(offset, -depth));
+    return VdmHit(true, t_hit, depth, point, dir);
+}
+
+// The relief's depth below the reference surface at T'.
+fn relief_depth(t: vec2<f32>) -> f32 {
+    return vdm.depth * (1.0 - height(t));
+}
+
+// The relief's object-space normal at a hit on face fi (facing the viewer where degenerate).
+fn hit_normal(fi: u32, hit: VdmHit) -> vec3<f32> {
+    return normalize_or(apply_transposed(faces[fi].to_vdm, relief_normal(hit.t_hit)), -hit.dir);
+}
+
+// Step 6 at a hit on face fi, the lights of `blocked`'s bits left out.
+fn shade_hit(fi: u32, bary: vec3<f32>, hit: VdmHit, blocked: u32) -> vec3<f32> {
+    return shade(fi, bary, hit.t_hit, hit.depth, hit.point, hit_normal(fi, hit), -hit.dir, blocked);
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    let hit = fragment_hit(in.face, in.bary, in.world);
+    if !hit.hit {
+        discard;
+    }
+    return vec4<f32>(shade_hit(in.face, in.bary, hit, 0u), 1.0);
 }

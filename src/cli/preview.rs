@@ -9,8 +9,9 @@ use mesobake_core::quality::Quality;
 use mesobake_core::samples_per_pixel::SamplesPerPixel;
 use mesobake_scene::LoadedScene;
 use mesobake_scene::objects::{self, SceneObject};
-use mesobake_scene::package::{check_any_package_input, gdm_scene_package, scene_package};
-use mesobake_scene::preview::{PreviewDevice, PreviewFallback};
+use mesobake_scene::package::{check_any_package_input, scene_package};
+use mesobake_scene::preview::{PreviewDevice, PreviewFallback, objects_technique};
+use mesobake_scene::render::check_composable;
 use mesobake_scene::technique::Technique;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -204,8 +205,8 @@ struct Several {
     json: bool,
 }
 
-/// Previews a scene of several objects: a GDM package baked for each object (as `bake --scene`
-/// bakes it), all drawn together by the real-time pipeline.
+/// Previews a scene of several objects: a package baked for each object (as `bake --scene`
+/// bakes it: GDM or VDM), all drawn together by the real-time pipeline.
 fn preview_several(
     path: &Path,
     objects: Vec<SceneObject>,
@@ -223,15 +224,8 @@ fn preview_several(
             scene.camera.set_samples_per_pixel(spp)?;
         }
         let object = LoadedScene::load(scene, dir, limits)
+            .and_then(|object| check_composable(&object).map(|()| object))
             .map_err(|e| e.context(format!("object {name:?}")))?;
-        let technique = object.technique().technique;
-        if !matches!(technique, Technique::Gdm | Technique::Auto) {
-            return Err(mesobake_core::Error::InvalidParameter(format!(
-                "object {name:?}: its technique is {}; the preview of several objects draws \
-                 GDM objects (`mesobake render` draws VDM objects among the others)",
-                technique.name()
-            )));
-        }
         loaded.push((name, object));
     }
     let load_s = start.elapsed().as_secs_f64();
@@ -240,8 +234,7 @@ fn preview_several(
     let mut packages = Vec::with_capacity(loaded.len());
     for (_, o) in &loaded {
         let params = options.codec.scene_params();
-        let package = gdm_scene_package(o, dir, params, limits, &progress)?;
-        packages.push(AnyPackage::Gdm(package));
+        packages.push(scene_package(o, dir, params, limits, &progress)?);
     }
     progress.finish();
     let package_s = start.elapsed().as_secs_f64();
@@ -271,7 +264,7 @@ fn preview_several(
             "hit_pixels": image.hits(),
             "samples_per_pixel": loaded[0].scene.camera.samples_per_pixel,
             "seconds": { "load": load_s, "package": package_s },
-            "technique": Technique::Gdm.name(),
+            "technique": objects_technique(&packages),
             "renderer": outcome.renderer,
             "fallback_reason": outcome.fallback_reason,
             "cpu_mean_frame_seconds": outcome.cpu_mean_frame_seconds,

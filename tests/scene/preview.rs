@@ -333,13 +333,13 @@ fn the_pipeline_runs_the_variant_the_scene_calls_for() {
         };
         let gpu = Gpu::open(None).unwrap();
         let preview = gdm_pipeline(&gpu, &loaded, &p, true).unwrap();
-        assert_eq!(preview.variant().shadows.is_some(), shadows);
-        let source = preview.variant().source();
+        let variant = preview.variant().expect("a GDM object's variant");
+        assert_eq!(variant.shadows.is_some(), shadows);
         assert_eq!(
-            source.contains("fn shadow_query"),
+            variant.source().contains("fn shadow_query"),
             shadows,
             "{}",
-            preview.variant().name()
+            variant.name()
         );
         assert!(preview.render().unwrap().hits() > 0);
     }

@@ -440,12 +440,28 @@ fn a_closed_height_field_scene_bakes_and_renders_by_vdm_and_an_open_one_by_gdm()
 
 #[test]
 fn the_vdm_shader_passes_nagas_validation() {
-    // Without an adapter too: the WGSL the pipeline compiles is valid.
+    // Without an adapter too: the WGSL the pipeline compiles is valid, and so is a VDM
+    // object's among several, whose occlusion pass exists only with occluders.
     let source = mesobake_gpu::vdm_pipeline::source();
     assert_eq!(
         crate::common::naga_entry_points(&source),
         ["vs_main", "fs_main"]
     );
+    let passes = [
+        "vs_main",
+        "vs_fullscreen",
+        "fs_fragment",
+        "fs_merge",
+        "fs_shade",
+    ];
+    for (occluders, occlusion) in [(false, &[][..]), (true, &["fs_start", "fs_occlude"][..])] {
+        let source = mesobake_gpu::vdm_objects::objects_source(occluders);
+        let mut entries = crate::common::naga_entry_points(&source);
+        entries.sort();
+        let mut expected: Vec<&str> = passes.iter().chain(occlusion).copied().collect();
+        expected.sort();
+        assert_eq!(entries, expected, "occluders: {occluders}");
+    }
 }
 
 #[test]

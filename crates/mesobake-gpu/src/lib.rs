@@ -7,11 +7,12 @@
 //! - [`gpu`]: adapter choice and device;
 //! - [`variant`]: the shader variants, chosen from the shot's effects and knobs;
 //! - [`resources`]: package, material and shell uploads, with the GPU memory they take;
-//! - [`pipeline`]: the GDM pipeline;
+//! - [`pipeline`]: the GDM pipeline, and the preview of several objects (GDM and VDM);
 //! - [`frames`]: what every pipeline shares: a frame rendered and read back, frames timed;
 //! - [`target`]: the colour and depth target every pipeline draws into, and its read-back;
 //! - [`vdm_pipeline`]: the VDM pipeline (height fields), whose specification is
 //!   [`mesobake_render::vdm_renderer`];
+//! - [`vdm_objects`]: a VDM object among several in the preview's shared targets;
 //! - [`medium_pipeline`]: the translucent-media pipeline (semi-transparent 3D textures),
 //!   whose specification is [`mesobake_render::medium_cells`].
 
@@ -22,6 +23,7 @@ pub mod pipeline;
 pub mod resources;
 pub mod target;
 pub mod variant;
+pub mod vdm_objects;
 pub mod vdm_pipeline;
 #[cfg(test)]
 mod wgsl_twin;

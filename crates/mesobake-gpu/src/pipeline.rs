@@ -16,6 +16,7 @@ use super::target::{
     DrawState, HitTargets, Target, pixel_target, pixel_target_bytes, target_pipeline,
 };
 use super::variant::{OCCLUDE_ENTRY, ShaderVariant};
+use super::vdm_objects::{FragmentTargets, VdmObject};
 use bytemuck::{Pod, Zeroable};
 use glam::dcamera::rh;
 use glam::{DMat4, DVec3};
@@ -23,10 +24,13 @@ use mesobake_bake::mesostructure::material::MaterialVolume;
 use mesobake_bake::package::Package;
 use mesobake_bake::package::manifest::GdmCodec;
 use mesobake_bake::surface::shell::Shell;
+use mesobake_bake::vdm::Relief;
 use mesobake_core::camera::Camera;
+use mesobake_core::effect::Effect;
 use mesobake_core::error::{Error, Result};
 use mesobake_core::light::Light;
 use mesobake_core::quality::ShadowMethod;
+use mesobake_package::vdm::VdmQuery;
 use mesobake_render::gi_shading::GiShading;
 use mesobake_render::prepared_prism::{PreparedPrism, prepare_prisms};
 use mesobake_render::shot::Shot;
@@ -73,6 +77,16 @@ fn light_record(light: &Light) -> LightRecord {
         _pad: [0; 3],
         vector: v(vector),
         colour: v(colour),
+    }
+}
+
+impl ViewUniform {
+    /// The same view for object number `index` of a scene (`View.object`).
+    pub(super) fn of_object(self, index: usize) -> ViewUniform {
+        ViewUniform {
+            object: index as u32,
+            ..self
+        }
     }
 }
 
@@ -248,6 +262,11 @@ pub(super) fn uniform() -> wgpu::BindingType {
     }
 }
 
+/// A 2D `rgba32float` texture read by `textureLoad` (the hit targets).
+pub(super) fn texture_2d() -> wgpu::BindingType {
+    texture(wgpu::TextureViewDimension::D2)
+}
+
 fn texture(dimension: wgpu::TextureViewDimension) -> wgpu::BindingType {
     wgpu::BindingType::Texture {
         sample_type: wgpu::TextureSampleType::Float { filterable: false },
@@ -275,22 +294,43 @@ pub struct PreviewObject<'a> {
     pub shot: &'a Shot,
     /// The object's shell.
     pub shell: &'a Shell,
-    /// Its material (normals and albedo); its grid is the package's.
-    pub material: &'a MaterialVolume,
-    /// Its package, whose GDM the pipeline queries.
-    pub package: &'a Package,
-    /// The environment shading the CPU twin reads from the same package (where the scene
-    /// calls for environment lighting).
-    pub gi: Option<&'a GiShading>,
+    /// What the object's technique draws it from.
+    pub technique: ObjectTechnique<'a>,
 }
 
-/// A scene ready to render with the real-time pipeline: one object, or several drawn into
-/// the same targets (each object's hits compete in one depth-tested hit pass, and with
-/// shadows each object's shell blocks the others' shadow rays: `objects_on.wgsl`).
+/// What an object is drawn from, by its technique.
+pub enum ObjectTechnique<'a> {
+    /// The GDM pipeline (`gdm_preview.wgsl`).
+    Gdm {
+        /// The object's material (normals and albedo); its grid is the package's.
+        material: &'a MaterialVolume,
+        /// Its package, whose GDM the pipeline queries.
+        package: &'a Package,
+        /// The environment shading the CPU twin reads from the same package (where the
+        /// scene calls for environment lighting).
+        gi: Option<&'a GiShading>,
+    },
+    /// The VDM pipeline (`vdm_preview.wgsl`; only among several objects: one VDM object
+    /// alone is [`crate::vdm_pipeline::VdmPreview`]'s).
+    Vdm {
+        /// The object's VDM.
+        query: &'a VdmQuery,
+        /// The relief it was baked from.
+        relief: Relief<'a>,
+    },
+}
+
+/// A scene ready to render with the real-time pipeline: one GDM object, or several objects
+/// (GDM and VDM) drawn into the same targets (each object's hits compete in one
+/// depth-tested hit pass, and with shadows each object blocks the others' shadow rays:
+/// `objects_on.wgsl`).
 pub struct Preview<'g> {
     gpu: &'g Gpu,
     objects: Vec<ObjectPasses>,
     hits: HitTargets,
+    /// Where VDM objects keep their fragments before merging their hits (with any VDM
+    /// object).
+    fragments: Option<FragmentTargets>,
     target: Target,
     /// Per pixel, the nearest hit so far this frame (`nearest_hit` of the shader), cleared
     /// before each frame.
@@ -301,16 +341,42 @@ pub struct Preview<'g> {
 }
 
 /// What the start, occlusion and shading passes of several objects share.
-struct SharedOcclusion {
+pub(super) struct SharedOcclusion {
     /// Per pixel, its hit's shadow-ray start (`hit_starts`).
-    starts: wgpu::TextureView,
+    pub(super) starts: wgpu::TextureView,
     /// Per pixel, the bits of the lights another object blocks (`blocked`), cleared before
     /// each frame.
-    blocked: wgpu::Buffer,
+    pub(super) blocked: wgpu::Buffer,
 }
 
-/// One object's pipelines and the resources its bind groups hold.
-struct ObjectPasses {
+/// The full-screen passes every object runs after the hit pass, in this order.
+#[derive(Clone, Copy)]
+pub(super) enum FullScreenStage {
+    /// With occluders: the shadow-ray starts of the object's pixels (`fs_start`).
+    Start,
+    /// With occluders: the object against the others' shadow rays (`fs_occlude`).
+    Occlude,
+    /// The shading of the object's pixels (`fs_shade`).
+    Shade,
+}
+
+/// One object's passes, by its technique.
+enum ObjectPasses {
+    Gdm(GdmObject),
+    Vdm(VdmObject),
+}
+
+impl ObjectPasses {
+    fn memory(&self) -> GpuMemory {
+        match self {
+            ObjectPasses::Gdm(o) => o.memory,
+            ObjectPasses::Vdm(o) => o.memory,
+        }
+    }
+}
+
+/// One GDM object's pipelines and the resources its bind groups hold.
+struct GdmObject {
     variant: ShaderVariant,
     /// Steps 2–5 per fragment, into the hit targets.
     hit_pipeline: wgpu::RenderPipeline,
@@ -358,9 +424,11 @@ impl<'g> Preview<'g> {
         let object = PreviewObject {
             shot,
             shell,
-            material,
-            package,
-            gi,
+            technique: ObjectTechnique::Gdm {
+                material,
+                package,
+                gi,
+            },
         };
         Preview::of_objects(gpu, &[object], early_depth_test)
     }
@@ -368,7 +436,7 @@ impl<'g> Preview<'g> {
     /// [`Preview::new`] of several objects rendered together (the CPU specification:
     /// `mesobake_render::objects`): the nearest object's hit at each pixel, shaded with the
     /// other objects' shadows where the scene calls for shadows (at most
-    /// [`MAX_OCCLUDED_LIGHTS`] lights then).
+    /// [`MAX_OCCLUDED_LIGHTS`] lights then). A VDM object needs another object beside it.
     pub fn of_objects(
         gpu: &'g Gpu,
         objects: &[PreviewObject],
@@ -384,14 +452,7 @@ impl<'g> Preview<'g> {
                 .device
                 .features()
                 .contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST);
-        let variants: Vec<ShaderVariant> = objects
-            .iter()
-            .map(|o| {
-                let codec = o.package.manifest().codec;
-                ShaderVariant::for_shot(o.shot, codec, objects.len(), early_depth_test)
-            })
-            .collect();
-        let occluded = variants.iter().any(|v| v.occluders);
+        let occluded = objects.len() > 1 && first.shot.wants(Effect::Shadows);
         if occluded && first.shot.lights.len() > MAX_OCCLUDED_LIGHTS {
             return Err(Error::InvalidParameter(format!(
                 "the preview of several objects with shadows takes at most \
@@ -401,19 +462,38 @@ impl<'g> Preview<'g> {
         }
         let mut prisms = Vec::with_capacity(objects.len());
         for o in objects {
-            o.package.check_grid(o.material.dims())?;
-            prisms.push(prepare_prisms(o.shell, o.package.dims()));
+            prisms.push(match &o.technique {
+                ObjectTechnique::Gdm {
+                    material, package, ..
+                } => {
+                    package.check_grid(material.dims())?;
+                    prepare_prisms(o.shell, package.dims())
+                }
+                ObjectTechnique::Vdm { .. } if objects.len() == 1 => {
+                    return Err(Error::InvalidParameter(
+                        "a VDM object alone is the VDM pipeline's (VdmPreview)".into(),
+                    ));
+                }
+                ObjectTechnique::Vdm { .. } => Vec::new(),
+            });
         }
         // One projection for all: their depths are compared in one depth test.
-        let corners: Vec<DVec3> = prisms
+        let corners: Vec<DVec3> = objects
             .iter()
-            .flatten()
-            .flat_map(|p| {
-                p.faces[0]
-                    .triangle
-                    .corners
-                    .into_iter()
-                    .chain(p.faces[1].triangle.corners)
+            .zip(&prisms)
+            .flat_map(|(o, prisms)| -> Box<dyn Iterator<Item = DVec3> + '_> {
+                match o.technique {
+                    ObjectTechnique::Gdm { .. } => Box::new(prisms.iter().flat_map(|p| {
+                        p.faces[0]
+                            .triangle
+                            .corners
+                            .into_iter()
+                            .chain(p.faces[1].triangle.corners)
+                    })),
+                    ObjectTechnique::Vdm { .. } => Box::new(o.shell.prisms.iter().flat_map(|p| {
+                        (0..3).flat_map(|c| [p.bottom[c], p.bottom[c] + p.extrusion[c]])
+                    })),
+                }
             })
             .collect();
         let (width, height) = (first.shot.camera.width, first.shot.camera.height);
@@ -428,12 +508,16 @@ impl<'g> Preview<'g> {
                 mapped_at_creation: false,
             })
         };
-        let (nearest_hit, occlusion) = gpu.checked("allocating the targets", || {
+        let any_vdm = objects
+            .iter()
+            .any(|o| matches!(o.technique, ObjectTechnique::Vdm { .. }));
+        let (nearest_hit, occlusion, fragments) = gpu.checked("allocating the targets", || {
             let occlusion = occluded.then(|| SharedOcclusion {
                 starts: pixel_target(gpu, &target, "shadow-ray starts"),
                 blocked: storage_buffer("blocked lights"),
             });
-            (storage_buffer("nearest hit"), occlusion)
+            let fragments = any_vdm.then(|| FragmentTargets::new(gpu, &target));
+            (storage_buffer("nearest hit"), occlusion, fragments)
         })?;
         let shared = SharedTargets {
             hits: &hits,
@@ -442,26 +526,59 @@ impl<'g> Preview<'g> {
             corners: &corners,
         };
         let mut passes = Vec::with_capacity(objects.len());
-        for (index, ((object, variant), prisms)) in
-            objects.iter().zip(variants).zip(&prisms).enumerate()
-        {
-            passes.push(ObjectPasses::new(
-                gpu, object, variant, index, prisms, &shared,
-            )?);
+        for (index, (object, prisms)) in objects.iter().zip(&prisms).enumerate() {
+            passes.push(match object.technique {
+                ObjectTechnique::Gdm {
+                    material,
+                    package,
+                    gi,
+                } => {
+                    let codec = package.manifest().codec;
+                    let variant = ShaderVariant::for_shot(
+                        object.shot,
+                        codec,
+                        objects.len(),
+                        early_depth_test,
+                    );
+                    let gdm = GdmUpload {
+                        shot: object.shot,
+                        material,
+                        package,
+                        gi,
+                        prisms,
+                    };
+                    ObjectPasses::Gdm(GdmObject::new(gpu, &gdm, variant, index, &shared)?)
+                }
+                ObjectTechnique::Vdm { query, relief } => {
+                    let fragments = fragments.as_ref().expect("allocated with any VDM object");
+                    ObjectPasses::Vdm(VdmObject::new(
+                        gpu,
+                        object.shot,
+                        object.shell,
+                        query,
+                        relief,
+                        index,
+                        &shared,
+                        fragments,
+                    )?)
+                }
+            });
         }
         let mut memory = passes
             .iter()
-            .fold(GpuMemory::default(), |total, o| total + o.memory);
+            .fold(GpuMemory::default(), |total, o| total + o.memory());
         memory.targets += target.bytes()
             + hits.bytes
             + nearest_hit.size()
             + occlusion
                 .as_ref()
-                .map_or(0, |o| pixel_target_bytes(&target) + o.blocked.size());
+                .map_or(0, |o| pixel_target_bytes(&target) + o.blocked.size())
+            + fragments.as_ref().map_or(0, |f| f.bytes);
         Ok(Preview {
             gpu,
             objects: passes,
             hits,
+            fragments,
             target,
             nearest_hit,
             occlusion,
@@ -469,37 +586,48 @@ impl<'g> Preview<'g> {
         })
     }
 
-    /// The shader variant the scene chose (its first object's).
-    pub fn variant(&self) -> ShaderVariant {
-        self.objects[0].variant
+    /// The shader variant of the scene's first GDM object, if it has one.
+    pub fn variant(&self) -> Option<ShaderVariant> {
+        self.objects.iter().find_map(|o| match o {
+            ObjectPasses::Gdm(o) => Some(o.variant),
+            ObjectPasses::Vdm(_) => None,
+        })
     }
 }
 
 /// What an object's passes draw into and read, shared by every object.
-struct SharedTargets<'a> {
-    hits: &'a HitTargets,
-    nearest_hit: &'a wgpu::Buffer,
-    occlusion: Option<&'a SharedOcclusion>,
-    /// Every object's prism corners, which the projection's depth range encloses.
-    corners: &'a [DVec3],
+pub(super) struct SharedTargets<'a> {
+    pub(super) hits: &'a HitTargets,
+    pub(super) nearest_hit: &'a wgpu::Buffer,
+    pub(super) occlusion: Option<&'a SharedOcclusion>,
+    /// Every object's shell corners, which the projection's depth range encloses.
+    pub(super) corners: &'a [DVec3],
 }
 
-impl ObjectPasses {
+/// What a GDM object is drawn from.
+struct GdmUpload<'a> {
+    shot: &'a Shot,
+    material: &'a MaterialVolume,
+    package: &'a Package,
+    gi: Option<&'a GiShading>,
+    prisms: &'a [PreparedPrism],
+}
+
+impl GdmObject {
     /// Uploads object number `index` and builds its pipelines of `variant`.
     fn new(
         gpu: &Gpu,
-        object: &PreviewObject,
+        object: &GdmUpload,
         variant: ShaderVariant,
         index: usize,
-        prisms: &[PreparedPrism],
         shared: &SharedTargets,
-    ) -> Result<ObjectPasses> {
-        let PreviewObject {
+    ) -> Result<GdmObject> {
+        let GdmUpload {
             shot,
             package,
             material,
             gi,
-            ..
+            prisms,
         } = *object;
         let codec = package.manifest().codec;
         let frag = wgpu::ShaderStages::FRAGMENT;
@@ -605,10 +733,7 @@ impl ObjectPasses {
                 ))
             })??;
         let lights = light_records(shot);
-        let view = ViewUniform {
-            object: index as u32,
-            ..view_uniform(shot, shared.corners.iter().copied())
-        };
+        let view = view_uniform(shot, shared.corners.iter().copied()).of_object(index);
         gpu.checked("building the pipeline", || {
             let view = ViewBuffer::new(d, view, &shot.camera);
             let lights = init_buffer(
@@ -671,13 +796,6 @@ impl ObjectPasses {
                 });
                 target_pipeline(d, label, &layout, &module, vertices, state)
             };
-            let full_screen = |fragment, colour_targets| DrawState {
-                entry_points: ["vs_fullscreen", fragment],
-                cull: None,
-                depth_tested: false,
-                blend: None,
-                colour_targets,
-            };
             let hit_pipeline = pipeline(
                 "gdm preview hits",
                 &scene_layout,
@@ -694,7 +812,7 @@ impl ObjectPasses {
                 "gdm preview shading",
                 &shade_layout,
                 &[],
-                full_screen("fs_shade", 1),
+                DrawState::full_screen("fs_shade", 1),
             );
             let occlusion = occlusion
                 .zip(occlude_layout.as_ref())
@@ -706,13 +824,13 @@ impl ObjectPasses {
                             "gdm shadow-ray starts",
                             &shade_layout,
                             &[],
-                            full_screen("fs_start", 1),
+                            DrawState::full_screen("fs_start", 1),
                         ),
                         occlude_pipeline: pipeline(
                             "gdm occlusion",
                             occlude_layout,
                             &[],
-                            full_screen(OCCLUDE_ENTRY, 0),
+                            DrawState::full_screen(OCCLUDE_ENTRY, 0),
                         ),
                         occlude_group: group("scene, hits and starts", occlude_layout, &occlude),
                     }
@@ -726,7 +844,7 @@ impl ObjectPasses {
                 environment: environment.as_ref().map_or(0, |e| e.bytes),
                 targets: 0,
             };
-            ObjectPasses {
+            GdmObject {
                 variant,
                 hit_pipeline,
                 shade_pipeline,
@@ -752,6 +870,28 @@ impl ObjectPasses {
             pass.set_bind_group(3, &environment.bind_group, &[]);
         }
     }
+
+    /// Draws its prisms into a pass of the hit targets.
+    fn draw_hits(&self, pass: &mut wgpu::RenderPass) {
+        pass.set_pipeline(&self.hit_pipeline);
+        self.bind(pass, &self.scene_group);
+        pass.set_vertex_buffer(0, self.shell.vertices.slice(..));
+        pass.draw(0..self.shell.vertex_count, 0..1);
+    }
+
+    /// Draws its full-screen pass of `stage` (nothing for the occlusion stages without
+    /// occluders).
+    fn draw(&self, pass: &mut wgpu::RenderPass, stage: FullScreenStage) {
+        let (pipeline, group) = match (stage, &self.occlusion) {
+            (FullScreenStage::Shade, _) => (&self.shade_pipeline, &self.shade_group),
+            (FullScreenStage::Start, Some(o)) => (&o.start_pipeline, &self.shade_group),
+            (FullScreenStage::Occlude, Some(o)) => (&o.occlude_pipeline, &o.occlude_group),
+            _ => return,
+        };
+        pass.set_pipeline(pipeline);
+        self.bind(pass, group);
+        pass.draw(0..3, 0..1);
+    }
 }
 
 impl RealtimePipeline for Preview<'_> {
@@ -763,57 +903,50 @@ impl RealtimePipeline for Preview<'_> {
         &self.target
     }
 
-    /// The hit pass of every object, then (with several objects and shadows) every object's
-    /// start and occlusion passes, then every object's shading of the pixels it won.
+    /// The hit pass of every object (a VDM object's fragments kept first, then merged), then
+    /// (with several objects and shadows) every object's start and occlusion passes, then
+    /// every object's shading of the pixels it won.
     fn submit_frame(&self, read_back: bool) {
         let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
         encoder.clear_buffer(&self.nearest_hit, 0, None);
+        let views: Vec<_> = self.hits.views.iter().collect();
         {
-            let views: Vec<_> = self.hits.views.iter().collect();
             let mut pass = self.target.pass_into(&mut encoder, "gdm hits", &views);
             for object in &self.objects {
-                pass.set_pipeline(&object.hit_pipeline);
-                object.bind(&mut pass, &object.scene_group);
-                pass.set_vertex_buffer(0, object.shell.vertices.slice(..));
-                pass.draw(0..object.shell.vertex_count, 0..1);
+                if let ObjectPasses::Gdm(o) = object {
+                    o.draw_hits(&mut pass);
+                }
             }
         }
+        for object in &self.objects {
+            if let (ObjectPasses::Vdm(o), Some(fragments)) = (object, &self.fragments) {
+                o.draw_fragments(&mut encoder, fragments);
+                o.draw_merge(&mut self.target.pass_resuming(&mut encoder, "vdm hits", &views));
+            }
+        }
+        let each = |pass: &mut wgpu::RenderPass, stage| {
+            for object in &self.objects {
+                match object {
+                    ObjectPasses::Gdm(o) => o.draw(pass, stage),
+                    ObjectPasses::Vdm(o) => o.draw(pass, stage),
+                }
+            }
+        };
         if let Some(shared) = &self.occlusion {
             encoder.clear_buffer(&shared.blocked, 0, None);
-            let each = |pass: &mut wgpu::RenderPass, occluding: bool| {
-                for object in &self.objects {
-                    if let Some(o) = &object.occlusion {
-                        if occluding {
-                            pass.set_pipeline(&o.occlude_pipeline);
-                            object.bind(pass, &o.occlude_group);
-                        } else {
-                            pass.set_pipeline(&o.start_pipeline);
-                            object.bind(pass, &object.shade_group);
-                        }
-                        pass.draw(0..3, 0..1);
-                    }
-                }
-            };
-            let label = "gdm shadow-ray starts";
-            each(
-                &mut self
-                    .target
-                    .pass_into(&mut encoder, label, &[&shared.starts]),
-                false,
-            );
-            each(
-                &mut self.target.pass_into(&mut encoder, "gdm occlusion", &[]),
-                true,
-            );
+            let label = "shadow-ray starts";
+            let mut pass = self
+                .target
+                .pass_into(&mut encoder, label, &[&shared.starts]);
+            each(&mut pass, FullScreenStage::Start);
+            drop(pass);
+            let mut pass = self.target.pass_into(&mut encoder, "occlusion", &[]);
+            each(&mut pass, FullScreenStage::Occlude);
         }
-        {
-            let mut pass = self.target.pass(&mut encoder, "gdm shading");
-            for object in &self.objects {
-                pass.set_pipeline(&object.shade_pipeline);
-                object.bind(&mut pass, &object.shade_group);
-                pass.draw(0..3, 0..1);
-            }
-        }
+        each(
+            &mut self.target.pass(&mut encoder, "shading"),
+            FullScreenStage::Shade,
+        );
         if read_back {
             self.target.copy_out(&mut encoder);
         }
@@ -823,7 +956,10 @@ impl RealtimePipeline for Preview<'_> {
     /// Moves the next frames' rays to `offset` in each pixel ([`ViewBuffer::set_subpixel`]).
     fn set_subpixel(&self, offset: [f64; 2]) {
         for object in &self.objects {
-            object.view.set_subpixel(self.gpu, offset);
+            match object {
+                ObjectPasses::Gdm(o) => o.view.set_subpixel(self.gpu, offset),
+                ObjectPasses::Vdm(o) => o.set_subpixel(self.gpu, offset),
+            }
         }
     }
 

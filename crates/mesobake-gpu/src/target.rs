@@ -48,6 +48,20 @@ pub struct DrawState {
     pub colour_targets: usize,
 }
 
+impl DrawState {
+    /// One triangle over the whole image (`vs_fullscreen` of `hit_targets.wgsl`) running
+    /// `fragment` into `colour_targets` colours, no depth test.
+    pub fn full_screen(fragment: &'static str, colour_targets: usize) -> DrawState {
+        DrawState {
+            entry_points: ["vs_fullscreen", fragment],
+            cull: None,
+            depth_tested: false,
+            blend: None,
+            colour_targets,
+        }
+    }
+}
+
 /// A triangle-list pipeline that draws into a [`Target`] as `state` says.
 pub fn target_pipeline(
     device: &wgpu::Device,
@@ -184,33 +198,29 @@ impl Target {
         label: &str,
         colours: &[&wgpu::TextureView],
     ) -> wgpu::RenderPass<'e> {
-        let colour_attachments: Vec<_> = colours
-            .iter()
-            .map(|&view| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })
-            })
-            .collect();
-        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some(label),
-            color_attachments: &colour_attachments,
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &self.depth,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            ..Default::default()
-        })
+        render_pass(encoder, label, colours, &self.depth, PassStart::Clear)
+    }
+
+    /// A render pass into `colours` and the target's depth as an earlier pass left them.
+    pub fn pass_resuming<'e>(
+        &self,
+        encoder: &'e mut wgpu::CommandEncoder,
+        label: &str,
+        colours: &[&wgpu::TextureView],
+    ) -> wgpu::RenderPass<'e> {
+        render_pass(encoder, label, colours, &self.depth, PassStart::Resume)
+    }
+
+    /// A depth buffer the size of the target, for passes depth-tested apart from it.
+    pub fn depth_buffer(&self, gpu: &Gpu) -> wgpu::TextureView {
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT;
+        image_texture(&gpu.device, "depth", self.size(), DEPTH_FORMAT, usage)
+            .create_view(&Default::default())
+    }
+
+    /// GPU bytes of one [`Target::depth_buffer`].
+    pub fn depth_bytes(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height) * 4
     }
 
     /// Records the copy of the colour target into the read-back buffer.
@@ -249,6 +259,60 @@ impl Target {
             image
         })
     }
+}
+
+/// How a [`render_pass`] finds its attachments.
+#[derive(Clone, Copy)]
+pub enum PassStart {
+    /// Colours cleared to transparent black, depth to 1.
+    Clear,
+    /// As an earlier pass left them.
+    Resume,
+}
+
+/// A render pass into `colours` (none for a pass that only writes storage) and `depth`,
+/// starting as `start` says; both are stored for later passes.
+pub fn render_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colours: &[&wgpu::TextureView],
+    depth: &wgpu::TextureView,
+    start: PassStart,
+) -> wgpu::RenderPass<'e> {
+    let (colour_load, depth_load) = match start {
+        PassStart::Clear => (
+            wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+            wgpu::LoadOp::Clear(1.0),
+        ),
+        PassStart::Resume => (wgpu::LoadOp::Load, wgpu::LoadOp::Load),
+    };
+    let colour_attachments: Vec<_> = colours
+        .iter()
+        .map(|&view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: colour_load,
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        })
+        .collect();
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &colour_attachments,
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: depth_load,
+                store: wgpu::StoreOp::Store,
+            }),
+            stencil_ops: None,
+        }),
+        ..Default::default()
+    })
 }
 
 /// A 2D texture of one level, `size` pixels.

@@ -12,14 +12,18 @@ use serde::Serialize;
 /// What every real-time pipeline's source starts with (`shaders/common.wgsl`).
 pub const COMMON: &str = include_str!("../../../shaders/common.wgsl");
 const PIPELINE: &str = include_str!("../../../shaders/gdm_preview.wgsl");
+/// What the hit passes of every object share (`shaders/hit_targets.wgsl`).
+pub const HIT_TARGETS: &str = include_str!("../../../shaders/hit_targets.wgsl");
 const QUERY_SVD: &str = include_str!("../../../shaders/query_svd.wgsl");
 const QUERY_OCCUPANCY: &str = include_str!("../../../shaders/query_occupancy.wgsl");
 const SHADOWS_LOCAL: &str = include_str!("../../../shaders/shadows_local.wgsl");
 const SHADOWS_SHELL: &str = include_str!("../../../shaders/shadows_shell.wgsl");
 const SHADOWS_OFF: &str = include_str!("../../../shaders/shadows_off.wgsl");
 const SHELL_TRACE: &str = include_str!("../../../shaders/shell_trace.wgsl");
-const OBJECTS_ON: &str = include_str!("../../../shaders/objects_on.wgsl");
-const OBJECTS_OFF: &str = include_str!("../../../shaders/objects_off.wgsl");
+/// The occlusion between objects (`shaders/objects_on.wgsl`), whatever their technique.
+pub const OBJECTS_ON: &str = include_str!("../../../shaders/objects_on.wgsl");
+/// No occlusion between objects (`shaders/objects_off.wgsl`).
+pub const OBJECTS_OFF: &str = include_str!("../../../shaders/objects_off.wgsl");
 const GI_ON: &str = include_str!("../../../shaders/gi_on.wgsl");
 const GI_OFF: &str = include_str!("../../../shaders/gi_off.wgsl");
 
@@ -179,7 +183,7 @@ impl ShaderVariant {
         };
         format!(
             "// Variant {}.\nconst REFINEMENTS: u32 = {}u;\nconst CHORDS: u32 = {}u;\n\
-             const JACOBIAN_FRAME: bool = {};\n\n{COMMON}\n{pipeline}\n{query}\n{shadows}\n{}",
+             const JACOBIAN_FRAME: bool = {};\n\n{COMMON}\n{pipeline}\n{HIT_TARGETS}\n{query}\n{shadows}\n{}",
             self.name(),
             self.refinements,
             self.chords.max(1),

@@ -24,7 +24,8 @@ use mesobake_package::vdm::VdmQuery;
 use mesobake_render::shot::Shot;
 use mesobake_render::vdm_renderer::{TopFace, prepare_top_faces, shadow_tolerance, top_depth};
 
-const SHADER: &str = include_str!("../../../shaders/vdm_preview.wgsl");
+/// The VDM pipeline's shader (`shaders/vdm_preview.wgsl`), after `COMMON`.
+pub(super) const SHADER: &str = include_str!("../../../shaders/vdm_preview.wgsl");
 
 /// The complete WGSL source of the VDM pipeline.
 pub fn source() -> String {
@@ -76,14 +77,15 @@ struct VdmUniform {
 /// One corner of a top triangle as the vertex stage reads it.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct VdmVertex {
+pub(super) struct VdmVertex {
     position: [f32; 3],
     bary: [f32; 3],
     face: u32,
 }
 
 impl VdmVertex {
-    const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
+    /// The vertex buffer's layout.
+    pub(super) const LAYOUT: wgpu::VertexBufferLayout<'static> = wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<VdmVertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
         attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Uint32],
@@ -116,30 +118,38 @@ fn face_record(f: &TopFace) -> FaceRecord {
     }
 }
 
-/// A height-field scene ready to render with the VDM real-time pipeline.
-pub struct VdmPreview<'g> {
-    gpu: &'g Gpu,
-    pipeline: wgpu::RenderPipeline,
-    group: wgpu::BindGroup,
-    vertices: wgpu::Buffer,
-    vertex_count: u32,
-    view: ViewBuffer,
-    target: Target,
-    memory: GpuMemory,
+/// Whether `shot` calls for step 7, the shadow rays through the shell's other faces.
+pub(super) fn shell_shadows(shot: &Shot) -> bool {
+    shot.wants(Effect::Shadows) && shot.vdm_shadows == ShadowMethod::Shell
 }
 
-impl<'g> VdmPreview<'g> {
-    /// Uploads `shell`'s top surface, `query`'s factors and `relief`'s heights (the relief
-    /// the VDM was baked from) and builds the pipeline that renders `shot`.
-    pub fn new(
-        gpu: &'g Gpu,
+/// The VDM's resources on the GPU, which every VDM pass binds (group 0, bindings 0–4 and
+/// 11–15 of `vdm_preview.wgsl`), and its top triangles' vertices.
+pub(super) struct VdmBuffers {
+    /// The view uniform (binding 0).
+    pub(super) view: ViewBuffer,
+    /// The other bindings' numbers and buffers.
+    storage: Vec<(u32, wgpu::BindingType, wgpu::Buffer)>,
+    /// The top triangles' corners ([`VdmVertex`]).
+    pub(super) vertices: wgpu::Buffer,
+    pub(super) vertex_count: u32,
+    /// The package and geometry they take.
+    pub(super) memory: GpuMemory,
+}
+
+impl VdmBuffers {
+    /// Uploads `faces` (the shell's top surface), `query`'s factors and `relief`'s heights
+    /// (the relief the VDM was baked from), with `view` and `shot`'s lights and knobs; the
+    /// faces' BVH where `traced` (step 7, or other objects' shadow rays).
+    pub(super) fn new(
+        gpu: &Gpu,
         shot: &Shot,
-        shell: &Shell,
+        faces: &[TopFace],
         query: &VdmQuery,
         relief: Relief,
-    ) -> Result<VdmPreview<'g>> {
-        let target = Target::new(gpu, shot.camera.width, shot.camera.height)?;
-        let faces = prepare_top_faces(shell, relief.depth);
+        view: ViewUniform,
+        traced: bool,
+    ) -> Result<VdmBuffers> {
         let records: Vec<FaceRecord> = faces.iter().map(face_record).collect();
         let vertices: Vec<VdmVertex> = faces
             .iter()
@@ -152,16 +162,14 @@ impl<'g> VdmPreview<'g> {
                 })
             })
             .collect();
-        let view: ViewUniform = view_uniform(shot, faces.iter().flat_map(|f| f.triangle.corners));
         let lights: Vec<LightRecord> = light_records(shot);
         let g = query.grid();
         let (w, h) = query.size();
         let (rank, mvm_rank) = query.ranks();
         let albedo = shot.material.albedo.map(|c| c as f32);
-        let shell_shadows = shot.wants(Effect::Shadows) && shot.vdm_shadows == ShadowMethod::Shell;
-        // Step 7's BVH over the top faces' boxes, the boxes the CPU renderer's traversal
-        // tests (one empty node where the scene does not call for it).
-        let face_boxes: Vec<_> = match shell_shadows {
+        // The BVH over the top faces' boxes, the boxes the CPU renderer's traversal tests
+        // (one empty node where nothing traces it).
+        let face_boxes: Vec<_> = match traced {
             true => faces.iter().map(TopFace::bounds).collect(),
             false => Vec::new(),
         };
@@ -181,7 +189,7 @@ impl<'g> VdmPreview<'g> {
             albedo: [albedo[0], albedo[1], albedo[2], 0.0],
             refine_texels: shot.vdm_refine_texels,
             top_depth: top_depth(relief) as f32,
-            shell_shadows: u32::from(shell_shadows),
+            shell_shadows: u32::from(shell_shadows(shot)),
             padding: 0,
         };
         let [weights, eigen, mvm] = query.factors();
@@ -193,79 +201,130 @@ impl<'g> VdmPreview<'g> {
                 + std::mem::size_of_val(vertices.as_slice())) as u64
                 + bvh.bytes,
             environment: 0,
-            targets: target.bytes(),
+            targets: 0,
         };
         let d = &gpu.device;
-        let (pipeline, group, vertex_buffer, view) =
-            gpu.checked("building the VDM pipeline", || {
-                let buffer =
-                    |label: &str, contents: &[u8], usage| init_buffer(d, label, contents, usage);
-                let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
-                let view = ViewBuffer::new(d, view, &shot.camera);
-                let buffers = [
-                    view.buffer.clone(),
+        gpu.checked("uploading the VDM", || {
+            let buffer =
+                |label: &str, contents: &[u8], usage| init_buffer(d, label, contents, usage);
+            let (u, s) = (wgpu::BufferUsages::UNIFORM, wgpu::BufferUsages::STORAGE);
+            let storage = vec![
+                (
+                    1,
+                    storage(),
                     buffer("lights", bytemuck::cast_slice(&lights), s),
+                ),
+                (
+                    2,
+                    storage(),
                     buffer("faces", bytemuck::cast_slice(&records), s),
-                    buffer("vdm", bytemuck::bytes_of(&params), u),
+                ),
+                (3, uniform(), buffer("vdm", bytemuck::bytes_of(&params), u)),
+                (
+                    4,
+                    storage(),
                     buffer("weights", bytemuck::cast_slice(weights), s),
+                ),
+                (
+                    11,
+                    storage(),
                     buffer("eigen", bytemuck::cast_slice(eigen), s),
-                    buffer("mvm", bytemuck::cast_slice(mvm), s),
+                ),
+                (12, storage(), buffer("mvm", bytemuck::cast_slice(mvm), s)),
+                (
+                    13,
+                    storage(),
                     buffer("heights", bytemuck::cast_slice(relief.field.heights()), s),
-                    bvh.nodes.clone(),
-                    bvh.primitives.clone(),
-                ];
-                let frag = wgpu::ShaderStages::FRAGMENT;
-                let kinds = [
-                    (wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
-                    (frag, storage()),
-                    (frag, storage()),
-                    (frag, uniform()),
-                    (frag, storage()),
-                    (frag, storage()),
-                    (frag, storage()),
-                    (frag, storage()),
-                    (frag, storage()),
-                    (frag, storage()),
-                ];
-                let entries: Vec<_> = (kinds.into_iter().zip(&buffers).enumerate())
-                    .map(|(b, ((stages, kind), buffer))| {
-                        (
-                            layout_entry(b as u32, stages, kind),
-                            buffer.as_entire_binding(),
-                        )
-                    })
-                    .collect();
-                let (layout, group) = bind_group(d, "vdm", &entries);
-                let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("vdm preview"),
-                    source: wgpu::ShaderSource::Wgsl(source().into()),
-                });
-                let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("vdm preview"),
-                    bind_group_layouts: &[Some(&layout)],
-                    immediate_size: 0,
-                });
-                let pipeline = triangle_pipeline(
-                    d,
-                    "vdm preview",
-                    &pipeline_layout,
-                    &module,
-                    VdmVertex::LAYOUT,
-                );
-                let vertex_buffer = buffer(
+                ),
+                (14, storage(), bvh.nodes.clone()),
+                (15, storage(), bvh.primitives.clone()),
+            ];
+            VdmBuffers {
+                view: ViewBuffer::new(d, view, &shot.camera),
+                storage,
+                vertices: buffer(
                     "top triangles",
                     bytemuck::cast_slice(&vertices),
                     wgpu::BufferUsages::VERTEX,
-                );
-                (pipeline, group, vertex_buffer, view)
-            })?;
+                ),
+                vertex_count: vertices.len() as u32,
+                memory,
+            }
+        })
+    }
+
+    /// The layout entries of the VDM's bindings with their buffers.
+    pub(super) fn entries(&self) -> Vec<(wgpu::BindGroupLayoutEntry, wgpu::BindingResource<'_>)> {
+        let frag = wgpu::ShaderStages::FRAGMENT;
+        let view = (
+            layout_entry(0, wgpu::ShaderStages::VERTEX_FRAGMENT, uniform()),
+            self.view.buffer.as_entire_binding(),
+        );
+        let rest = self.storage.iter().map(|(binding, kind, buffer)| {
+            (
+                layout_entry(*binding, frag, *kind),
+                buffer.as_entire_binding(),
+            )
+        });
+        std::iter::once(view).chain(rest).collect()
+    }
+}
+
+/// A height-field scene ready to render with the VDM real-time pipeline.
+pub struct VdmPreview<'g> {
+    gpu: &'g Gpu,
+    pipeline: wgpu::RenderPipeline,
+    group: wgpu::BindGroup,
+    buffers: VdmBuffers,
+    target: Target,
+    memory: GpuMemory,
+}
+
+impl<'g> VdmPreview<'g> {
+    /// Uploads `shell`'s top surface, `query`'s factors and `relief`'s heights (the relief
+    /// the VDM was baked from) and builds the pipeline that renders `shot`.
+    pub fn new(
+        gpu: &'g Gpu,
+        shot: &Shot,
+        shell: &Shell,
+        query: &VdmQuery,
+        relief: Relief,
+    ) -> Result<VdmPreview<'g>> {
+        let target = Target::new(gpu, shot.camera.width, shot.camera.height)?;
+        let faces = prepare_top_faces(shell, relief.depth);
+        let view = view_uniform(shot, faces.iter().flat_map(|f| f.triangle.corners));
+        let traced = shell_shadows(shot);
+        let buffers = VdmBuffers::new(gpu, shot, &faces, query, relief, view, traced)?;
+        let memory = GpuMemory {
+            targets: target.bytes(),
+            ..buffers.memory
+        };
+        let d = &gpu.device;
+        let (pipeline, group) = gpu.checked("building the VDM pipeline", || {
+            let (layout, group) = bind_group(d, "vdm", &buffers.entries());
+            let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("vdm preview"),
+                source: wgpu::ShaderSource::Wgsl(source().into()),
+            });
+            let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("vdm preview"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = triangle_pipeline(
+                d,
+                "vdm preview",
+                &pipeline_layout,
+                &module,
+                VdmVertex::LAYOUT,
+            );
+            (pipeline, group)
+        })?;
         Ok(VdmPreview {
             gpu,
             pipeline,
             group,
-            vertices: vertex_buffer,
-            vertex_count: vertices.len() as u32,
-            view,
+            buffers,
             target,
             memory,
         })
@@ -287,8 +346,8 @@ impl RealtimePipeline for VdmPreview<'_> {
             let mut pass = self.target.pass(&mut encoder, "vdm preview");
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.group, &[]);
-            pass.set_vertex_buffer(0, self.vertices.slice(..));
-            pass.draw(0..self.vertex_count, 0..1);
+            pass.set_vertex_buffer(0, self.buffers.vertices.slice(..));
+            pass.draw(0..self.buffers.vertex_count, 0..1);
         }
         if read_back {
             self.target.copy_out(&mut encoder);
@@ -297,7 +356,7 @@ impl RealtimePipeline for VdmPreview<'_> {
     }
 
     fn set_subpixel(&self, offset: [f64; 2]) {
-        self.view.set_subpixel(self.gpu, offset);
+        self.buffers.view.set_subpixel(self.gpu, offset);
     }
 
     /// GPU memory per kind of resource: the package (factors and heights), the geometry

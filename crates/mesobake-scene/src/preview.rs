@@ -2,8 +2,9 @@
 //! renders a scene with its package ([`crate::package`]) on the GPU and optionally
 //! times frames; where no adapter exists, by its CPU twin if asked to ([`PreviewDevice`]).
 //! The package's kind picks the pipeline: the GDM's, the VDM's or the translucent media's; a
-//! scene of several objects is drawn by the GDM pipeline from a GDM package per object
-//! ([`objects_preview`]), its CPU twin the composed GDM renderers.
+//! scene of several objects is drawn from a GDM or VDM package per object, each by its
+//! technique's passes into shared targets ([`objects_preview`]), its CPU twin the objects'
+//! real-time renderers composed.
 
 use crate::LoadedScene;
 use crate::gi;
@@ -21,7 +22,7 @@ use mesobake_core::observer::{BakeObserver, CancellationOf};
 use mesobake_gpu::frames::RealtimePipeline;
 use mesobake_gpu::gpu::{ADAPTER_ENV, AdapterDescription, Gpu};
 use mesobake_gpu::medium_pipeline::MediumPreview;
-use mesobake_gpu::pipeline::{Preview, PreviewObject};
+use mesobake_gpu::pipeline::{ObjectTechnique, Preview, PreviewObject};
 use mesobake_gpu::resources::GpuMemory;
 use mesobake_gpu::variant::ShaderVariant;
 use mesobake_gpu::vdm_pipeline::VdmPreview;
@@ -113,9 +114,9 @@ impl PreviewDevice {
         )
     }
 
-    /// Renders several objects together, each from its GDM package ([`objects_preview`]), or
-    /// where no adapter exists by the CPU twin ([`render_objects`] with the GDM renderer); with
-    /// `frames` > 0, also times that many frames.
+    /// Renders several objects together, each from its GDM or VDM package
+    /// ([`objects_preview`]), or where no adapter exists by the CPU twin ([`render_objects`]
+    /// with each package's renderer); with `frames` > 0, also times that many frames.
     pub fn render_objects(
         &self,
         objects: &[LoadedScene],
@@ -123,11 +124,10 @@ impl PreviewDevice {
         frames: u32,
         observer: &dyn BakeObserver,
     ) -> Result<(Image, PreviewOutcome)> {
-        let gdm = gdm_packages(objects, packages)?;
-        let methods = vec![RenderMethod::Gdm; objects.len()];
+        let methods = object_methods(objects, packages)?;
         let given: Vec<Option<&AnyPackage>> = packages.iter().map(Some).collect();
         self.run(
-            |gpu| objects_preview(gpu, objects, &gdm, frames, observer),
+            |gpu| objects_preview(gpu, objects, packages, frames, observer),
             || {
                 // Every object has its package: nothing is baked, so no limit applies.
                 let cancel = CancellationOf(observer);
@@ -326,7 +326,7 @@ pub fn gdm_preview(
 ) -> Result<(Image, PreviewReport)> {
     let start = Instant::now();
     let preview = gdm_pipeline(gpu, loaded, package, true)?;
-    let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
+    let setup = (preview.variant(), start.elapsed().as_secs_f64());
     measure(
         gpu,
         &loaded.scene.camera,
@@ -338,12 +338,9 @@ pub fn gdm_preview(
     )
 }
 
-/// The GDM packages of `objects` (one each, in order), or the error naming the first object
-/// the preview of several objects cannot draw.
-fn gdm_packages<'p>(
-    objects: &[LoadedScene],
-    packages: &'p [AnyPackage],
-) -> Result<Vec<&'p Package>> {
+/// The real-time method of each object's package (one each, in order: GDM or VDM), or the
+/// error naming the first object the preview of several objects cannot draw.
+fn object_methods(objects: &[LoadedScene], packages: &[AnyPackage]) -> Result<Vec<RenderMethod>> {
     if objects.len() != packages.len() {
         return Err(Error::InvalidParameter(format!(
             "{} objects but {} packages: a preview of several objects takes one package per object",
@@ -351,55 +348,93 @@ fn gdm_packages<'p>(
             packages.len()
         )));
     }
-    let mut gdm = Vec::with_capacity(packages.len());
+    let mut methods = Vec::with_capacity(packages.len());
     for (i, (object, package)) in objects.iter().zip(packages).enumerate() {
         check_composable(object)?;
-        match package {
+        methods.push(match package {
             AnyPackage::Gdm(p) => {
                 p.check_grid(object.material.dims())?;
-                gdm.push(p);
+                RenderMethod::Gdm
             }
+            AnyPackage::Vdm(_) => RenderMethod::Vdm,
             other => {
                 return Err(Error::InvalidParameter(format!(
-                    "object {} has a {} package: the preview of several objects draws GDM \
-                     objects (`mesobake render` draws VDM objects among the others)",
+                    "object {} has a {} package: the preview of several objects draws GDM and \
+                     VDM objects",
                     i + 1,
                     Technique::of_package(other).name()
                 )));
             }
-        }
+        });
     }
-    Ok(gdm)
+    Ok(methods)
 }
 
-/// Renders several objects together by the GDM pipeline on `gpu` ([`Preview::of_objects`]),
-/// each from its GDM package; with `frames` > 0, also times that many frames.
+/// Renders several objects together on `gpu` ([`Preview::of_objects`]), each from its GDM
+/// or VDM package (one object alone by its technique's own pipeline, as [`preview`] draws
+/// it); with `frames` > 0, also times that many frames.
 pub fn objects_preview(
     gpu: &Gpu,
     objects: &[LoadedScene],
-    packages: &[&Package],
+    packages: &[AnyPackage],
     frames: u32,
     observer: &dyn BakeObserver,
 ) -> Result<(Image, PreviewReport)> {
+    object_methods(objects, packages)?;
+    if let ([object], [package]) = (objects, packages) {
+        return preview(gpu, object, package, frames, observer);
+    }
     let start = Instant::now();
     let shots: Vec<Shot> = objects.iter().map(|o| o.scene.shot()).collect();
+    // The VDM objects' factors and height fields, which their parts borrow.
+    let mut reliefs = Vec::new();
+    for package in packages {
+        reliefs.push(match package {
+            AnyPackage::Vdm(p) => Some((p.query(), height_field(p)?, p.manifest().relief.depth)),
+            _ => None,
+        });
+    }
     let parts: Vec<PreviewObject> = objects
         .iter()
         .zip(&shots)
-        .zip(packages)
-        .map(|((o, shot), &package)| PreviewObject {
+        .zip(packages.iter().zip(&reliefs))
+        .map(|((o, shot), (package, relief))| PreviewObject {
             shot,
             shell: &o.shell,
-            material: &o.material,
-            package,
-            gi: None,
+            technique: match (package, relief) {
+                (_, Some((query, field, depth))) => ObjectTechnique::Vdm {
+                    query,
+                    relief: Relief {
+                        field,
+                        depth: *depth,
+                    },
+                },
+                (AnyPackage::Gdm(package), None) => ObjectTechnique::Gdm {
+                    material: &o.material,
+                    package,
+                    gi: None,
+                },
+                _ => unreachable!("object_methods admits GDM and VDM packages only"),
+            },
         })
         .collect();
     let preview = Preview::of_objects(gpu, &parts, true)?;
-    let setup = (Some(preview.variant()), start.elapsed().as_secs_f64());
+    let setup = (preview.variant(), start.elapsed().as_secs_f64());
     let camera = &shots[0].camera;
-    let technique = Technique::Gdm.name();
+    let technique = objects_technique(packages);
     measure(gpu, camera, &preview, technique, setup, frames, observer)
+}
+
+/// The technique a preview of several objects reports: theirs where they share one, else
+/// `mixed`.
+pub fn objects_technique(packages: &[AnyPackage]) -> &'static str {
+    let mut names = packages.iter().map(|p| Technique::of_package(p).name());
+    let first = names.next().unwrap_or("gdm");
+    if names.all(|n| n == first) {
+        first
+    } else {
+        "mixed"
+    }
 }
 
 /// [`preview`] by the VDM pipeline.

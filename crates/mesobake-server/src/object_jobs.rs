@@ -133,7 +133,7 @@ pub fn not_previewable(name: &str, technique: &str) -> ApiError {
         StatusCode::UNPROCESSABLE_ENTITY,
         format!(
             "object {name:?}: its technique is {technique}; the preview of several objects \
-             draws GDM objects (`mesobake render` draws VDM objects among the others)"
+             draws GDM and VDM objects"
         ),
     )
 }

@@ -146,7 +146,7 @@ async fn render_on_gpu(
 }
 
 /// Renders a scene with the real-time pipeline from the package baked for it; a scene of
-/// several objects from each object's package, drawn together (GDM objects). While a
+/// several objects from each object's package, drawn together (GDM and VDM objects). While a
 /// package is not baked, answers 409 with the job baking it (submitted if needed) and, for
 /// several objects, every object's job.
 #[utoipa::path(
@@ -184,7 +184,7 @@ pub async fn render(
             ));
         }
         let technique = object.plan.technique.technique;
-        if several && technique != Technique::Gdm {
+        if several && !matches!(technique, Technique::Gdm | Technique::Vdm) {
             return Err(not_previewable(&object.name, technique.name()));
         }
         let job = match state.db.job_for(&object.spec, technique).await? {

@@ -87,7 +87,7 @@ pub fn run(
                 let time = |early_z: bool| -> Result<(bool, f64)> {
                     let preview = gdm_pipeline(&gpu, &loaded, &package, early_z)?;
                     Ok((
-                        preview.variant().early_depth_test,
+                        preview.variant().is_some_and(|v| v.early_depth_test),
                         preview.time_frames(frames, &())?,
                     ))
                 };
