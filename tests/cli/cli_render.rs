@@ -256,8 +256,9 @@ fn openvdb_level_sets_and_fog_volumes_import_and_render() {
 /// A scene of several objects from the command line: the Blender knight's two materials as
 /// two objects, rendered together (truth and gdm, the image's hits those of the objects),
 /// baked as one package per object (each the package of its object alone, byte for byte),
-/// previewed (the WGSL ≥ 35 dB from `render --method gdm`), and refused by name where one
-/// object's package is given.
+/// previewed (the WGSL ≥ 35 dB from `render --method gdm`; with a relief on the leather, a
+/// VDM object beside the GDM chain, ≥ 35 dB from `render`'s composed GDM and VDM), and
+/// refused by name where one object's package is given.
 #[test]
 fn a_scene_of_two_objects_renders_and_bakes_a_package_per_object() {
     let dir = tempfile::tempdir().unwrap();
@@ -402,6 +403,34 @@ fn a_scene_of_two_objects_renders_and_bakes_a_package_per_object() {
     ]);
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert!(json["hit_pixels"].as_u64().unwrap() > 100, "{json}");
+    // A relief on the leather: a VDM package for it beside the chain's GDM, drawn together.
+    scene["objects"][0]["materials"]["Leather"] =
+        serde_json::json!({ "mesostructure": { "relief": "bumps" }, "technique": "vdm" });
+    std::fs::write(path("mixed.json"), scene.to_string()).unwrap();
+    let o = succeeds(&[
+        "preview",
+        "--scene",
+        &path("mixed.json"),
+        "--out",
+        &path("mixed.png"),
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["technique"], "mixed", "{json}");
+    // `render` without a method composes each object's real-time specification: GDM, VDM.
+    succeeds(&[
+        "render",
+        "--scene",
+        &path("mixed.json"),
+        "--out",
+        &path("mixed-cpu.png"),
+    ]);
+    let c = mesobake_render::image::compare(
+        &read("mixed.png").unwrap(),
+        &read("mixed-cpu.png").unwrap(),
+    )
+    .unwrap();
+    assert!(c.psnr_db >= 35.0 && c.mask_disagreement <= 0.005, "{c:?}");
 }
 
 #[test]

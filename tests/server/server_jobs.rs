@@ -497,16 +497,13 @@ async fn a_scene_of_several_objects_bakes_a_job_per_object_and_previews_them_tog
             .len()
     };
     let before = count().await;
-    let relief = scene(
-        id.clone(),
-        json!({ "mesostructure": { "relief": "bumps" }, "technique": "vdm" }),
-    );
-    let r = post("/api/v1/preview", json!({ "scene": relief }))
+    let fur = scene(id.clone(), json!({ "mesostructure": { "medium": "fur" } }));
+    let r = post("/api/v1/preview", json!({ "scene": fur }))
         .await
         .unwrap();
     assert_eq!(r.status(), 422);
     let e = r.json::<Value>().await.unwrap()["error"].to_string();
-    assert!(e.contains("Leather") && e.contains("vdm"), "{e}");
+    assert!(e.contains("Leather") && e.contains("transparency"), "{e}");
     let invalid = scene(
         id.clone(),
         json!({ "mesostructure": { "sample": "weave" }, "shell": { "thickness": -1 } }),
