@@ -449,6 +449,7 @@ fn the_vdm_shader_passes_nagas_validation() {
     );
     let passes = [
         "vs_main",
+        "fs_main",
         "vs_fullscreen",
         "fs_fragment",
         "fs_merge",

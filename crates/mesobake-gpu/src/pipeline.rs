@@ -460,41 +460,24 @@ impl<'g> Preview<'g> {
                 first.shot.lights.len()
             )));
         }
-        let mut prisms = Vec::with_capacity(objects.len());
         for o in objects {
-            prisms.push(match &o.technique {
+            match &o.technique {
                 ObjectTechnique::Gdm {
                     material, package, ..
-                } => {
-                    package.check_grid(material.dims())?;
-                    prepare_prisms(o.shell, package.dims())
-                }
+                } => package.check_grid(material.dims())?,
                 ObjectTechnique::Vdm { .. } if objects.len() == 1 => {
                     return Err(Error::InvalidParameter(
                         "a VDM object alone is the VDM pipeline's (VdmPreview)".into(),
                     ));
                 }
-                ObjectTechnique::Vdm { .. } => Vec::new(),
-            });
+                ObjectTechnique::Vdm { .. } => {}
+            }
         }
         // One projection for all: their depths are compared in one depth test.
         let corners: Vec<DVec3> = objects
             .iter()
-            .zip(&prisms)
-            .flat_map(|(o, prisms)| -> Box<dyn Iterator<Item = DVec3> + '_> {
-                match o.technique {
-                    ObjectTechnique::Gdm { .. } => Box::new(prisms.iter().flat_map(|p| {
-                        p.faces[0]
-                            .triangle
-                            .corners
-                            .into_iter()
-                            .chain(p.faces[1].triangle.corners)
-                    })),
-                    ObjectTechnique::Vdm { .. } => Box::new(o.shell.prisms.iter().flat_map(|p| {
-                        (0..3).flat_map(|c| [p.bottom[c], p.bottom[c] + p.extrusion[c]])
-                    })),
-                }
-            })
+            .flat_map(|o| o.shell.prisms.iter())
+            .flat_map(|p| p.top().into_iter().chain(p.bottom))
             .collect();
         let (width, height) = (first.shot.camera.width, first.shot.camera.height);
         let target = Target::new(gpu, width, height)?;
@@ -526,7 +509,7 @@ impl<'g> Preview<'g> {
             corners: &corners,
         };
         let mut passes = Vec::with_capacity(objects.len());
-        for (index, (object, prisms)) in objects.iter().zip(&prisms).enumerate() {
+        for (index, object) in objects.iter().enumerate() {
             passes.push(match object.technique {
                 ObjectTechnique::Gdm {
                     material,
@@ -545,7 +528,7 @@ impl<'g> Preview<'g> {
                         material,
                         package,
                         gi,
-                        prisms,
+                        prisms: &prepare_prisms(object.shell, package.dims()),
                     };
                     ObjectPasses::Gdm(GdmObject::new(gpu, &gdm, variant, index, &shared)?)
                 }
