@@ -9,6 +9,8 @@
 //! - [`resources`]: package, material and shell uploads, with the GPU memory they take;
 //! - [`pipeline`]: the GDM pipeline, and the preview of several objects (GDM and VDM);
 //! - [`frames`]: what every pipeline shares: a frame rendered and read back, frames timed;
+//!   `view` (the view and light uniforms) and `bindings` (bind group plumbing) what they
+//!   upload alike; `object_passes` what the passes of several objects share;
 //! - [`target`]: the colour and depth target every pipeline draws into, and its read-back;
 //! - [`vdm_pipeline`]: the VDM pipeline (height fields), whose specification is
 //!   [`mesobake_render::vdm_renderer`];
@@ -16,14 +18,17 @@
 //! - [`medium_pipeline`]: the translucent-media pipeline (semi-transparent 3D textures),
 //!   whose specification is [`mesobake_render::medium_cells`].
 
+mod bindings;
 pub mod frames;
 pub mod gpu;
 pub mod medium_pipeline;
+mod object_passes;
 pub mod pipeline;
 pub mod resources;
 pub mod target;
 pub mod variant;
 pub mod vdm_objects;
 pub mod vdm_pipeline;
+mod view;
 #[cfg(test)]
 mod wgsl_twin;

@@ -8,15 +8,15 @@
 //! shadow rays. Its specification is [`mesobake_render::medium_cells`], which it is tested
 //! against.
 
+use super::bindings::{
+    bind_group, init_buffer, layout_entry, storage, storage_read_write, uniform,
+};
 use super::frames::RealtimePipeline;
 use super::gpu::Gpu;
-use super::pipeline::{
-    LightRecord, ViewBuffer, ViewUniform, bind_group, init_buffer, layout_entry, light_records,
-    storage, storage_read_write, uniform, view_uniform,
-};
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{DrawState, Target, read_mapped, target_pipeline};
 use super::variant::COMMON;
+use super::view::{LightRecord, ViewBuffer, ViewUniform, light_records, view_uniform};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 use mesobake_core::camera::Camera;

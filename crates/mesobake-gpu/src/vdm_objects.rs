@@ -7,15 +7,14 @@
 //! pixels it won. Its specification is [`mesobake_render::objects`] composing
 //! [`mesobake_render::vdm_renderer`].
 
+use super::bindings::{bind_group, layout_entry, storage_read_write, texture_2d};
 use super::gpu::Gpu;
-use super::pipeline::{
-    FullScreenStage, SharedTargets, bind_group, layout_entry, storage_read_write, texture_2d,
-    view_uniform,
-};
+use super::object_passes::{FullScreenStage, SharedTargets};
 use super::resources::GpuMemory;
 use super::target::{DrawState, PassStart, Target, pixel_target, render_pass, target_pipeline};
 use super::variant::{COMMON, HIT_TARGETS, OBJECTS_OFF, OBJECTS_ON};
 use super::vdm_pipeline::{SHADER, VdmBuffers, VdmVertex, shell_shadows};
+use super::view::view_uniform;
 use mesobake_bake::surface::shell::Shell;
 use mesobake_bake::vdm::Relief;
 use mesobake_core::error::Result;

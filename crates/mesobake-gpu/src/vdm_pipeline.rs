@@ -3,15 +3,13 @@
 //! that the depth test keeps the nearest fragment that is not one. Its specification is
 //! [`mesobake_render::vdm_renderer`], which it is tested against.
 
+use super::bindings::{bind_group, init_buffer, layout_entry, storage, uniform};
 use super::frames::RealtimePipeline;
 use super::gpu::Gpu;
-use super::pipeline::{
-    LightRecord, ViewBuffer, ViewUniform, bind_group, init_buffer, layout_entry, light_records,
-    storage, uniform, view_uniform,
-};
 use super::resources::{GpuMemory, upload_box_bvh};
 use super::target::{Target, triangle_pipeline};
 use super::variant::COMMON;
+use super::view::{LightRecord, ViewBuffer, ViewUniform, light_records, view_uniform};
 use bytemuck::{Pod, Zeroable};
 use glam::DMat3;
 use mesobake_bake::surface::curvature::VertexCurvature;
