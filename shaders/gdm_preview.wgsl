@@ -233,18 +233,6 @@ struct VertexOut {
     @location(3) @interpolate(flat) face: u32,
 }
 
-// What the hit pass writes per pixel for the shading pass (three rgba32float targets, cleared
-// to zero: texture.w = 0 is "no hit"), under the depth test, so the nearest hit wins.
-struct HitOut {
-    // xyz: the hit's object point; w: its prism's index (the bits of a u32).
-    @location(0) point: vec4<f32>,
-    // xyz: the hit's texture coordinate; w: 1.
-    @location(1) texture: vec4<f32>,
-    // xyz: the texture-space direction of the chord that hit; w: the object's index.
-    @location(2) view: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
-}
-
 @vertex
 fn vs_main(v: VertexIn) -> VertexOut {
     var out: VertexOut;
@@ -465,7 +453,6 @@ fn fs_main(in: VertexOut) -> HitOut {
     out.depth = depth;
     return out;
 }
-
 
 // Step 6 once per pixel whose hit is this object's, on the hit the hit pass kept (shading in
 // the hit pass ran on the few winning fragments of each small face's blocks: llvmpipe shades

@@ -2,22 +2,33 @@
 // several): the per-pixel nearest hit so far and the hit targets, which the shading and
 // occlusion passes read. Each pixel's hit in the targets holds, whatever its object's
 // technique, its object-space point in `hit_points.xyz`, a non-zero `hit_textures.w` and its
-// object's index in `hit_views.w`; the rest is its technique's to say (`HitOut` in
-// `gdm_preview.wgsl`, `fs_merge` in `vdm_objects.wgsl`).
+// object's index in `hit_views.w`; the rest is its technique's to say (`HitOut` below for
+// the GDM, the head of `vdm_objects.wgsl` for the VDM).
 
 // Per pixel, the depth of the nearest hit any fragment has found so far this frame, stored
 // as the complement of its f32 bits (depths are ≥ 0, so their bits order like them; the
 // buffer is cleared to 0 each frame, "no hit yet"). A fragment whose face lies behind it
 // cannot win the depth test and stops before its march, and one whose hit lies behind it
 // before writing it: the depth test done early by hand, whatever order fragments run in (a
-// stale value only culls less). The prisms are drawn nearest first, so most hidden
-// fragments find a nearer hit already stored.
+// stale value only culls less). A GDM object's prisms are drawn nearest first, so most
+// hidden fragments find a nearer hit already stored.
 @group(0) @binding(5) var<storage, read_write> nearest_hit: array<atomic<u32>>;
 
 // The hit pass's targets, read by the shading pass.
 @group(0) @binding(6) var hit_points: texture_2d<f32>;
 @group(0) @binding(7) var hit_textures: texture_2d<f32>;
 @group(0) @binding(8) var hit_views: texture_2d<f32>;
+
+// What the hit pass writes per pixel for the shading pass (the three targets, cleared to zero:
+// texture.w = 0 is "no hit"), under the depth test, so the nearest hit wins. A GDM hit: its
+// object point and its prism's index (the bits of a u32); its texture coordinate and 1; the
+// texture-space direction of the chord that hit and the object's index.
+struct HitOut {
+    @location(0) point: vec4<f32>,
+    @location(1) texture: vec4<f32>,
+    @location(2) view: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+}
 
 fn pixel_index(pixel: vec2<i32>) -> u32 {
     return u32(pixel.y) * view.width + u32(pixel.x);

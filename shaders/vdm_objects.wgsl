@@ -48,17 +48,10 @@ fn from_octahedron(e: vec2<f32>) -> vec3<f32> {
     return normalize(d);
 }
 
-struct MergeOut {
-    @location(0) point: vec4<f32>,
-    @location(1) texture: vec4<f32>,
-    @location(2) view: vec4<f32>,
-    @builtin(frag_depth) depth: f32,
-}
-
 // The hit of each pixel's kept fragment into the shared hit targets, unless another object's
 // hit lies nearer.
 @fragment
-fn fs_merge(@builtin(position) frag: vec4<f32>) -> MergeOut {
+fn fs_merge(@builtin(position) frag: vec4<f32>) -> HitOut {
     let pixel = vec2<i32>(frag.xy);
     let bary = textureLoad(fragment_barys, pixel, 0);
     if bary.w == 0.0 {
@@ -70,7 +63,7 @@ fn fs_merge(@builtin(position) frag: vec4<f32>) -> MergeOut {
     if !hit.hit || !claim_pixel(pixel_index(pixel), depth) {
         discard;
     }
-    var out: MergeOut;
+    var out: HitOut;
     out.point = vec4<f32>(hit.point, kept.w);
     out.texture = vec4<f32>(hit.t_hit, bary.x, 1.0);
     out.view = vec4<f32>(octahedron(hit.dir), bary.y, f32(view.object));

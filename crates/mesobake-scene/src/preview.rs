@@ -394,30 +394,39 @@ pub fn objects_preview(
             _ => None,
         });
     }
-    let parts: Vec<PreviewObject> = objects
+    let mut parts = Vec::with_capacity(objects.len());
+    for ((o, shot), (package, relief)) in objects
         .iter()
         .zip(&shots)
         .zip(packages.iter().zip(&reliefs))
-        .map(|((o, shot), (package, relief))| PreviewObject {
+    {
+        let technique = match (package, relief) {
+            (AnyPackage::Gdm(package), _) => ObjectTechnique::Gdm {
+                material: &o.material,
+                package,
+                gi: None,
+            },
+            (_, Some((query, field, depth))) => ObjectTechnique::Vdm {
+                query,
+                relief: Relief {
+                    field,
+                    depth: *depth,
+                },
+            },
+            // `object_methods` refused it already.
+            (other, None) => {
+                return Err(Error::InvalidParameter(format!(
+                    "the preview of several objects draws no {} package",
+                    Technique::of_package(other).name()
+                )));
+            }
+        };
+        parts.push(PreviewObject {
             shot,
             shell: &o.shell,
-            technique: match (package, relief) {
-                (_, Some((query, field, depth))) => ObjectTechnique::Vdm {
-                    query,
-                    relief: Relief {
-                        field,
-                        depth: *depth,
-                    },
-                },
-                (AnyPackage::Gdm(package), None) => ObjectTechnique::Gdm {
-                    material: &o.material,
-                    package,
-                    gi: None,
-                },
-                _ => unreachable!("object_methods admits GDM and VDM packages only"),
-            },
-        })
-        .collect();
+            technique,
+        });
+    }
     let preview = Preview::of_objects(gpu, &parts, true)?;
     let setup = (preview.variant(), start.elapsed().as_secs_f64());
     let camera = &shots[0].camera;
