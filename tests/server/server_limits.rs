@@ -1,7 +1,7 @@
 //! What a request may cost the server, each bound tested at its edge: scene costs (lights,
 //! image size, path samples, GDM size), JSON and upload bodies (413 before the body is
-//! read), image headers (decompression bombs), concurrent uploads, the queue's length, slow
-//! and idle clients, readiness of a store that refuses writes, HTTP validators and ranges,
+//! read), image headers (decompression bombs), concurrent uploads, the queue's length (a
+//! scene of several objects queued whole or not at all), slow and idle clients, readiness of a store that refuses writes, HTTP validators and ranges,
 //! keys on HEAD and /metrics, and JSON error bodies for every rejection.
 
 use crate::server_harness::{TestServer, database_urls};
@@ -376,6 +376,64 @@ async fn the_queue_has_a_cap_and_resubmissions_pass_it() {
         let (status, _, _) = post_json(&s, "/api/v1/jobs", &first).await;
         assert_eq!(status, 200, "the same job again adds nothing to the queue");
     }
+}
+
+/// A scene of several objects is queued whole or not at all: its objects' new jobs (objects
+/// sharing a mesostructure share one) must all fit under `max_queued_jobs`.
+#[tokio::test]
+async fn a_scene_of_several_objects_is_queued_whole_or_not_at_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = tempfile::tempdir().unwrap();
+    let url = database_urls(dir.path(), "queue_objects").await.remove(0);
+    let s = TestServer::start_with(&url, data.path(), 1 << 20, |c| {
+        c.workers = 0;
+        c.max_queued_jobs = 2;
+    })
+    .await;
+    let object =
+        |sample: &str, name: &str| json!({ "name": name, "mesostructure": { "sample": sample } });
+    let objects = |list: Vec<Value>| {
+        let mut scene = scene();
+        scene
+            .as_object_mut()
+            .unwrap()
+            .insert("objects".into(), json!(list));
+        json!({ "scene": scene })
+    };
+    let count = || async {
+        let jobs: Vec<Value> = reqwest::get(s.url("/api/v1/jobs"))
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap();
+        jobs.len()
+    };
+    let (status, _, _) = post_json(&s, "/api/v1/jobs", &json!({ "scene": scene() })).await;
+    assert_eq!(status, 202);
+    // The chain's job exists; weave and grid would make three: refused, nothing queued.
+    let three = objects(vec![
+        object("chain", "a"),
+        object("weave", "b"),
+        object("grid", "c"),
+    ]);
+    let (status, answer, _) = post_json(&s, "/api/v1/object-jobs", &three).await;
+    assert_eq!(status, 429, "{answer}");
+    let error = answer["error"].as_str().unwrap();
+    assert!(
+        error.contains("needs 2 more") && error.contains("max_queued_jobs"),
+        "{error}"
+    );
+    assert_eq!(count().await, 1);
+    // Two objects of one new mesostructure add one job: it fits.
+    let shared = objects(vec![
+        object("chain", "a"),
+        object("weave", "b"),
+        object("weave", "c"),
+    ]);
+    let (status, answer, _) = post_json(&s, "/api/v1/object-jobs", &shared).await;
+    assert_eq!(status, 202, "{answer}");
+    assert_eq!(count().await, 2);
 }
 
 #[tokio::test]

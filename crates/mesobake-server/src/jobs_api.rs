@@ -94,29 +94,49 @@ pub async fn check_spec(state: &AppState, spec: &JobSpec) -> ApiResult<Plan> {
 /// Submits `spec` (checked) with its `plan` to the queue, refusing with 429 a new job beyond
 /// [`ServerConfig::max_queued_jobs`](super::config::ServerConfig::max_queued_jobs).
 pub async fn enqueue(state: &AppState, spec: &JobSpec, plan: &Plan) -> ApiResult<(JobView, bool)> {
-    let adds_a_job = state
-        .db
-        .job_for(spec, plan.technique.technique)
-        .await?
-        .is_none_or(|j| matches!(j.state.as_str(), "failed" | "cancelled"));
-    if adds_a_job {
-        super::storage_reserve::check(&state.config, 0)?;
-        let active = state.db.active_job_count().await?;
-        if active >= state.config.max_queued_jobs {
-            return Err(ApiError::new(
-                StatusCode::TOO_MANY_REQUESTS,
-                format!(
-                    "{active} jobs are queued or running, the server's limit (max_queued_jobs); \
-                     try again later"
-                ),
-            ));
-        }
+    if adds_a_job(state, spec, plan).await? {
+        check_queue_room(state, 1).await?;
     }
     let (job, queued) = state.db.submit_job(spec, plan).await?;
     if queued {
         tracing::info!("job {} queued", job.id);
     }
     Ok((job, queued))
+}
+
+/// Whether submitting `spec` would add a job: none was submitted, or only one that failed or
+/// was cancelled.
+pub async fn adds_a_job(state: &AppState, spec: &JobSpec, plan: &Plan) -> ApiResult<bool> {
+    Ok(state
+        .db
+        .job_for(spec, plan.technique.technique)
+        .await?
+        .is_none_or(|j| matches!(j.state.as_str(), "failed" | "cancelled")))
+}
+
+/// Refuses (429, or 507 below the storage reserve) `new_jobs` more jobs where the queue
+/// cannot take them all.
+pub async fn check_queue_room(state: &AppState, new_jobs: u64) -> ApiResult<()> {
+    if new_jobs == 0 {
+        return Ok(());
+    }
+    super::storage_reserve::check(&state.config, 0)?;
+    let active = state.db.active_job_count().await?;
+    let limit = state.config.max_queued_jobs;
+    if active + new_jobs > limit {
+        let more = match new_jobs {
+            1 => String::new(),
+            n => format!(" and this needs {n} more"),
+        };
+        return Err(ApiError::new(
+            StatusCode::TOO_MANY_REQUESTS,
+            format!(
+                "{active} jobs are queued or running{more}, the server's limit is {limit} \
+                 (max_queued_jobs); try again later"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Submits a bake. Identical inputs and parameters reuse the existing job and its result.

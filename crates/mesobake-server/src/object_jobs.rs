@@ -7,7 +7,7 @@
 use super::AppState;
 use super::api_error::{ApiError, ApiResult};
 use super::jobs::{JobSpec, JobView};
-use super::jobs_api::{check_spec, enqueue};
+use super::jobs_api::{adds_a_job, check_queue_room, check_spec, enqueue};
 use super::json_body::JsonBody;
 use axum::Json;
 use axum::extract::State;
@@ -51,7 +51,8 @@ pub struct ObjectSpec {
 
 impl SceneSpec {
     /// Every object's job specification, each checked as `POST /api/v1/jobs` checks one (an
-    /// error names the object where there are several).
+    /// error names the object where there are several), with room in the queue for every
+    /// job they add (429 naming the count otherwise): all or none is queued.
     pub async fn objects(&self, state: &AppState) -> ApiResult<Vec<ObjectSpec>> {
         let text = serde_json::to_string(&self.scene).expect("JSON values serialize");
         let objects = objects::from_json(&text)?;
@@ -76,6 +77,14 @@ impl SceneSpec {
                 plan,
             });
         }
+        // Objects may share a mesostructure, and so a job.
+        let mut new_jobs = std::collections::BTreeSet::new();
+        for o in &checked {
+            if adds_a_job(state, &o.spec, &o.plan).await? {
+                new_jobs.insert(o.spec.dedup_key(o.plan.technique.technique));
+            }
+        }
+        check_queue_room(state, new_jobs.len() as u64).await?;
         Ok(checked)
     }
 }
@@ -101,7 +110,7 @@ pub struct ObjectJob {
         (status = 200, description = "Every object's job had been submitted before", body = Vec<ObjectJob>),
         (status = 413, description = "Body over max_json_bytes"),
         (status = 422, description = "Invalid scene (naming the object) or parameters, a cost over the server's limits, or unknown assets"),
-        (status = 429, description = "The queue is full (max_queued_jobs); the objects queued before it stay queued"),
+        (status = 429, description = "The queue has no room for every job the objects add (max_queued_jobs); none is queued"),
         (status = 507, description = "The server's storage is below its reserve (min_free_bytes) or full"),
     )
 )]
