@@ -442,9 +442,9 @@ fn lit(fi: u32, bary: vec3<f32>, t_hit: vec2<f32>, depth: f32, l: vec3<f32>) -> 
     return d.d >= sigma / max(sin(theta), 1e-9) - vdm.shadow_tolerance;
 }
 
-// Step 7 (`VdmRenderer::blocked_elsewhere`, named apart from the objects' `blocked_elsewhere`): whether the straight ray from o along the
-// light's direction l enters the top surface before `distance` at a fragment that is not a
-// silhouette. The traversal is written out as in `shadows_shell.wgsl`: a shared
+// Step 7 (`VdmRenderer::blocked_elsewhere`; named apart from the objects' `blocked_elsewhere`):
+// whether the straight ray from o along the light's direction l enters the top surface before
+// `distance` at a fragment that is not a silhouette. The traversal is written out as in `shadows_shell.wgsl`: a shared
 // `next_leaf` function spent more of llvmpipe's per-invocation loop budget (CPU against
 // WGSL, GDM shell shadows: torus-bumps paper-svd high 31.5 dB, under the 33 dB its test
 // allows, and four more preset rows under 35 dB).
@@ -593,14 +593,11 @@ fn relief_depth(t: vec2<f32>) -> f32 {
     return vdm.depth * (1.0 - height(t));
 }
 
-// The relief's object-space normal at a hit on face fi (facing the viewer where degenerate).
-fn hit_normal(fi: u32, hit: VdmHit) -> vec3<f32> {
-    return normalize_or(apply_transposed(faces[fi].to_vdm, relief_normal(hit.t_hit)), -hit.dir);
-}
-
-// Step 6 at a hit on face fi, the lights of `blocked`'s bits left out.
+// Step 6 at a hit on face fi (the relief's normal; facing the viewer where degenerate), the
+// lights of `blocked`'s bits left out.
 fn shade_hit(fi: u32, bary: vec3<f32>, hit: VdmHit, blocked: u32) -> vec3<f32> {
-    return shade(fi, bary, hit.t_hit, hit.depth, hit.point, hit_normal(fi, hit), -hit.dir, blocked);
+    let n = normalize_or(apply_transposed(faces[fi].to_vdm, relief_normal(hit.t_hit)), -hit.dir);
+    return shade(fi, bary, hit.t_hit, hit.depth, hit.point, n, -hit.dir, blocked);
 }
 
 @fragment
