@@ -89,4 +89,14 @@ impl TestServer {
     pub fn url(&self, path: &str) -> String {
         format!("http://{}{path}", self.addr)
     }
+
+    /// Every job the server lists (`GET /api/v1/jobs`).
+    pub async fn jobs(&self) -> Vec<serde_json::Value> {
+        reqwest::get(self.url("/api/v1/jobs"))
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap()
+    }
 }

@@ -220,13 +220,7 @@ async fn jobs_bake_once_report_progress_and_reuse_results() {
         let mut moved = spec.clone();
         moved["scene"]["camera"]["eye"] = json!([1, 3, 2]);
         assert_eq!(submit(&s, &moved).await.1["id"], json!(id));
-        let jobs: Vec<Value> = reqwest::get(s.url("/api/v1/jobs"))
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        assert_eq!(jobs.len(), 1);
+        assert_eq!(s.jobs().await.len(), 1);
 
         // Bad submissions: 4xx naming the problem, nothing queued.
         let mut wrong_kind = spec.clone();
@@ -487,16 +481,7 @@ async fn a_scene_of_several_objects_bakes_a_job_per_object_and_previews_them_tog
         "{refused}"
     );
     // Refusals name the object and queue nothing.
-    let count = || async {
-        reqwest::get(s.url("/api/v1/jobs"))
-            .await
-            .unwrap()
-            .json::<Vec<Value>>()
-            .await
-            .unwrap()
-            .len()
-    };
-    let before = count().await;
+    let before = s.jobs().await.len();
     let fur = scene(id.clone(), json!({ "mesostructure": { "medium": "fur" } }));
     let r = post("/api/v1/preview", json!({ "scene": fur }))
         .await
@@ -517,7 +502,7 @@ async fn a_scene_of_several_objects_bakes_a_job_per_object_and_previews_them_tog
             "{path}: {e}"
         );
     }
-    assert_eq!(count().await, before);
+    assert_eq!(s.jobs().await.len(), before);
 
     let stop = Arc::new(AtomicBool::new(false));
     spawn_workers(&s.state, 1, &stop);

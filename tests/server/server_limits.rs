@@ -400,15 +400,6 @@ async fn a_scene_of_several_objects_is_queued_whole_or_not_at_all() {
             .insert("objects".into(), json!(list));
         json!({ "scene": scene })
     };
-    let count = || async {
-        let jobs: Vec<Value> = reqwest::get(s.url("/api/v1/jobs"))
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        jobs.len()
-    };
     let (status, _, _) = post_json(&s, "/api/v1/jobs", &json!({ "scene": scene() })).await;
     assert_eq!(status, 202);
     // The chain's job exists; weave and grid would make three: refused, nothing queued.
@@ -424,7 +415,7 @@ async fn a_scene_of_several_objects_is_queued_whole_or_not_at_all() {
         error.contains("needs 2 more") && error.contains("max_queued_jobs"),
         "{error}"
     );
-    assert_eq!(count().await, 1);
+    assert_eq!(s.jobs().await.len(), 1);
     // Two objects of one new mesostructure add one job: it fits.
     let shared = objects(vec![
         object("chain", "a"),
@@ -433,7 +424,7 @@ async fn a_scene_of_several_objects_is_queued_whole_or_not_at_all() {
     ]);
     let (status, answer, _) = post_json(&s, "/api/v1/object-jobs", &shared).await;
     assert_eq!(status, 202, "{answer}");
-    assert_eq!(count().await, 2);
+    assert_eq!(s.jobs().await.len(), 2);
 }
 
 #[tokio::test]
