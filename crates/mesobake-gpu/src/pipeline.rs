@@ -20,7 +20,7 @@ use super::target::{
     DrawState, HitTargets, Target, pixel_target, pixel_target_bytes, target_pipeline,
 };
 use super::variant::{OCCLUDE_ENTRY, ShaderVariant};
-use super::vdm_objects::{FragmentTargets, VdmObject};
+use super::vdm_objects::{FragmentTargets, VdmObject, VdmUpload};
 use super::view::{ViewBuffer, ViewUniform, light_records, view_uniform};
 use glam::DVec3;
 use mesobake_bake::mesostructure::material::MaterialVolume;
@@ -263,16 +263,13 @@ impl<'g> Preview<'g> {
                 }
                 ObjectTechnique::Vdm { query, relief } => {
                     let fragments = fragments.as_ref().expect("allocated with any VDM object");
-                    ObjectPasses::Vdm(VdmObject::new(
-                        gpu,
-                        object.shot,
-                        object.shell,
+                    let vdm = VdmUpload {
+                        shot: object.shot,
+                        shell: object.shell,
                         query,
                         relief,
-                        index,
-                        &shared,
-                        fragments,
-                    )?)
+                    };
+                    ObjectPasses::Vdm(VdmObject::new(gpu, &vdm, index, &shared, fragments)?)
                 }
             });
         }

@@ -69,6 +69,18 @@ fn textures<'a>(
         .collect()
 }
 
+/// What a VDM object is drawn from.
+pub(super) struct VdmUpload<'a> {
+    /// The shot with the object's material.
+    pub(super) shot: &'a Shot,
+    /// The object's shell, whose top surface is drawn.
+    pub(super) shell: &'a Shell,
+    /// Its VDM.
+    pub(super) query: &'a VdmQuery,
+    /// The relief the VDM was baked from.
+    pub(super) relief: Relief<'a>,
+}
+
 /// One VDM object's pipelines and the bind groups they draw with.
 pub(super) struct VdmObject {
     buffers: VdmBuffers,
@@ -85,19 +97,21 @@ pub(super) struct VdmObject {
 }
 
 impl VdmObject {
-    /// Uploads object number `index` (its `shell`'s top surface, `query` and `relief`) and
-    /// builds its pipelines, drawing into `shared` and `fragments`.
-    #[allow(clippy::too_many_arguments)]
+    /// Uploads object number `index` and builds its pipelines, drawing into `shared` and
+    /// `fragments`.
     pub(super) fn new(
         gpu: &Gpu,
-        shot: &Shot,
-        shell: &Shell,
-        query: &VdmQuery,
-        relief: Relief,
+        object: &VdmUpload,
         index: usize,
         shared: &SharedTargets,
         fragments: &FragmentTargets,
     ) -> Result<VdmObject> {
+        let VdmUpload {
+            shot,
+            shell,
+            query,
+            relief,
+        } = *object;
         let faces = prepare_top_faces(shell, relief.depth);
         let view = view_uniform(shot, shared.corners.iter().copied()).of_object(index);
         let occlusion = shared.occlusion;
@@ -125,18 +139,21 @@ impl VdmObject {
                 label: Some("vdm object"),
                 source: wgpu::ShaderSource::Wgsl(objects_source(occlusion.is_some()).into()),
             });
-            let pipeline = |label, entries: &[_], vertices: &[_], state| {
-                let (layout, group) = bind_group(d, label, entries);
+            // A pipeline of `layout`'s bindings.
+            let pipeline = |label, layout: &wgpu::BindGroupLayout, vertices: &[_], state| {
                 let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                     label: Some(label),
-                    bind_group_layouts: &[Some(&layout)],
+                    bind_group_layouts: &[Some(layout)],
                     immediate_size: 0,
                 });
-                let pipeline =
-                    target_pipeline(d, label, &pipeline_layout, &module, vertices, state);
-                (pipeline, group)
+                target_pipeline(d, label, &pipeline_layout, &module, vertices, state)
             };
-            let fragment = pipeline(
+            // A pipeline with its bind group of `entries`.
+            let bound = |label, entries: &[_], vertices: &[_], state| {
+                let (layout, group) = bind_group(d, label, entries);
+                (pipeline(label, &layout, vertices, state), group)
+            };
+            let fragment = bound(
                 "vdm object fragments",
                 &base,
                 &[Some(VdmVertex::LAYOUT)],
@@ -148,7 +165,7 @@ impl VdmObject {
                     colour_targets: 2,
                 },
             );
-            let merge = pipeline(
+            let merge = bound(
                 "vdm object hits",
                 &merge,
                 &[],
@@ -157,16 +174,17 @@ impl VdmObject {
                     ..DrawState::full_screen("fs_merge", shared.hits.views.len())
                 },
             );
+            let (shade_layout, shade_group) = bind_group(d, "vdm object shading", &shade);
             let occlusion = occlusion.map(|o| {
-                let (start, _) = pipeline(
+                let start = pipeline(
                     "vdm shadow-ray starts",
-                    &shade,
+                    &shade_layout,
                     &[],
                     DrawState::full_screen("fs_start", 1),
                 );
                 let mut occlude = shade.clone();
                 occlude.extend(textures(9, &[&o.starts]));
-                let (occlude, group) = pipeline(
+                let (occlude, group) = bound(
                     "vdm occlusion",
                     &occlude,
                     &[],
@@ -174,9 +192,9 @@ impl VdmObject {
                 );
                 (start, occlude, group)
             });
-            let shade = pipeline(
+            let shading = pipeline(
                 "vdm object shading",
-                &shade,
+                &shade_layout,
                 &[],
                 DrawState::full_screen("fs_shade", 1),
             );
@@ -185,7 +203,7 @@ impl VdmObject {
                 buffers,
                 fragment,
                 merge,
-                shade,
+                shade: (shading, shade_group),
                 occlusion,
                 memory,
             }
